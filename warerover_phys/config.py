@@ -1,0 +1,501 @@
+"""Scenario schema: one YAML file describes a whole episode.
+
+The schema is closed (unknown keys are errors) and frozen (nothing mutates a scenario after it
+is built). Units are in the field names: ``_m`` metres, ``_s`` seconds, ``_mps`` m/s,
+``_mps2`` m/s^2, ``_radps`` rad/s, ``_ticks`` planning ticks.
+
+>>> from warerover_phys.config import scenario_from_dict
+>>> sc = scenario_from_dict({"layout": {"grid": ["P..R"]}, "fleet": {"agvs": [{"count": 1}]}})
+>>> sc.scheduler.name, sc.planner.name, sc.executor.name
+('ta', 'astar', 'grid')
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from .errors import ScenarioError
+
+__all__ = [
+    "AgvTypeSpec", "AgvGroupSpec", "FleetSpec", "ShelfBlockSpec", "RectSpec", "InventorySpec",
+    "GeneratorSpec", "LayoutSpec", "OrdersSpec", "SchedulerSpec", "PlannerSpec", "ExecutorSpec",
+    "FaultsSpec", "TasksSpec", "Scenario", "load_scenario", "scenario_from_dict",
+    "apply_overrides", "parse_override",
+]
+
+Cell = tuple[int, int]
+PosInt = Annotated[int, Field(ge=1)]
+NonNegInt = Annotated[int, Field(ge=0)]
+PosFloat = Annotated[float, Field(gt=0)]
+Prob = Annotated[float, Field(ge=0.0, le=1.0)]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+def _named(value: Any) -> Any:
+    """Allow ``scheduler: ta`` as a shorthand for ``scheduler: {name: ta}``."""
+    return {"name": value} if isinstance(value, str) else value
+
+
+# --------------------------------------------------------------------------------- fleet
+
+
+class AgvTypeSpec(_Model):
+    """One kind of AGV. Defaults follow RAWSim-O (0.35 m radius, 1.5 m/s, 1 m/s^2)."""
+
+    footprint: PosInt = 1
+    """Side of the square cell footprint: 1 = 1x1 cells, 2 = 2x2 cells."""
+    body_m: tuple[PosFloat, PosFloat] = (0.7, 0.7)
+    """Body length and width in metres; must fit in the footprint."""
+    mass_kg: PosFloat = 100.0
+    max_speed_mps: PosFloat = 1.5
+    max_accel_mps2: PosFloat = 1.0
+    max_turn_rate_radps: PosFloat = 2.5
+    cargo_class: PosInt | None = None
+    """Largest container / shelf size class the AGV may carry (default: its footprint)."""
+    drive: Literal["diff", "omni"] = "diff"
+
+    @property
+    def carries(self) -> int:
+        return self.cargo_class if self.cargo_class is not None else self.footprint
+
+    def ticks_per_move(self, cell_m: float, tick_s: float) -> int:
+        """Ticks one cell move takes at top speed (at least 1).
+
+        A tiny tolerance keeps 1.0 m at 1.0 m/s with 1.0 s ticks at exactly one tick.
+        """
+        return max(1, math.ceil(cell_m / (self.max_speed_mps * tick_s) - 1e-9))
+
+
+class AgvGroupSpec(_Model):
+    type: str = "default"
+    count: PosInt = 1
+    starts: list[Cell] | None = None
+    """Explicit start anchors (row, col); default: free parking spots in row-major order."""
+
+    @model_validator(mode="after")
+    def _starts_match_count(self) -> AgvGroupSpec:
+        if self.starts is not None and len(self.starts) != self.count:
+            raise ValueError(f"starts lists {len(self.starts)} cells for count {self.count}")
+        return self
+
+
+class FleetSpec(_Model):
+    types: dict[str, AgvTypeSpec] = Field(default_factory=lambda: {"default": AgvTypeSpec()})
+    agvs: list[AgvGroupSpec] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _types_known(self) -> FleetSpec:
+        for i, group in enumerate(self.agvs):
+            if group.type not in self.types:
+                raise ValueError(
+                    f"agvs[{i}].type {group.type!r} is not one of {sorted(self.types)}")
+        return self
+
+    @property
+    def size(self) -> int:
+        return sum(g.count for g in self.agvs)
+
+
+# --------------------------------------------------------------------------------- layout
+
+
+class RectSpec(_Model):
+    """A rectangle of cells: top-left ``origin`` (row, col) and its size in cells."""
+
+    origin: Cell
+    rows: PosInt = 1
+    cols: PosInt = 1
+
+
+class ShelfBlockSpec(_Model):
+    """A block of ``rows`` x ``cols`` shelves, each ``size`` x ``size`` cells, packed tight."""
+
+    origin: Cell
+    rows: PosInt = 1
+    cols: PosInt = 1
+    size: PosInt = 1
+
+
+class InventorySpec(_Model):
+    """Which SKUs each shelf holds. Drawn once from ``seed`` (fixed with the layout)."""
+
+    num_skus: PosInt | None = None
+    """Number of distinct SKUs (default: 2 x number of shelves)."""
+    skus_per_shelf: PosInt = 4
+    seed: NonNegInt = 0
+
+
+class GeneratorSpec(_Model):
+    """Parametric warehouse: a grid of shelf blocks with aisles, stations on one side."""
+
+    block_rows: PosInt = 4
+    block_cols: PosInt = 4
+    block_shape: tuple[PosInt, PosInt] = (2, 4)
+    """Shelves per block (rows, cols)."""
+    shelf_size: PosInt = 1
+    aisle_width: PosInt = 1
+    cross_aisle_width: PosInt = 1
+    border: PosInt = 2
+    """Free cells between the outer wall of blocks and the station / parking sides."""
+    stations: PosInt = 8
+    station_side: Literal["left", "right", "top", "bottom"] = "left"
+    parking: NonNegInt = 0
+    """Parking cells (0: one per AGV in the fleet, filled in at load)."""
+    parking_side: Literal["left", "right", "top", "bottom"] = "bottom"
+    walls: bool = True
+
+
+class LayoutSpec(_Model):
+    """Where the cells come from: exactly one of ``grid``, ``map`` or ``generator``.
+
+    ``grid`` is ASCII rows (``.`` floor, ``#`` obstacle, ``S`` shelf, ``R`` receiving
+    station, ``P`` parking, ``A`` maintenance access point); ``size`` with the lists below
+    builds a structured layout on an empty floor; ``map`` reads a MovingAI ``.map`` file
+    (``@ O T W`` are obstacles). Shelf blocks, stations, parking, obstacles and access points
+    listed here are placed on top of whichever base was chosen.
+    """
+
+    cell_m: PosFloat = 1.0
+    size: tuple[PosInt, PosInt] | None = None
+    """(rows, cols) of an empty floor for a structured layout."""
+    grid: list[str] | None = None
+    map: str | None = None
+    generator: GeneratorSpec | None = None
+    shelf_blocks: list[ShelfBlockSpec] = Field(default_factory=list)
+    stations: list[Cell] = Field(default_factory=list)
+    parking: list[RectSpec] = Field(default_factory=list)
+    obstacles: list[RectSpec] = Field(default_factory=list)
+    access_points: list[Cell] = Field(default_factory=list)
+    inventory: InventorySpec = InventorySpec()
+
+    @field_validator("grid", mode="before")
+    @classmethod
+    def _split_grid(cls, value: Any) -> Any:
+        if isinstance(value, str):
+            return [line for line in value.strip("\n").splitlines()]
+        return value
+
+    @model_validator(mode="after")
+    def _one_base(self) -> LayoutSpec:
+        bases = [n for n in ("size", "grid", "map", "generator") if getattr(self, n) is not None]
+        if len(bases) != 1:
+            raise ValueError(
+                "give exactly one of size, grid, map, generator"
+                + (f" (found {', '.join(bases)})" if bases else ""))
+        return self
+
+
+# --------------------------------------------------------------------------------- orders
+
+
+class OneshotSpec(_Model):
+    count: PosInt = 20
+
+
+class ConstantSpec(_Model):
+    batch: PosInt = 10
+    every_ticks: PosInt = 50
+
+
+class WaveSpec(_Model):
+    base: PosInt = 10
+    min_mult: Annotated[float, Field(ge=0)] = 0.3
+    max_mult: Annotated[float, Field(ge=0)] = 3.0
+    cycle_ticks: PosInt = 80
+    every_ticks: PosInt = 20
+    shape: Literal["sine", "square"] = "sine"
+
+    @model_validator(mode="after")
+    def _order(self) -> WaveSpec:
+        if self.min_mult > self.max_mult:
+            raise ValueError(f"min_mult {self.min_mult} > max_mult {self.max_mult}")
+        return self
+
+
+class HotspotSpec(_Model):
+    alpha: PosFloat = 2.0
+    scale: PosFloat = 10.0
+    every_ticks: PosInt = 30
+    hot_fraction: Annotated[float, Field(gt=0, lt=1)] = 0.2
+    hot_share: Annotated[float, Field(gt=0, lt=1)] = 0.8
+
+
+class BurstSpec(_Model):
+    base: PosInt = 10
+    every_ticks: PosInt = 60
+    start_prob: Prob = 0.05
+    burst_orders: PosInt = 50
+    burst_every_ticks: PosInt = 5
+    burst_ticks: PosInt = 20
+    """How long a burst lasts once it starts."""
+
+
+class OrdersSpec(_Model):
+    """The order stream. Parameters of every pattern have defaults (WareRover's)."""
+
+    pattern: Literal["oneshot", "constant", "wave", "hotspot", "burst"] = "oneshot"
+    duration_ticks: PosInt = 400
+    """Streaming patterns generate orders in ticks [0, duration_ticks)."""
+    large_fraction: Prob | None = None
+    """Share of orders needing a size-2 container (default: share of size-2 SKUs)."""
+    oneshot: OneshotSpec = OneshotSpec()
+    constant: ConstantSpec = ConstantSpec()
+    wave: WaveSpec = WaveSpec()
+    hotspot: HotspotSpec = HotspotSpec()
+    burst: BurstSpec = BurstSpec()
+
+
+# --------------------------------------------------------------------------------- modules
+
+
+class TasksSpec(_Model):
+    pick_ticks: NonNegInt = 2
+    handover_ticks: NonNegInt = 2
+    place_ticks: NonNegInt = 2
+
+
+class SchedulerSpec(_Model):
+    name: Literal["rd", "ta"] = "ta"
+    max_orders_per_trip: PosInt = 4
+    """Orders one shelf trip may serve (TA batches orders of the shelf's SKUs)."""
+    candidate_shelves: PosInt = 3
+    """TA: nearest shelves per SKU considered when costing an AGV x group pair."""
+
+
+class PlannerSpec(_Model):
+    name: Literal["astar"] = "astar"
+    replan_blocked_ticks: PosInt = 3
+    """Replan an AGV that could not follow its plan for this many ticks."""
+    max_expansions: PosInt = 50_000
+    """Node budget of one single-agent search; past it the AGV waits and retries."""
+
+
+class ExecutorSpec(_Model):
+    name: Literal["grid"] = "grid"
+
+
+class RandomFaultsSpec(_Model):
+    prob_per_tick: Prob = 0.0
+    repair_ticks: PosInt = 40
+    repair_ticks_max: PosInt | None = None
+    """If set, repair time is drawn uniformly from [repair_ticks, repair_ticks_max]."""
+    max_down: PosInt | None = None
+
+
+class ScheduledFaultSpec(_Model):
+    agv: NonNegInt
+    tick: NonNegInt
+    repair_ticks: PosInt = 40
+
+
+class FaultsSpec(_Model):
+    """Failures (schema only in this version: the fault model is not simulated yet)."""
+
+    random: RandomFaultsSpec = RandomFaultsSpec()
+    scheduled: list[ScheduledFaultSpec] = Field(default_factory=list)
+    corridor_width_m: PosFloat = 1.0
+    corridor_margin_m: Annotated[float, Field(ge=0)] = 0.2
+    orders_of_failed: Literal["reassign", "wait"] = "reassign"
+
+    @property
+    def enabled(self) -> bool:
+        return self.random.prob_per_tick > 0 or bool(self.scheduled)
+
+
+# --------------------------------------------------------------------------------- scenario
+
+
+class Scenario(_Model):
+    """A whole episode: layout, fleet, orders, algorithms, seed and time."""
+
+    name: str = "scenario"
+    seed: NonNegInt = 0
+    max_ticks: PosInt = 2000
+    tick_s: PosFloat = 1.0
+    layout: LayoutSpec
+    fleet: FleetSpec
+    orders: OrdersSpec = OrdersSpec()
+    tasks: TasksSpec = TasksSpec()
+    scheduler: SchedulerSpec = SchedulerSpec()
+    planner: PlannerSpec = PlannerSpec()
+    executor: ExecutorSpec = ExecutorSpec()
+    faults: FaultsSpec = FaultsSpec()
+    source: str | None = Field(default=None, exclude=True)
+    """The file the scenario was read from (for error messages and relative paths)."""
+
+    @field_validator("scheduler", "planner", "executor", mode="before")
+    @classmethod
+    def _shorthand(cls, value: Any) -> Any:
+        return _named(value)
+
+    @property
+    def base_dir(self) -> Path:
+        return Path(self.source).parent if self.source else Path.cwd()
+
+    def with_seed(self, seed: int) -> Scenario:
+        return self.model_copy(update={"seed": seed})
+
+
+# --------------------------------------------------------------------------------- loading
+
+
+def _field_path(loc: tuple[Any, ...]) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out
+
+
+def _from_validation_error(err: ValidationError, file: str | None) -> ScenarioError:
+    first = err.errors()[0]
+    loc = tuple(p for p in first["loc"] if not (isinstance(p, str) and "[" in p))
+    msg = first["msg"]
+    if first["type"] == "extra_forbidden":
+        msg = "unknown key"
+    elif first["type"] == "missing":
+        msg = "required field is missing"
+    for prefix in ("Value error, ", "Assertion failed, "):
+        msg = msg.removeprefix(prefix)
+    more = len(err.errors()) - 1
+    if more:
+        msg += f" (and {more} more problem{'s' if more > 1 else ''})"
+    value = first.get("input", ScenarioError._MISSING)
+    if first["type"] == "missing" or isinstance(value, dict):
+        value = ScenarioError._MISSING
+    return ScenarioError(msg, file=file, field=_field_path(loc) or None, value=value)
+
+
+def parse_override(text: str) -> tuple[str, Any]:
+    """``"orders.pattern=burst"`` -> ``("orders.pattern", "burst")``; values are YAML."""
+    if "=" not in text:
+        raise ScenarioError("override must look like field.path=value", field="--set",
+                            value=text)
+    key, raw = text.split("=", 1)
+    key = key.strip()
+    if not key:
+        raise ScenarioError("override has an empty field path", field="--set", value=text)
+    try:
+        value = yaml.safe_load(raw) if raw.strip() else ""
+    except yaml.YAMLError:
+        value = raw
+    return key, value
+
+
+def apply_overrides(data: dict[str, Any], overrides: list[tuple[str, Any]]) -> dict[str, Any]:
+    """Return a copy of ``data`` with each dotted ``field.path`` set to its value.
+
+    List items are addressed by index: ``fleet.agvs.0.count=5``.
+    """
+    data = copy.deepcopy(data)
+    for key, value in overrides:
+        node: Any = data
+        parts = key.split(".")
+        for depth, part in enumerate(parts):
+            last = depth == len(parts) - 1
+            if isinstance(node, list):
+                if not part.isdigit() or int(part) >= len(node):
+                    raise ScenarioError("no such list item", field=key, value=part)
+                idx: Any = int(part)
+            elif isinstance(node, dict):
+                idx = part
+            else:
+                raise ScenarioError("cannot set a field inside a plain value",
+                                    field=key, value=node)
+            if last:
+                if isinstance(node, dict) and part in ("scheduler", "planner", "executor") \
+                        and isinstance(value, str) and depth == 0:
+                    value = {**_as_dict(node.get(part)), "name": value}
+                node[idx] = value
+            else:
+                if isinstance(node, dict) and (idx not in node or node[idx] is None):
+                    node[idx] = {}
+                elif isinstance(node, dict) and isinstance(node[idx], str) and \
+                        idx in ("scheduler", "planner", "executor"):
+                    node[idx] = {"name": node[idx]}
+                node = node[idx]
+    return data
+
+
+def _as_dict(value: Any) -> dict[str, Any]:
+    if isinstance(value, dict):
+        return dict(value)
+    if isinstance(value, str):
+        return {"name": value}
+    return {}
+
+
+def read_yaml(path: Path, what: str = "scenario") -> dict[str, Any]:
+    """Read a YAML mapping, turning every failure into a one-line :class:`ScenarioError`."""
+    if not path.exists():
+        raise ScenarioError(f"{what} file not found", file=str(path))
+    if path.is_dir():
+        raise ScenarioError(f"{what} path is a directory, not a file", file=str(path))
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except yaml.YAMLError as err:
+        mark = getattr(err, "problem_mark", None)
+        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
+        problem = getattr(err, "problem", None) or str(err).splitlines()[0]
+        raise ScenarioError(f"invalid YAML: {where}{problem}", file=str(path)) from None
+    except UnicodeDecodeError:
+        raise ScenarioError("file is not UTF-8 text", file=str(path)) from None
+    if data is None:
+        raise ScenarioError(f"{what} file is empty", file=str(path))
+    if not isinstance(data, dict):
+        raise ScenarioError(f"{what} must be a YAML mapping at top level", file=str(path),
+                            value=type(data).__name__)
+    return data
+
+
+def scenario_from_dict(data: dict[str, Any], *, source: str | None = None,
+                       overrides: list[tuple[str, Any]] | None = None) -> Scenario:
+    """Validate a scenario given as a dict. ``layout`` may be a path to a layout YAML."""
+    overrides = list(overrides or [])
+    layout_overrides: list[tuple[str, Any]] = []
+    if isinstance(data.get("layout"), str):
+        layout_overrides = [(k.removeprefix("layout."), v) for k, v in overrides
+                            if k.startswith("layout.")]
+        overrides = [(k, v) for k, v in overrides if not k.startswith("layout.")]
+    data = apply_overrides(data, overrides)
+    base = Path(source).parent if source else Path.cwd()
+    if isinstance(data.get("layout"), str):
+        layout_path = (base / data["layout"]).resolve()
+        if not layout_path.exists():
+            raise ScenarioError("layout file not found", file=source, field="layout",
+                                value=data["layout"])
+        layout_data = read_yaml(layout_path, "layout")
+        layout_data = {k: v for k, v in layout_data.items() if k != "name"}
+        if isinstance(layout_data.get("map"), str):
+            layout_data["map"] = str((layout_path.parent / layout_data["map"]).resolve())
+        data["layout"] = apply_overrides(layout_data, layout_overrides)
+    elif isinstance(data.get("layout"), dict) and isinstance(data["layout"].get("map"), str):
+        data["layout"] = {**data["layout"], "map": str((base / data["layout"]["map"]).resolve())}
+    try:
+        return Scenario.model_validate({**data, "source": source})
+    except ValidationError as err:
+        raise _from_validation_error(err, source) from None
+
+
+def load_scenario(path: str | Path, overrides: list[tuple[str, Any]] | None = None) -> Scenario:
+    """Read, override and validate a scenario file.
+
+    Raises :class:`ScenarioError` naming the file, the field path and the bad value.
+    """
+    path = Path(path)
+    data = read_yaml(path)
+    try:
+        return scenario_from_dict(data, source=str(path), overrides=overrides)
+    except ScenarioError as err:
+        raise err.with_file(str(path)) from None

@@ -1,0 +1,111 @@
+"""Episode metrics: one flat dict, written as ``metrics.json``.
+
+Keys (units in the name or below):
+
+- ``success_rate``: orders completed / orders generated (1.0 if none were generated);
+- ``throughput``: orders completed per tick;
+- ``ticks``: ticks simulated; ``sim_time_s`` = ticks x ``tick_s``;
+- ``orders_generated``, ``orders_completed``;
+- ``order_latency_mean_ticks``, ``order_latency_p99_ticks``: arrival to hand-over;
+- ``ct_total_s``: wall seconds in scheduler + planner over the episode;
+- ``ct_mean_ms`` / ``ct_p99_ms``: per tick, scheduler + planner; ``ct_sched_mean_ms``,
+  ``ct_sched_p99_ms``, ``ct_plan_mean_ms``, ``ct_plan_p99_ms``: the same split;
+- ``blocked_moves``: AGV-ticks an AGV wanted to move and had to wait (not a collision);
+- ``collisions``: overlaps or swaps the executor carried out (0 with a valid plan);
+- ``replans``: single-AGV plans committed; ``plan_failures``: searches that found no path
+  (the AGV kept its old path and retried); ``goal_busy_detours``: plans that sent an AGV to
+  wait near a goal another AGV was standing on;
+- ``wall_s``: wall seconds of the whole episode.
+
+CT keys are the only ones that change between two runs with the same scenario and seed;
+:data:`TIMING_KEYS` lists every such key.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from .config import Scenario
+    from .world import World
+
+__all__ = ["MetricsRecorder", "TIMING_KEYS"]
+
+TIMING_KEYS = ("ct_total_s", "ct_mean_ms", "ct_p99_ms", "ct_sched_mean_ms", "ct_sched_p99_ms",
+               "ct_plan_mean_ms", "ct_plan_p99_ms", "wall_s")
+
+
+class MetricsRecorder:
+    def __init__(self, scenario: Scenario) -> None:
+        self.scenario = scenario
+        self.sched_s: list[float] = []
+        self.plan_s: list[float] = []
+        self.blocked = 0
+        self.collisions = 0
+        self.replans = 0
+        self.plan_failures = 0
+        self.detours = 0
+        self._t0 = time.perf_counter()
+
+    def record_tick(self, *, sched_s: float, plan_s: float, blocked: int,
+                    collisions: int) -> None:
+        self.sched_s.append(sched_s)
+        self.plan_s.append(plan_s)
+        self.blocked += blocked
+        self.collisions += collisions
+
+    def replans_this_tick(self, planned: int, failed: int, detours: int) -> None:
+        self.replans += planned
+        self.plan_failures += failed
+        self.detours += detours
+
+    def summary(self, world: World) -> dict:
+        sc = self.scenario
+        ticks = world.tick
+        generated = len(world.orders)
+        completed = len(world.completed_tick)
+        latencies = np.array([t - world.orders[o].tick for o, t in world.completed_tick.items()],
+                             dtype=float)
+        sched = np.array(self.sched_s) * 1e3
+        plan = np.array(self.plan_s) * 1e3
+        total = sched + plan
+
+        def mean(x: np.ndarray) -> float:
+            return float(x.mean()) if x.size else 0.0
+
+        def p99(x: np.ndarray) -> float:
+            return float(np.percentile(x, 99)) if x.size else 0.0
+
+        return {
+            "scenario": sc.name,
+            "seed": sc.seed,
+            "scheduler": sc.scheduler.name,
+            "planner": sc.planner.name,
+            "executor": sc.executor.name,
+            "order_pattern": sc.orders.pattern,
+            "agvs": len(world.agvs),
+            "success_rate": completed / generated if generated else 1.0,
+            "throughput": completed / ticks if ticks else 0.0,
+            "ticks": ticks,
+            "sim_time_s": ticks * sc.tick_s,
+            "orders_generated": generated,
+            "orders_completed": completed,
+            "order_latency_mean_ticks": mean(latencies),
+            "order_latency_p99_ticks": p99(latencies),
+            "blocked_moves": self.blocked,
+            "collisions": self.collisions,
+            "replans": self.replans,
+            "plan_failures": self.plan_failures,
+            "goal_busy_detours": self.detours,
+            "ct_total_s": float(total.sum() / 1e3),
+            "ct_mean_ms": mean(total),
+            "ct_p99_ms": p99(total),
+            "ct_sched_mean_ms": mean(sched),
+            "ct_sched_p99_ms": p99(sched),
+            "ct_plan_mean_ms": mean(plan),
+            "ct_plan_p99_ms": p99(plan),
+            "wall_s": time.perf_counter() - self._t0,
+        }

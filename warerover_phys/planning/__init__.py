@@ -1,0 +1,24 @@
+"""MAPF planning: motion graphs, reservations, planners."""
+
+from __future__ import annotations
+
+from ..errors import ScenarioError
+from .astar import AStarPlanner
+from .base import AgentRequest, Planner, PlanRequest, PlanResult, TimedPath
+from .graph import GraphSet, MotionGraph
+from .reservation import ReservationTable
+
+__all__ = ["AStarPlanner", "AgentRequest", "Planner", "PlanRequest", "PlanResult", "TimedPath",
+           "GraphSet", "MotionGraph", "ReservationTable", "make_planner", "PLANNERS"]
+
+PLANNERS = {"astar": AStarPlanner}
+
+
+def make_planner(spec) -> Planner:
+    """Build the planner a :class:`~warerover_phys.config.PlannerSpec` names."""
+    try:
+        cls = PLANNERS[spec.name]
+    except KeyError:
+        raise ScenarioError(f"unknown planner (choose from {sorted(PLANNERS)})",
+                            field="planner.name", value=spec.name) from None
+    return cls(max_expansions=spec.max_expansions)

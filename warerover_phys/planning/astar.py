@@ -1,0 +1,182 @@
+"""Prioritized space-time A*: each AGV in turn finds the fastest path that avoids every
+path already committed in the reservation table.
+
+Footprint-aware: a ``k x k`` AGV checks all its cells; a move of a slow AGV (``m`` ticks
+per cell) holds both footprints for the ``m - 1`` ticks in between. The heuristic is the
+exact static distance on the AGV's motion graph times ``m``.
+"""
+
+from __future__ import annotations
+
+import heapq
+import time
+from collections import deque
+from dataclasses import replace
+
+from .base import AgentRequest, PlanRequest, PlanResult, State, TimedPath, footprint_nodes
+from .graph import UNREACHABLE, MotionGraph
+from .reservation import FOREVER, ReservationTable
+
+__all__ = ["AStarPlanner", "space_time_astar", "goal_held", "nearest_free_anchor"]
+
+
+def space_time_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest,
+                     t0: int, max_expansions: int = 50_000) -> tuple[TimedPath | None, int]:
+    """Search one AGV's path from tick ``t0``. Returns (path or None, expansions)."""
+    cols, k, m, me = graph.cols, agent.k, agent.ticks_per_move, agent.agv
+    start, goal = agent.start, agent.goal
+    free = res.free
+
+    def fp(node: int) -> tuple[int, ...]:
+        return footprint_nodes(node, k, cols)
+
+    # Earliest tick from which the AGV may stay at the goal for good.
+    t_free = max((res.last_use(c, me) for c in fp(goal)), default=-1) + 1
+    if t_free >= FOREVER:
+        return None, 0
+    h_table = graph.dist_to(graph.cell(goal))
+    h0 = graph.distance(graph.cell(start), graph.cell(goal))
+    if h0 >= UNREACHABLE:
+        return None, 0
+    t_limit = max(t_free, t0 + h0 * m) + h0 * m + 64
+
+    def h(node: int) -> int:
+        v = int(h_table[node])
+        return v * m if v < UNREACHABLE else (h0 * m if node == start else UNREACHABLE)
+
+    loaded_sinks = graph.has_sinks
+    open_heap: list[tuple[int, int, int, int]] = [(t0 + h(start), -t0, start, t0)]
+    parent: dict[tuple[int, int], tuple[int, int] | None] = {(start, t0): None}
+    closed: set[tuple[int, int]] = set()
+    expansions = 0
+    while open_heap:
+        _, _, node, t = heapq.heappop(open_heap)
+        if (node, t) in closed:
+            continue
+        closed.add((node, t))
+        if node == goal and t >= t_free:
+            return _reconstruct(parent, node, t, me, m), expansions
+        expansions += 1
+        if expansions > max_expansions or t >= t_limit:
+            if expansions > max_expansions:
+                break
+            continue
+        here = fp(node)
+        # Wait one tick.
+        if (node, t + 1) not in parent and all(free(c, t + 1, me) for c in here):
+            parent[(node, t + 1)] = (node, t)
+            heapq.heappush(open_heap, (t + 1 + h(node), -(t + 1), node, t + 1))
+        for nxt in graph.succ(node, is_start=(node == start)):
+            if loaded_sinks and nxt != goal and not graph.expandable(nxt):
+                continue  # never drive into another shelf's home
+            t_arr = t + m
+            if (nxt, t_arr) in parent:
+                continue
+            hn = h(nxt)
+            if hn >= UNREACHABLE:
+                continue
+            there = fp(nxt)
+            if not all(free(c, t_arr, me) for c in there):
+                continue
+            if m > 1:
+                both = set(here) | set(there)
+                if not all(free(c, t + i, me) for i in range(1, m) for c in both):
+                    continue
+            elif _swaps(res, here, there, t, me):
+                continue
+            parent[(nxt, t_arr)] = (node, t)
+            heapq.heappush(open_heap, (t_arr + hn, -t_arr, nxt, t_arr))
+    return None, expansions
+
+
+def goal_held(graph: MotionGraph, res: ReservationTable, agent: AgentRequest) -> bool:
+    """Is some other AGV parked for good on the goal's footprint?"""
+    return any(res.last_use(c, agent.agv) >= FOREVER
+               for c in footprint_nodes(agent.goal, agent.k, graph.cols))
+
+
+def nearest_free_anchor(graph: MotionGraph, res: ReservationTable, agent: AgentRequest,
+                        radius: int = 8) -> int | None:
+    """The anchor nearest to the goal (breadth-first, up to ``radius`` moves) where the AGV
+    could wait for good: a place to queue while the goal is taken."""
+    goal, me, k, cols = agent.goal, agent.agv, agent.k, graph.cols
+    seen = {goal}
+    frontier = deque([(goal, 0)])
+    while frontier:
+        node, d = frontier.popleft()
+        if d > 0 and graph.expandable(node) and all(
+                res.last_use(c, me) < FOREVER for c in footprint_nodes(node, k, cols)):
+            return node
+        if d == radius:
+            continue
+        for nxt in graph.succ(node, is_start=True):
+            if nxt not in seen and graph.expandable(nxt):
+                seen.add(nxt)
+                frontier.append((nxt, d + 1))
+    return None
+
+
+def _swaps(res: ReservationTable, here: tuple[int, ...], there: tuple[int, ...], t: int,
+           me: int) -> bool:
+    """True if an AGV now in ``there`` moves into ``here`` during the same tick."""
+    for c in there:
+        other = res.owner(c, t)
+        if other is not None and other != me:
+            for c2 in here:
+                if res.owner(c2, t + 1) == other:
+                    return True
+    return False
+
+
+def _reconstruct(parent: dict, node: int, t: int, agv: int, m: int) -> TimedPath:
+    chain: list[tuple[int, int]] = []
+    key: tuple[int, int] | None = (node, t)
+    while key is not None:
+        chain.append(key)
+        key = parent[key]
+    chain.reverse()
+    states: list[State] = [(chain[0][0], chain[0][0])]
+    for (a, ta), (b, tb) in zip(chain, chain[1:], strict=False):
+        for _ in range(tb - ta - 1):
+            states.append((a, b))
+        states.append((b, b))
+    return TimedPath(agv=agv, start_tick=chain[0][1], states=tuple(states))
+
+
+class AStarPlanner:
+    """Prioritized planning with space-time A* (WareRover's ``A*``)."""
+
+    name = "astar"
+
+    def __init__(self, max_expansions: int = 50_000) -> None:
+        self.max_expansions = max_expansions
+
+    def plan(self, request: PlanRequest) -> PlanResult:
+        result = PlanResult()
+        res = request.reservations
+        for agent in sorted(request.agents, key=lambda a: (a.priority, a.agv)):
+            if request.deadline is not None and time.monotonic() > request.deadline:
+                result.failed.append(agent.agv)
+                continue
+            graph = request.graphs.get(agent.k, agent.loaded, agent.shelf)
+            old = res.paths.get(agent.agv)
+            res.release(agent.agv)
+            path, n = space_time_astar(graph, res, agent, request.tick, self.max_expansions)
+            if path is None and goal_held(graph, res, agent):
+                # Queue near the goal; the loop replans once the goal is free.
+                alt = nearest_free_anchor(graph, res, agent)
+                if alt is not None and alt != agent.start:
+                    path, n2 = space_time_astar(graph, res, replace(agent, goal=alt),
+                                                request.tick, self.max_expansions)
+                    n += n2
+                    if path is not None:
+                        result.detours.append(agent.agv)
+            result.expansions += n
+            if path is None:
+                if old is not None:
+                    res.commit(old, agent.k)
+                result.failed.append(agent.agv)
+                continue
+            res.commit(path, agent.k)
+            result.paths[agent.agv] = path
+        return result

@@ -1,0 +1,106 @@
+"""The planner interface: a request goes in, timed paths come out.
+
+A timed path lists one *state* per tick from ``start_tick`` on. A state is a pair of anchor
+nodes ``(a, b)``: ``a == b`` means the AGV stands at ``a``; ``a != b`` means it is moving from
+``a`` to ``b`` and occupies both footprints (slow AGVs take several ticks per cell). After its
+last state the AGV stays where it is.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from .graph import GraphSet
+from .reservation import ReservationTable
+
+__all__ = ["State", "TimedPath", "AgentRequest", "PlanRequest", "PlanResult", "Planner",
+           "footprint_nodes", "occupancy"]
+
+State = tuple[int, int]
+
+
+@lru_cache(maxsize=1 << 16)
+def footprint_nodes(anchor: int, k: int, cols: int) -> tuple[int, ...]:
+    """Flat cell indices covered by a ``k x k`` AGV anchored at node ``anchor``."""
+    if k == 1:
+        return (anchor,)
+    return tuple(anchor + i * cols + j for i in range(k) for j in range(k))
+
+
+def occupancy(state: State, k: int, cols: int) -> tuple[int, ...]:
+    """Cells a state covers: the footprint, or both footprints while moving."""
+    a, b = state
+    if a == b:
+        return footprint_nodes(a, k, cols)
+    return tuple(dict.fromkeys(footprint_nodes(a, k, cols) + footprint_nodes(b, k, cols)))
+
+
+@dataclass(frozen=True, slots=True)
+class TimedPath:
+    agv: int
+    start_tick: int
+    states: tuple[State, ...]
+
+    @property
+    def end_tick(self) -> int:
+        return self.start_tick + len(self.states) - 1
+
+    def state_at(self, tick: int) -> State:
+        i = tick - self.start_tick
+        if i < 0:
+            return self.states[0]
+        return self.states[min(i, len(self.states) - 1)]
+
+    @property
+    def goal(self) -> int:
+        return self.states[-1][1]
+
+
+@dataclass(frozen=True, slots=True)
+class AgentRequest:
+    """One AGV to plan: where it stands now, where it must go, and what it is."""
+
+    agv: int
+    start: int
+    goal: int
+    k: int = 1
+    loaded: bool = False
+    ticks_per_move: int = 1
+    shelf: int | None = None
+    """The shelf it carries (if loaded): bigger AGVs may use that shelf's own cells."""
+    priority: tuple = ()
+    """Sort key: lower is planned first."""
+
+
+@dataclass
+class PlanRequest:
+    tick: int
+    agents: list[AgentRequest]
+    graphs: GraphSet
+    reservations: ReservationTable
+    """Committed paths of every AGV. The planner leaves it holding the new path of every
+    AGV it planned and the old path of every AGV it could not plan."""
+    rng: np.random.Generator | None = None
+    deadline: float | None = None
+    """``time.monotonic()`` value after which the planner should stop planning more AGVs."""
+
+
+@dataclass
+class PlanResult:
+    paths: dict[int, TimedPath] = field(default_factory=dict)
+    failed: list[int] = field(default_factory=list)
+    """AGVs without a new path (they keep their old one and retry)."""
+    detours: list[int] = field(default_factory=list)
+    """AGVs sent to wait near a goal that another AGV holds (a path is in ``paths``)."""
+    expansions: int = 0
+
+
+@runtime_checkable
+class Planner(Protocol):
+    name: str
+
+    def plan(self, request: PlanRequest) -> PlanResult: ...

@@ -1,0 +1,215 @@
+"""Where an AGV of a given footprint may stand, and how far everything is from a goal.
+
+A *node* is the flat index ``row * cols + col`` of an AGV's anchor (its top-left cell). For a
+``k x k`` AGV an anchor is *valid* if all ``k x k`` cells are inside the grid and passable:
+
+- unloaded AGVs drive under shelves, so only obstacles block them;
+- loaded AGVs (carrying a shelf) are blocked by obstacles and by other shelves. For 1x1 AGVs
+  one graph serves every shelf: the home anchors of 1x1 shelves are *sinks*, which a loaded
+  AGV may enter (to put its shelf back, only as its goal) and leave when it starts on one,
+  but never drives through. A bigger AGV leaving its shelf's home overlaps the home's own
+  cells for a while, so its loaded graph is built per carried shelf (those cells are free).
+
+Distances are exact shortest-path move counts on this graph, computed once per goal with
+scipy's breadth-first Dijkstra and cached.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import shortest_path
+
+from ..layout import CellType, Layout
+
+__all__ = ["MotionGraph", "GraphSet", "UNREACHABLE"]
+
+UNREACHABLE = np.iinfo(np.int32).max // 4
+Cell = tuple[int, int]
+
+
+def _window_all(mask: np.ndarray, k: int) -> np.ndarray:
+    """``out[r, c]`` is True iff ``mask[r:r+k, c:c+k]`` is all True (and inside the grid)."""
+    rows, cols = mask.shape
+    out = np.zeros_like(mask, dtype=bool)
+    if k > rows or k > cols:
+        return out
+    integral = np.pad(mask.astype(np.int32), ((1, 0), (1, 0))).cumsum(0).cumsum(1)
+    sums = (integral[k:, k:] - integral[:-k, k:] - integral[k:, :-k] + integral[:-k, :-k])
+    out[: rows - k + 1, : cols - k + 1] = sums == k * k
+    return out
+
+
+class MotionGraph:
+    """Anchors and moves of one AGV class (footprint ``k``, loaded or not) on a layout."""
+
+    def __init__(self, layout: Layout, k: int, loaded: bool, carrying: int | None = None,
+                 cache_tables: int = 0) -> None:
+        self.layout = layout
+        self.k = k
+        self.loaded = loaded
+        self.carrying = carrying if loaded and k > 1 else None
+        self.rows, self.cols = layout.rows, layout.cols
+        grid = layout.grid
+        passable = grid != CellType.OBSTACLE
+        if loaded:
+            passable &= grid != CellType.SHELF
+            if self.carrying is not None:
+                for cell in layout.shelves[self.carrying].cells:
+                    passable[cell] = True
+        self.valid = _window_all(passable, k)
+        sinks = np.zeros_like(self.valid)
+        if loaded and k == 1:
+            for shelf in layout.shelves:
+                if shelf.size == k:
+                    sinks[shelf.anchor] = True
+        self.sinks = sinks
+        self.has_sinks = bool(sinks.any())
+        self.enterable = self.valid | sinks
+        self._build_edges()
+        n = self.rows * self.cols
+        self._cap = cache_tables or max(32, min(4096, int(150e6 // max(1, 4 * n))))
+        self._tables: OrderedDict[int, np.ndarray] = OrderedDict()
+
+    # -------------------------------------------------------------------------- structure
+
+    def _build_edges(self) -> None:
+        rows, cols = self.rows, self.cols
+        n = rows * cols
+        src, dst = [], []
+        idx = np.arange(n).reshape(rows, cols)
+        # A move u -> v needs u enterable (the start may be a sink) and v enterable; moves
+        # out of a sink are kept in the adjacency but only taken from the start node.
+        for dr, dc in ((0, 1), (1, 0), (0, -1), (-1, 0)):
+            r0, r1 = max(0, -dr), rows - max(0, dr)
+            c0, c1 = max(0, -dc), cols - max(0, dc)
+            u = idx[r0:r1, c0:c1]
+            v = idx[r0 + dr:r1 + dr, c0 + dc:c1 + dc]
+            ok = self.enterable[r0:r1, c0:c1] & self.enterable[r0 + dr:r1 + dr, c0 + dc:c1 + dc]
+            src.append(u[ok])
+            dst.append(v[ok])
+        src_a = np.concatenate(src)
+        dst_a = np.concatenate(dst)
+        flat_valid = self.valid.ravel()
+        # Adjacency lists used by the searches (sorted for determinism).
+        order = np.lexsort((dst_a, src_a))
+        src_a, dst_a = src_a[order], dst_a[order]
+        starts = np.searchsorted(src_a, np.arange(n + 1))
+        self._adj_src = starts
+        self._adj_dst = dst_a
+        self.neighbors: list[tuple[int, ...]] = [
+            tuple(dst_a[starts[i]:starts[i + 1]].tolist()) for i in range(n)]
+        # Reversed graph for distance-to-goal tables: a forward edge u->v exists in the
+        # plain graph if u is valid (expandable); reversed it is v->u.
+        keep = flat_valid[src_a]
+        self._rev = csr_matrix((np.ones(int(keep.sum()), dtype=np.int8),
+                                (dst_a[keep], src_a[keep])), shape=(n, n))
+
+    @property
+    def num_nodes(self) -> int:
+        return self.rows * self.cols
+
+    def node(self, cell: Cell) -> int:
+        return cell[0] * self.cols + cell[1]
+
+    def cell(self, node: int) -> Cell:
+        return divmod(node, self.cols)
+
+    def expandable(self, node: int) -> bool:
+        r, c = divmod(node, self.cols)
+        return bool(self.valid[r, c])
+
+    def is_enterable(self, cell: Cell) -> bool:
+        r, c = cell
+        return 0 <= r < self.rows and 0 <= c < self.cols and bool(self.enterable[r, c])
+
+    def footprint(self, anchor: Cell) -> tuple[Cell, ...]:
+        r, c = anchor
+        k = self.k
+        return tuple((r + i, c + j) for i in range(k) for j in range(k))
+
+    def succ(self, node: int, is_start: bool = False) -> tuple[int, ...]:
+        """Nodes one move away. Sinks are left only when they are the search's start."""
+        if is_start or self.expandable(node):
+            return self.neighbors[node]
+        return ()
+
+    # -------------------------------------------------------------------------- distances
+
+    def dist_to(self, goal: Cell) -> np.ndarray:
+        """Moves from every node to ``goal`` (flat int32 array, UNREACHABLE where none)."""
+        g = self.node(goal)
+        table = self._tables.get(g)
+        if table is not None:
+            self._tables.move_to_end(g)
+            return table
+        d = shortest_path(self._rev, method="D", directed=True, unweighted=True, indices=g)
+        table = np.where(np.isfinite(d), d, UNREACHABLE).astype(np.int32)
+        if not self.enterable.ravel()[g]:
+            table[:] = UNREACHABLE
+        table.setflags(write=False)
+        self._tables[g] = table
+        if len(self._tables) > self._cap:
+            self._tables.popitem(last=False)
+        return table
+
+    def distance(self, start: Cell, goal: Cell) -> int:
+        """Moves from ``start`` to ``goal``; a sink start is left through its neighbours."""
+        table = self.dist_to(goal)
+        s = self.node(start)
+        if s == self.node(goal):
+            return 0
+        if self.expandable(s):
+            return int(table[s])
+        best = min((int(table[v]) for v in self.neighbors[s]), default=UNREACHABLE)
+        return UNREACHABLE if best >= UNREACHABLE else best + 1
+
+    def reachable_from(self, start: Cell) -> np.ndarray:
+        """Boolean (rows, cols) mask of anchors reachable from ``start`` (unloaded graphs
+        are symmetric, so this is the set that can reach ``start`` too)."""
+        return (self.dist_to(start) < UNREACHABLE).reshape(self.rows, self.cols)
+
+    def goal_anchor(self, cell: Cell) -> Cell | None:
+        """The anchor whose footprint covers ``cell`` that a ``k x k`` AGV uses to reach it:
+        ``cell`` itself if valid, else the nearest valid anchor covering it."""
+        r, c = cell
+        k = self.k
+        options = sorted(((dr + dc, dr, dc) for dr in range(k) for dc in range(k)))
+        for _, dr, dc in options:
+            a = (r - dr, c - dc)
+            if 0 <= a[0] < self.rows and 0 <= a[1] < self.cols and self.valid[a]:
+                return a
+        return None
+
+
+class GraphSet:
+    """The motion graphs of one layout, built lazily per (footprint, loaded, carried shelf).
+
+    The carried shelf matters only for loaded AGVs bigger than 1x1; those graphs are kept in
+    a small LRU cache.
+    """
+
+    def __init__(self, layout: Layout, per_shelf_cache: int = 64) -> None:
+        self.layout = layout
+        self._graphs: dict[tuple[int, bool], MotionGraph] = {}
+        self._per_shelf: OrderedDict[tuple[int, int], MotionGraph] = OrderedDict()
+        self._cap = per_shelf_cache
+
+    def get(self, k: int, loaded: bool, shelf: int | None = None) -> MotionGraph:
+        if loaded and k > 1 and shelf is not None:
+            key2 = (k, shelf)
+            graph = self._per_shelf.get(key2)
+            if graph is None:
+                graph = self._per_shelf[key2] = MotionGraph(self.layout, k, True, shelf)
+                if len(self._per_shelf) > self._cap:
+                    self._per_shelf.popitem(last=False)
+            else:
+                self._per_shelf.move_to_end(key2)
+            return graph
+        key = (k, loaded)
+        graph = self._graphs.get(key)
+        if graph is None:
+            graph = self._graphs[key] = MotionGraph(self.layout, k, loaded)
+        return graph

@@ -1,0 +1,95 @@
+"""TA, task assignment: pending orders are grouped by SKU, every (idle AGV, group) pair is
+costed by true path distances (AGV -> shelf unloaded, shelf -> stations loaded), and the
+Hungarian method (scipy's ``linear_sum_assignment``) picks the cheapest matching. A trip
+then also serves other pending orders whose SKUs sit on the same shelf, up to
+``max_orders_per_trip``."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from ..planning.graph import UNREACHABLE
+from .base import Assignment
+
+if TYPE_CHECKING:
+    from ..config import SchedulerSpec
+    from ..orders import Order
+    from ..world import Agv, World
+
+__all__ = ["TaskAssignment"]
+
+INFEASIBLE = 1e12
+
+
+class TaskAssignment:
+    name = "ta"
+
+    def __init__(self, spec: SchedulerSpec) -> None:
+        self.spec = spec
+
+    def assign(self, world: World, rng: np.random.Generator) -> list[Assignment]:
+        pending = world.pending_orders()
+        idle = world.idle_agvs()
+        if not pending or not idle:
+            return []
+        groups: dict[int, list[Order]] = {}
+        for order in sorted(pending, key=lambda o: o.id):
+            groups.setdefault(order.sku, []).append(order)
+        skus = sorted(groups)
+        cap = self.spec.max_orders_per_trip
+        cost = np.full((len(idle), len(skus)), INFEASIBLE)
+        best: dict[tuple[int, int], list[tuple[int, int]]] = {}
+        for i, agv in enumerate(idle):
+            for j, sku in enumerate(skus):
+                options = self._shelf_options(world, agv, sku, groups[sku][:cap])
+                if options:
+                    best[(i, j)] = options
+                    # Cheaper per order served: a trip for 3 orders beats one for 1.
+                    cost[i, j] = options[0][0] / min(len(groups[sku]), cap)
+        rows, cols = linear_sum_assignment(cost)
+        out: list[Assignment] = []
+        taken_orders: set[int] = set()
+        taken_shelves: set[int] = set()
+        for i, j in sorted(zip(rows.tolist(), cols.tolist(), strict=True),
+                           key=lambda ij: (cost[ij], ij)):
+            if cost[i, j] >= INFEASIBLE:
+                continue
+            shelf = next((s for _, s in best[(i, j)] if s not in taken_shelves), None)
+            if shelf is None:
+                continue
+            orders = [o.id for o in groups[skus[j]] if o.id not in taken_orders][:cap]
+            if not orders:
+                continue
+            on_shelf = set(world.layout.shelves[shelf].skus)
+            for order in sorted(pending, key=lambda o: o.id):
+                if len(orders) >= cap:
+                    break
+                if order.sku in on_shelf and order.id not in taken_orders \
+                        and order.id not in orders:
+                    orders.append(order.id)
+            taken_orders.update(orders)
+            taken_shelves.add(shelf)
+            out.append(Assignment(idle[i].id, shelf, tuple(orders)))
+        return out
+
+    def _shelf_options(self, world: World, agv: Agv, sku: int,
+                       orders: list[Order]) -> list[tuple[int, int]]:
+        """(trip length, shelf) for the nearest free shelves holding ``sku``, best first."""
+        shelves = world.free_shelves_for(sku, agv)
+        if not shelves:
+            return []
+        r, c = world.cell(agv.node)
+        layout = world.layout
+        shelves.sort(key=lambda s: (abs(layout.shelves[s].anchor[0] - r)
+                                    + abs(layout.shelves[s].anchor[1] - c), s))
+        stations = sorted({o.station for o in orders})
+        options = []
+        for sid in shelves[: self.spec.candidate_shelves]:
+            d = world.trip_distance(agv, sid, stations)
+            if d < UNREACHABLE:
+                options.append((d, sid))
+        options.sort()
+        return options

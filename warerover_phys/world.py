@@ -1,0 +1,450 @@
+"""The live state of one episode: AGVs, shelves, orders and trips.
+
+Schedulers read it whole; the loop in :mod:`warerover_phys.sim` changes it only through the
+methods here, so the order and AGV life cycles are in one place:
+
+- an order is exactly one of PENDING -> ASSIGNED -> IN_PROGRESS -> COMPLETED;
+- an AGV runs the task chain IDLE -> TO_SHELF -> PICKING -> TO_STATION -> HANDOVER
+  (-> TO_STATION -> HANDOVER ...) -> RETURNING -> PLACING -> IDLE; an IDLE AGV drives to its
+  home parking spot and may be given a new trip on the way.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+import numpy as np
+
+from .config import AgvTypeSpec, Scenario
+from .errors import LayoutError, ScenarioError
+from .layout import CellType, Layout, build_layout
+from .orders import Order, OrderStream
+from .planning.base import State, TimedPath
+from .planning.graph import UNREACHABLE, GraphSet
+from .planning.reservation import ReservationTable
+
+__all__ = ["AgvState", "OrderStatus", "Agv", "Trip", "World", "make_rngs"]
+
+Cell = tuple[int, int]
+RNG_STREAMS = ("orders", "scheduler", "planner", "faults", "delays")
+
+
+def make_rngs(seed: int) -> dict[str, np.random.Generator]:
+    """One child generator per consumer, all spawned from the episode's root seed."""
+    children = np.random.SeedSequence(seed).spawn(len(RNG_STREAMS))
+    return {name: np.random.default_rng(s) for name, s in zip(RNG_STREAMS, children, strict=True)}
+
+
+class AgvState(IntEnum):
+    IDLE = 0
+    TO_SHELF = 1
+    PICKING = 2
+    TO_STATION = 3
+    HANDOVER = 4
+    RETURNING = 5
+    PLACING = 6
+    FAILED = 7
+
+
+MOVING_STATES = (AgvState.IDLE, AgvState.TO_SHELF, AgvState.TO_STATION, AgvState.RETURNING)
+
+
+class OrderStatus(IntEnum):
+    PENDING = 0
+    ASSIGNED = 1
+    IN_PROGRESS = 2
+    COMPLETED = 3
+
+
+@dataclass(slots=True)
+class Trip:
+    """One shelf trip: fetch ``shelf``, visit ``stops`` (station indices), bring it back."""
+
+    id: int
+    agv: int
+    shelf: int
+    orders: tuple[int, ...]
+    stops: tuple[int, ...]
+    stop_idx: int = 0
+
+
+@dataclass(slots=True)
+class Agv:
+    id: int
+    type_name: str
+    spec: AgvTypeSpec
+    ticks_per_move: int
+    home: int
+    """Anchor node of its parking spot."""
+    pos: State
+    """Where it is now (a state: standing at ``a`` if ``a == b``)."""
+    state: AgvState = AgvState.IDLE
+    trip: Trip | None = None
+    loaded: bool = False
+    dwell_left: int = 0
+    delay: int = 0
+    """Ticks it is behind its committed path (blocked moves)."""
+    blocked_ticks: int = 0
+    plan_failures: int = 0
+    retry_at: int = 0
+
+    @property
+    def k(self) -> int:
+        return self.spec.footprint
+
+    @property
+    def node(self) -> int:
+        return self.pos[1]
+
+    @property
+    def standing(self) -> bool:
+        return self.pos[0] == self.pos[1]
+
+
+@dataclass
+class World:
+    scenario: Scenario
+    layout: Layout
+    graphs: GraphSet
+    agvs: list[Agv]
+    stream: OrderStream
+    rngs: dict[str, np.random.Generator]
+    reservations: ReservationTable
+    orders: dict[int, Order] = field(default_factory=dict)
+    status: dict[int, OrderStatus] = field(default_factory=dict)
+    completed_tick: dict[int, int] = field(default_factory=dict)
+    shelf_busy: dict[int, int] = field(default_factory=dict)
+    """Shelf id -> id of the trip that uses it."""
+    trips: dict[int, Trip] = field(default_factory=dict)
+    events: list[dict] = field(default_factory=list)
+    tick: int = 0
+    _next_trip: int = 0
+
+    # ------------------------------------------------------------------------- building
+
+    @classmethod
+    def build(cls, scenario: Scenario) -> World:
+        src = scenario.source
+        layout = build_layout(scenario.layout, fleet_size=scenario.fleet.size, file=src,
+                              name=scenario.name)
+        graphs = GraphSet(layout)
+        agvs = _place_fleet(scenario, layout, graphs)
+        check_layout(scenario, layout, graphs, agvs)
+        rngs = make_rngs(scenario.seed)
+        stream = OrderStream(scenario.orders, layout.sku_sizes, len(layout.stations),
+                             rngs["orders"])
+        res = ReservationTable(layout.cols)
+        for agv in agvs:
+            res.commit(TimedPath(agv.id, 0, (agv.pos,)), agv.k)
+        return cls(scenario=scenario, layout=layout, graphs=graphs, agvs=agvs, stream=stream,
+                   rngs=rngs, reservations=res)
+
+    # ------------------------------------------------------------------------- queries
+
+    def cell(self, node: int) -> Cell:
+        return divmod(node, self.layout.cols)
+
+    def node(self, cell: Cell) -> int:
+        return cell[0] * self.layout.cols + cell[1]
+
+    def pending_orders(self) -> list[Order]:
+        return [self.orders[i] for i, s in self.status.items() if s == OrderStatus.PENDING]
+
+    def idle_agvs(self) -> list[Agv]:
+        return [a for a in self.agvs if a.state == AgvState.IDLE]
+
+    def free_shelves_for(self, sku: int, agv: Agv) -> list[int]:
+        """Shelves holding ``sku`` that ``agv`` can carry and nobody is using."""
+        out = []
+        for sid in self.layout.sku_shelves.get(sku, ()):
+            shelf = self.layout.shelves[sid]
+            if sid not in self.shelf_busy and can_carry(agv.spec, shelf.size):
+                out.append(sid)
+        return out
+
+    def station_anchor(self, station: int, k: int) -> int:
+        graph = self.graphs.get(k, True)
+        anchor = graph.goal_anchor(self.layout.stations[station])
+        assert anchor is not None, "checked at load"
+        return self.node(anchor)
+
+    def goal_of(self, agv: Agv) -> int | None:
+        """Anchor node the AGV should drive to now (None while it works in place)."""
+        if agv.state == AgvState.IDLE:
+            return agv.home
+        trip = agv.trip
+        if agv.state in (AgvState.TO_SHELF, AgvState.RETURNING):
+            assert trip is not None
+            return self.node(self.layout.shelves[trip.shelf].anchor)
+        if agv.state == AgvState.TO_STATION:
+            assert trip is not None
+            return self.station_anchor(trip.stops[trip.stop_idx], agv.k)
+        return None
+
+    def trip_distance(self, agv: Agv, shelf: int, stations: list[int]) -> int:
+        """True path length of a trip: to the shelf unloaded, then loaded to each station."""
+        anchor = self.layout.shelves[shelf].anchor
+        d = self.graphs.get(agv.k, False).distance(self.cell(agv.node), anchor)
+        loaded = self.graphs.get(agv.k, True, shelf)
+        here = anchor
+        for st in stations:
+            target = self.cell(self.station_anchor(st, agv.k))
+            d += loaded.distance(here, target)
+            here = target
+        return d
+
+    def all_done(self) -> bool:
+        # Arrivals of ticks < self.tick are in; none may come later.
+        return self.tick > 0 and self.stream.exhausted(self.tick - 1) and all(
+            s == OrderStatus.COMPLETED for s in self.status.values())
+
+    # ------------------------------------------------------------------------- changes
+
+    def log(self, event: str, **fields) -> None:
+        self.events.append({"tick": self.tick, "event": event, **fields})
+
+    def add_orders(self, orders: list[Order]) -> None:
+        for order in orders:
+            self.orders[order.id] = order
+            self.status[order.id] = OrderStatus.PENDING
+            self.log("order_created", order=order.id, sku=order.sku, station=order.station,
+                     size=order.size)
+
+    def start_trip(self, agv_id: int, shelf: int, order_ids: list[int]) -> Trip:
+        """Give an idle AGV a trip. The scheduler decides; this keeps the books straight."""
+        agv = self.agvs[agv_id]
+        if agv.state != AgvState.IDLE:
+            raise ValueError(f"AGV {agv_id} is not idle ({agv.state.name})")
+        if shelf in self.shelf_busy:
+            raise ValueError(f"shelf {shelf} is in use by trip {self.shelf_busy[shelf]}")
+        shelf_skus = set(self.layout.shelves[shelf].skus)
+        for oid in order_ids:
+            if self.status.get(oid) != OrderStatus.PENDING:
+                raise ValueError(f"order {oid} is not pending")
+            if self.orders[oid].sku not in shelf_skus:
+                raise ValueError(f"shelf {shelf} does not hold SKU of order {oid}")
+        stations = _stop_order(self, agv, shelf, {self.orders[o].station for o in order_ids})
+        trip = Trip(self._next_trip, agv_id, shelf, tuple(order_ids), tuple(stations))
+        self._next_trip += 1
+        self.trips[trip.id] = trip
+        self.shelf_busy[shelf] = trip.id
+        for oid in order_ids:
+            self.status[oid] = OrderStatus.ASSIGNED
+            self.log("order_assigned", order=oid, agv=agv_id, trip=trip.id, shelf=shelf)
+        agv.trip = trip
+        agv.state = AgvState.TO_SHELF
+        self.log("trip_started", agv=agv_id, trip=trip.id, shelf=shelf,
+                 orders=list(order_ids), stops=list(stations))
+        return trip
+
+    def advance_tasks(self) -> None:
+        """Arrivals, work in place and hand-overs for the tick that just ended."""
+        tasks = self.scenario.tasks
+        for agv in self.agvs:
+            if not agv.standing:
+                continue
+            if agv.state in (AgvState.PICKING, AgvState.HANDOVER, AgvState.PLACING):
+                agv.dwell_left -= 1
+                if agv.dwell_left <= 0:
+                    self._finish_work(agv)
+                continue
+            goal = self.goal_of(agv)
+            if goal is None or agv.node != goal or agv.state == AgvState.IDLE:
+                continue
+            trip = agv.trip
+            assert trip is not None
+            if agv.state == AgvState.TO_SHELF:
+                self._begin_work(agv, AgvState.PICKING, tasks.pick_ticks)
+            elif agv.state == AgvState.TO_STATION:
+                self._begin_work(agv, AgvState.HANDOVER, tasks.handover_ticks)
+            elif agv.state == AgvState.RETURNING:
+                self._begin_work(agv, AgvState.PLACING, tasks.place_ticks)
+
+    def _begin_work(self, agv: Agv, state: AgvState, ticks: int) -> None:
+        agv.state = state
+        agv.dwell_left = ticks
+        if ticks <= 0:
+            self._finish_work(agv)
+
+    def _finish_work(self, agv: Agv) -> None:
+        trip = agv.trip
+        assert trip is not None
+        if agv.state == AgvState.PICKING:
+            agv.loaded = True
+            for oid in trip.orders:
+                self.status[oid] = OrderStatus.IN_PROGRESS
+            self.log("shelf_picked", agv=agv.id, trip=trip.id, shelf=trip.shelf)
+            agv.state = AgvState.TO_STATION
+        elif agv.state == AgvState.HANDOVER:
+            station = trip.stops[trip.stop_idx]
+            for oid in trip.orders:
+                if self.orders[oid].station == station:
+                    self.status[oid] = OrderStatus.COMPLETED
+                    self.completed_tick[oid] = self.tick
+                    self.log("order_completed", order=oid, agv=agv.id, station=station,
+                             latency=self.tick - self.orders[oid].tick)
+            trip.stop_idx += 1
+            agv.state = AgvState.TO_STATION if trip.stop_idx < len(trip.stops) \
+                else AgvState.RETURNING
+        elif agv.state == AgvState.PLACING:
+            agv.loaded = False
+            del self.shelf_busy[trip.shelf]
+            self.log("shelf_returned", agv=agv.id, trip=trip.id, shelf=trip.shelf)
+            agv.trip = None
+            agv.state = AgvState.IDLE
+
+
+def can_carry(spec: AgvTypeSpec, shelf_size: int) -> bool:
+    """An AGV lifts a shelf from under it: the shelf must match its footprint and cargo class."""
+    return shelf_size == spec.footprint and shelf_size <= spec.carries
+
+
+def _stop_order(world: World, agv: Agv, shelf: int, stations: set[int]) -> list[int]:
+    """Visit the trip's stations nearest-first (loaded distances), starting at the shelf."""
+    graph = world.graphs.get(agv.k, True, shelf)
+    here = world.layout.shelves[shelf].anchor
+    left = sorted(stations)
+    out = []
+    while left:
+        nxt = min(left, key=lambda s: (graph.distance(
+            here, world.cell(world.station_anchor(s, agv.k))), s))
+        out.append(nxt)
+        left.remove(nxt)
+        here = world.cell(world.station_anchor(nxt, agv.k))
+    return out
+
+
+# ----------------------------------------------------------------------------- fleet set-up
+
+
+def _place_fleet(scenario: Scenario, layout: Layout, graphs: GraphSet) -> list[Agv]:
+    fleet, src = scenario.fleet, scenario.source
+    cell_m, tick_s = layout.cell_m, scenario.tick_s
+    for name, spec in fleet.types.items():
+        length, width = spec.body_m
+        if max(length, width) > spec.footprint * cell_m + 1e-9:
+            raise ScenarioError(f"body {length} x {width} m does not fit a {spec.footprint}x"
+                                f"{spec.footprint} footprint of {cell_m} m cells", file=src,
+                                field=f"fleet.types.{name}.body_m", value=list(spec.body_m))
+    taken = np.zeros((layout.rows, layout.cols), dtype=bool)
+    is_parking = layout.grid == CellType.PARKING
+    entries: list[tuple[int, int, str, Cell | None]] = []  # (group, index, type, start)
+    for gi, group in enumerate(fleet.agvs):
+        for j in range(group.count):
+            entries.append((gi, j, group.type, tuple(group.starts[j]) if group.starts else None))
+    anchors: dict[int, Cell] = {}
+    # Explicit starts first, then the biggest footprints pick parking spots first.
+    order = sorted(range(len(entries)), key=lambda i: (entries[i][3] is None,
+                                                       -fleet.types[entries[i][2]].footprint, i))
+    for idx in order:
+        gi, j, tname, start = entries[idx]
+        spec = fleet.types[tname]
+        k = spec.footprint
+        graph = graphs.get(k, False)
+        if start is not None:
+            r, c = start
+            if not graph.is_enterable(start) or taken[r:r + k, c:c + k].any():
+                raise ScenarioError(f"start is blocked or overlaps another AGV (footprint {k})",
+                                    file=src, field=f"fleet.agvs[{gi}].starts[{j}]",
+                                    value=list(start))
+        else:
+            spots = _window(is_parking & ~taken, k)
+            found = np.argwhere(spots & graph.valid)
+            if len(found) == 0:
+                raise LayoutError(f"no free {k}x{k} parking spot for AGV {j + 1} of "
+                                  f"{fleet.agvs[gi].count} (type {tname!r}); add parking "
+                                  "or give starts", file=src, field=f"fleet.agvs[{gi}].count",
+                                  value=fleet.agvs[gi].count)
+            start = (int(found[0][0]), int(found[0][1]))
+            r, c = start
+        taken[r:r + k, c:c + k] = True
+        anchors[idx] = start
+    agvs = []
+    for idx, (_, _, tname, _) in enumerate(entries):
+        spec = fleet.types[tname]
+        node = anchors[idx][0] * layout.cols + anchors[idx][1]
+        agvs.append(Agv(id=idx, type_name=tname, spec=spec,
+                        ticks_per_move=spec.ticks_per_move(cell_m, tick_s), home=node,
+                        pos=(node, node)))
+    return agvs
+
+
+def _window(mask: np.ndarray, k: int) -> np.ndarray:
+    from .planning.graph import _window_all
+    return _window_all(mask, k)
+
+
+def check_layout(scenario: Scenario, layout: Layout, graphs: GraphSet, agvs: list[Agv]) -> None:
+    """Every station, shelf and parking cell must be reachable by the AGVs that need it.
+
+    Raises :class:`LayoutError` naming the field and the cell that fails.
+    """
+    src = scenario.source
+    fleet = scenario.fleet
+    types_used = {a.type_name for a in agvs}
+    start_of = {t: next(a for a in agvs if a.type_name == t) for t in types_used}
+    shelf_sizes = sorted({s.size for s in layout.shelves})
+    for size in shelf_sizes:
+        if not any(can_carry(fleet.types[t], size) for t in types_used):
+            raise LayoutError(f"no AGV type can carry the layout's size-{size} shelves "
+                              f"(needs footprint {size} and cargo_class >= {size})", file=src,
+                              field="fleet.types", value=sorted(types_used))
+    for tname in sorted(types_used, key=lambda t: -fleet.types[t].footprint):
+        spec = fleet.types[tname]
+        k = spec.footprint
+        where = f"fleet.types.{tname}.footprint"
+        start = start_of[tname]
+        unloaded, loaded = graphs.get(k, False), graphs.get(k, True)
+        reach = unloaded.reachable_from(layout_cell(layout, start.node))
+        for a in agvs:
+            if a.type_name == tname and not reach[layout_cell(layout, a.node)]:
+                raise LayoutError(f"AGVs of type {tname!r} start in disconnected areas "
+                                  f"({layout_cell(layout, start.node)} and "
+                                  f"{layout_cell(layout, a.node)})", file=src, field=where,
+                                  value=k)
+        carries_any = any(can_carry(spec, s) for s in shelf_sizes)
+        for i, station in enumerate(layout.stations):
+            anchor = loaded.goal_anchor(station) if carries_any else unloaded.goal_anchor(station)
+            if anchor is None or not reach[anchor]:
+                raise LayoutError(f"station {list(station)} cannot be reached by a {k}x{k} "
+                                  f"AGV of type {tname!r}", file=src, field=where
+                                  if _reachable_by_small(layout, graphs, station) else
+                                  f"layout.stations[{i}]", value=k if
+                                  _reachable_by_small(layout, graphs, station) else list(station))
+        for shelf in layout.shelves:
+            if not can_carry(spec, shelf.size):
+                continue
+            if not reach[shelf.anchor]:
+                raise LayoutError(f"shelf {shelf.id} at {list(shelf.anchor)} cannot be reached "
+                                  f"by a {k}x{k} AGV of type {tname!r}", file=src,
+                                  field="layout.shelf_blocks", value=list(shelf.anchor))
+            carrying = graphs.get(k, True, shelf.id)
+            for station in layout.stations:
+                target = loaded.goal_anchor(station)
+                if target is None or carrying.distance(shelf.anchor, target) >= UNREACHABLE:
+                    raise LayoutError(f"a loaded {k}x{k} AGV cannot bring shelf {shelf.id} at "
+                                      f"{list(shelf.anchor)} to station {list(station)}: the "
+                                      "aisles are blocked or too narrow", file=src, field=where,
+                                      value=k)
+    small = graphs.get(1, False)
+    first = layout_cell(layout, agvs[0].node)
+    reach1 = small.reachable_from(first)
+    for r, c in layout.parking:
+        if not reach1[r, c]:
+            raise LayoutError("parking cell cannot be reached", file=src,
+                              field="layout.parking", value=[r, c])
+
+
+def _reachable_by_small(layout: Layout, graphs: GraphSet, station: Cell) -> bool:
+    """Is the station itself reachable at all (1x1, loaded)? Tells a walled-in station from
+    an AGV too big for the aisles."""
+    loaded = graphs.get(1, True)
+    anchors = [s.anchor for s in layout.shelves if s.size == 1]
+    if not anchors:
+        anchors = [layout.parking[0]] if layout.parking else []
+    return any(loaded.distance(a, station) < UNREACHABLE for a in anchors[:8])
+
+
+def layout_cell(layout: Layout, node: int) -> Cell:
+    return divmod(node, layout.cols)
