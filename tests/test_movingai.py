@@ -241,11 +241,12 @@ def test_map_row_wrong_length(tmp_path: Path) -> None:
     assert excinfo.value.value == "..."
 
 
-@pytest.mark.parametrize("bad", ["x", " ", "#", "é"])
-def test_map_unknown_character(tmp_path: Path, bad: str) -> None:
+@pytest.mark.parametrize("encoding", ["utf-8", "latin-1"])
+@pytest.mark.parametrize("bad", ["x", " ", "#", "\t", "é"])
+def test_map_unknown_character(tmp_path: Path, bad: str, encoding: str) -> None:
     rows = ["....", "..." + bad, "...."]
     path = tmp_path / "chars.map"
-    path.write_bytes(map_text(rows, width=4).encode("latin-1"))
+    path.write_bytes(map_text(rows, width=4).encode(encoding))
     with pytest.raises(ScenarioError) as excinfo:
         read_map(path)
     check_error(excinfo, path, "row 1, column 3")

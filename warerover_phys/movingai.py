@@ -73,7 +73,7 @@ class ScenarioAgent:
 
 
 def _read_lines(path: str | os.PathLike[str], file: str) -> list[str]:
-    """The file's lines (latin-1, so every byte is one character), without line ends."""
+    """The file's lines (UTF-8, else latin-1), without line ends."""
     try:
         data = Path(path).read_bytes()
     except FileNotFoundError:
@@ -84,7 +84,11 @@ def _read_lines(path: str | os.PathLike[str], file: str) -> list[str]:
     except OSError as exc:
         raise ScenarioError(f"cannot read file: {exc.strerror}", file=file, field="file",
                             value=file) from None
-    lines = data.decode("latin-1").split("\n")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
+        text = data.decode("latin-1")
+    lines = text.split("\n")
     if lines and lines[-1] == "":
         lines.pop()
     return [line[:-1] if line.endswith("\r") else line for line in lines]
@@ -144,9 +148,13 @@ def read_map(path: str | os.PathLike[str]) -> MovingAIMap:
                                 f"(file line {r + 5})", file=file, field=f"row {r}",
                                 value=row)
 
-    cells = np.frombuffer("".join(body).encode("latin-1"), dtype=np.uint8)
-    cells = cells.reshape(height, width)
-    kind = _LUT[cells]
+    joined = "".join(body)
+    if joined.isascii():
+        kind = _LUT[np.frombuffer(joined.encode("ascii"), dtype=np.uint8)]
+    else:  # non-ASCII characters are all unknown; index by code point
+        codes = np.frombuffer(joined.encode("utf-32-le"), dtype=np.uint32)
+        kind = np.where(codes < 256, _LUT[np.minimum(codes, 255)], np.uint8(2))
+    kind = kind.reshape(height, width)
     if (kind == 2).any():
         r, c = (int(i) for i in np.argwhere(kind == 2)[0])
         raise ScenarioError(f"unknown cell character (file line {r + 5}); expected one of "

@@ -143,7 +143,7 @@ class OrderStream:
         Ask after :meth:`arrivals` of ``tick``. For ``hotspot`` with ``scale < 1`` (batches
         that may be empty) the answer is conservative: True only past the last batch tick.
         """
-        if tick >= self._last_tick:
+        if tick >= self._last_tick - 1:
             return True
         if self.spec.pattern != "burst":
             return False

@@ -13,6 +13,7 @@ import time
 from collections import deque
 from dataclasses import replace
 
+from ..layout import CellType
 from .base import AgentRequest, PlanRequest, PlanResult, State, TimedPath, footprint_nodes
 from .graph import UNREACHABLE, MotionGraph
 from .reservation import FOREVER, ReservationTable
@@ -98,14 +99,20 @@ def goal_held(graph: MotionGraph, res: ReservationTable, agent: AgentRequest) ->
 def nearest_free_anchor(graph: MotionGraph, res: ReservationTable, agent: AgentRequest,
                         radius: int = 8) -> int | None:
     """The anchor nearest to the goal (breadth-first, up to ``radius`` moves) where the AGV
-    could wait for good: a place to queue while the goal is taken."""
+    could wait for good: a place to queue while the goal is taken.
+
+    Only plain floor qualifies: an AGV queuing on a station, shelf or parking spot could hold
+    another AGV's goal, and two AGVs holding each other's goals never move again.
+    """
     goal, me, k, cols = agent.goal, agent.agv, agent.k, graph.cols
+    floor = graph.layout.grid.ravel() == CellType.FLOOR
     seen = {goal}
     frontier = deque([(goal, 0)])
     while frontier:
         node, d = frontier.popleft()
-        if d > 0 and graph.expandable(node) and all(
-                res.last_use(c, me) < FOREVER for c in footprint_nodes(node, k, cols)):
+        cells = footprint_nodes(node, k, cols)
+        if d > 0 and graph.expandable(node) and all(floor[c] for c in cells) and all(
+                res.last_use(c, me) < FOREVER for c in cells):
             return node
         if d == radius:
             continue
@@ -165,7 +172,7 @@ class AStarPlanner:
             if path is None and goal_held(graph, res, agent):
                 # Queue near the goal; the loop replans once the goal is free.
                 alt = nearest_free_anchor(graph, res, agent)
-                if alt is not None and alt != agent.start:
+                if alt is not None:
                     path, n2 = space_time_astar(graph, res, replace(agent, goal=alt),
                                                 request.tick, self.max_expansions)
                     n += n2

@@ -1,0 +1,150 @@
+"""The ``warerover`` command line.
+
+``warerover run SCENARIO`` runs one episode and writes ``metrics.json``, ``events.jsonl`` and
+``paths.json``; ``warerover check SCENARIO`` only loads and checks a scenario. Bad input
+prints one line naming the file, field and value, and exits with code 2.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from .errors import WareroverError
+
+__all__ = ["app", "main"]
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                  help="warerover-phys: closed-loop robotic warehouse simulator.")
+err_console = Console(stderr=True)
+
+SetOpt = Annotated[list[str] | None, typer.Option(
+    "--set", help="Override any scenario field: --set orders.pattern=burst (repeatable).")]
+SeedOpt = Annotated[int | None, typer.Option(help="Episode seed (overrides the file's).")]
+SchedOpt = Annotated[str | None, typer.Option(help="Scheduler: ta | rd.")]
+PlanOpt = Annotated[str | None, typer.Option(help="Planner: astar.")]
+ExecOpt = Annotated[str | None, typer.Option(help="Executor: grid.")]
+OrdersOpt = Annotated[str | None, typer.Option(
+    help="Order pattern: oneshot | constant | wave | hotspot | burst.")]
+
+
+def _fail(err: Exception) -> None:
+    err_console.print(f"[bold red]error:[/] {err}", highlight=False, soft_wrap=True)
+    raise typer.Exit(2)
+
+
+def _overrides(sets: list[str] | None, seed: int | None, scheduler: str | None,
+               planner: str | None, executor: str | None, orders: str | None,
+               ) -> list[tuple[str, Any]]:
+    from .config import parse_override
+
+    out = [parse_override(s) for s in sets or []]
+    named = {"seed": seed, "scheduler.name": scheduler, "planner.name": planner,
+             "executor.name": executor, "orders.pattern": orders}
+    out += [(k, v) for k, v in named.items() if v is not None]
+    return out
+
+
+def _load(scenario: Path, overrides: list[tuple[str, Any]]):
+    from .config import load_scenario
+    from .world import World
+
+    sc = load_scenario(scenario, overrides)
+    return sc, World.build(sc)
+
+
+@app.command()
+def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
+        seed: SeedOpt = None,
+        out: Annotated[Path | None, typer.Option(
+            help="Output folder (default: runs/NAME-seedN).")] = None,
+        json_out: Annotated[bool, typer.Option(
+            "--json", help="Print metrics as JSON instead of a table.")] = False,
+        set_: SetOpt = None, scheduler: SchedOpt = None, planner: PlanOpt = None,
+        executor: ExecOpt = None, orders: OrdersOpt = None,
+        quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
+        ) -> None:
+    """Run one episode and write metrics.json, events.jsonl and paths.json."""
+    from .outputs import write_outputs
+    from .sim import Simulation
+
+    try:
+        overrides = _overrides(set_, seed, scheduler, planner, executor, orders)
+        from .config import load_scenario
+
+        sc = load_scenario(scenario, overrides)
+        sim = Simulation(sc)
+        out_dir = out or Path("runs") / f"{sc.name}-seed{sc.seed}"
+        show = not quiet and not json_out and err_console.is_terminal
+        if show:
+            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+            with Progress(TextColumn("{task.description}"), BarColumn(),
+                          TextColumn("tick {task.completed:.0f}/{task.total:.0f}"),
+                          TextColumn("{task.fields[orders]}"), TimeElapsedColumn(),
+                          console=err_console, transient=True) as bar:
+                task = bar.add_task(sc.name, total=sc.max_ticks, orders="")
+                result = sim.run(lambda t, done, gen: bar.update(
+                    task, completed=t, orders=f"orders {done}/{gen}"))
+        else:
+            result = sim.run()
+        files = write_outputs(result, out_dir)
+    except WareroverError as err:
+        _fail(err)
+    except OSError as err:
+        _fail(WareroverError(f"{getattr(err, 'filename', '') or ''}: {err.strerror or err}"))
+    m = result.metrics
+    if json_out:
+        typer.echo(json.dumps(m, indent=2, sort_keys=True))
+        return
+    table = Table(title=f"{sc.name}  seed {sc.seed}  {sc.scheduler.name} + {sc.planner.name} "
+                        f"on {sc.executor.name}", show_header=True)
+    table.add_column("metric")
+    table.add_column("value", justify="right")
+    rows = [("success rate (SR)", f"{m['success_rate']:.3f}"),
+            ("throughput (TP, orders/tick)", f"{m['throughput']:.3f}"),
+            ("computation (CT total, s)", f"{m['ct_total_s']:.3f}"),
+            ("CT per tick mean / p99 (ms)", f"{m['ct_mean_ms']:.2f} / {m['ct_p99_ms']:.2f}"),
+            ("  scheduler mean (ms)", f"{m['ct_sched_mean_ms']:.2f}"),
+            ("  planner mean (ms)", f"{m['ct_plan_mean_ms']:.2f}"),
+            ("ticks", str(m["ticks"])),
+            ("orders completed / generated", f"{m['orders_completed']} / {m['orders_generated']}"),
+            ("order latency mean (ticks)", f"{m['order_latency_mean_ticks']:.1f}"),
+            ("blocked moves", str(m["blocked_moves"])),
+            ("collisions", str(m["collisions"])),
+            ("replans / failures / detours",
+             f"{m['replans']} / {m['plan_failures']} / {m['goal_busy_detours']}")]
+    for k, v in rows:
+        table.add_row(k, v)
+    console = Console()
+    console.print(table)
+    console.print(f"wrote {files['metrics']}, {files['events'].name}, {files['paths'].name}")
+
+
+@app.command()
+def check(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
+          set_: SetOpt = None) -> None:
+    """Load and check a scenario (schema, layout, reachability) without running it."""
+    try:
+        sc, world = _load(scenario, _overrides(set_, None, None, None, None, None))
+    except WareroverError as err:
+        _fail(err)
+    lay = world.layout
+    typer.echo(f"{scenario}: ok — {lay.rows}x{lay.cols} cells, {len(lay.shelves)} shelves, "
+               f"{lay.num_skus} SKUs, {len(lay.stations)} stations, {len(lay.parking)} parking "
+               f"cells, {len(world.agvs)} AGVs")
+
+
+def main() -> None:
+    """Console-script entry point."""
+    try:
+        app()
+    except KeyboardInterrupt:
+        err_console.print("interrupted")
+        sys.exit(130)
