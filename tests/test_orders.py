@@ -199,6 +199,26 @@ def test_burst_exhausted_when_last_burst_has_no_batch_left():
         stream.arrivals(t)
         # Bursts at 0, 20, ..., 380 with batches every 5 ticks: last batch at 395.
         assert stream.exhausted(t) == (t >= 395), t
+    # Asking about an earlier tick after the fact still counts the orders that came since.
+    assert not stream.exhausted(390)
+    assert not stream.exhausted(-1)
+
+
+@pytest.mark.parametrize(("duration", "burst_ticks", "burst_every"), [
+    (400, 20, 7), (401, 20, 7), (402, 20, 7), (399, 20, 7), (100, 30, 4), (97, 1, 1),
+    (50, 60, 9),
+])
+def test_burst_always_on_exhausted_exactly_after_last_order(duration, burst_ticks, burst_every):
+    # With start_prob 1 the stream is known in advance: exhausted(t) iff no order after t.
+    burst = {"every_ticks": 1000, "start_prob": 1.0, "burst_ticks": burst_ticks,
+             "burst_every_ticks": burst_every}
+    stream = make("burst", duration_ticks=duration, burst=burst)
+    answers, last = [], 0
+    for t in range(duration + 10):
+        if stream.arrivals(t):
+            last = t
+        answers.append(stream.exhausted(t))
+    assert answers == [t >= last for t in range(duration + 10)]
 
 
 def test_burst_not_exhausted_while_a_burst_may_still_start():

@@ -140,10 +140,12 @@ class OrderStream:
     def exhausted(self, tick: int) -> bool:
         """True when no order will arrive at any tick after ``tick``.
 
-        Ask after :meth:`arrivals` of ``tick``. For ``hotspot`` with ``scale < 1`` (batches
-        that may be empty) the answer is conservative: True only past the last batch tick.
+        Any tick may be asked; for ``burst`` the answer uses what the ticks simulated so far
+        decided (a tick not simulated yet may still start a burst). For ``hotspot`` with
+        ``scale < 1`` (batches that may be empty) the answer is conservative: True from the
+        last batch tick on.
         """
-        if tick >= self._last_tick - 1:
+        if tick >= self._last_tick:
             return True
         if self.spec.pattern != "burst":
             return False
@@ -209,7 +211,7 @@ class OrderStream:
         t = _last_multiple(every, d)
         while t >= 0 and self._wave_size(t) <= 0:
             t -= every
-        return t
+        return max(t, -1)
 
     def _burst_exhausted(self, tick: int) -> bool:
         b = self.spec.burst
@@ -224,7 +226,7 @@ class OrderStream:
         # Unless the running burst covers every tick still to simulate, a new one may start
         # at duration_ticks - 1 > tick.
         s = self._burst_start
-        if s is None or s + b.burst_ticks <= first_unseen or s + b.burst_ticks < d:
+        if s is None or s + b.burst_ticks < d:
             return False
         start = max(tick + 1, first_unseen)
         k = -(-(start - s) // b.burst_every_ticks)

@@ -63,7 +63,8 @@ def validate_states(trajectories: Mapping[int, Sequence[tuple[int, int]]],
 
     for agv, states in trajectories.items():
         m = speeds.get(agv, 1)
-        transit = 0
+        # Ticks spent in the current move; unknown if the window starts mid-move.
+        transit: int | None = None if states and states[0][0] != states[0][1] else 0
         for i, (a, b) in enumerate(states):
             for r, c in _cells(a, sizes.get(agv, 1), cols) | _cells(b, sizes.get(agv, 1), cols):
                 if not (0 <= r < rows and 0 <= c < cols):
@@ -79,11 +80,11 @@ def validate_states(trajectories: Mapping[int, Sequence[tuple[int, int]]],
                 continue
             pa, pb = states[i - 1]
             if (pa, pb) == (a, b) and a != b:
-                transit += 1
+                transit = None if transit is None else transit + 1
             elif pa == pb and a != b and a == pa:
                 transit = 1
             elif pa != pb and a == b == pb:
-                if transit != m - 1:
+                if transit is not None and transit != m - 1:
                     out.append(Conflict("move", start_tick + i, (agv,), divmod(b, cols)))
                 transit = 0
             elif pa == pb and a == b:
