@@ -147,8 +147,10 @@ def generate_base(gen: GeneratorSpec, fleet_size: int) -> np.ndarray:
     area_w = gen.block_cols * bw + (gen.block_cols - 1) * gen.aisle_width
     n_park = gen.parking or fleet_size
     side_len = {"left": area_h, "right": area_h, "top": area_w, "bottom": area_w}
-    # Bands: stations in one cell-thick band, parking in as many rows as it needs.
-    park_depth = max(1, math.ceil(n_park / max(1, side_len[gen.parking_side] + 2 * gen.border)))
+    # Bands: stations in one cell-thick band; parking in as many rows as it needs, each row
+    # of spots with a free lane beside it so no parked AGV is boxed in by others.
+    park_rows = max(1, math.ceil(n_park / max(1, side_len[gen.parking_side] + 2 * gen.border)))
+    park_depth = 2 * park_rows - 1
     if gen.station_side == gen.parking_side:
         raise ScenarioError("stations and parking must be on different sides",
                             field="layout.generator.parking_side", value=gen.parking_side)
@@ -170,12 +172,12 @@ def generate_base(gen: GeneratorSpec, fleet_size: int) -> np.ndarray:
     _place_band(grid, gen.station_side, wall, gen.stations, CellType.STATION, depth=1,
                 spread=True, field="layout.generator.stations")
     _place_band(grid, gen.parking_side, wall, n_park, CellType.PARKING, depth=park_depth,
-                spread=False, field="layout.generator.parking")
+                spread=False, field="layout.generator.parking", every_other=True)
     return grid
 
 
 def _place_band(grid: np.ndarray, side: str, wall: int, count: int, kind: CellType, *,
-                depth: int, spread: bool, field: str) -> None:
+                depth: int, spread: bool, field: str, every_other: bool = False) -> None:
     rows, cols = grid.shape
     # Cells of the band, listed along the side, one lane at a time from the wall inwards.
     lanes: list[list[Cell]] = []
@@ -188,7 +190,8 @@ def _place_band(grid: np.ndarray, side: str, wall: int, count: int, kind: CellTy
             lane = [(wall + d, c) for c in range(wall + 1, cols - wall - 1)]
         else:
             lane = [(rows - 1 - wall - d, c) for c in range(wall + 1, cols - wall - 1)]
-        lanes.append(lane)
+        if not every_other or d % 2 == 0:
+            lanes.append(lane)
     capacity = sum(len(lane) for lane in lanes)
     if count > capacity:
         raise ScenarioError(f"only {capacity} cells fit on the {side} side", field=field,

@@ -28,8 +28,12 @@ def space_time_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequ
     start, goal = agent.start, agent.goal
     free = res.free
 
-    def fp(node: int) -> tuple[int, ...]:
-        return footprint_nodes(node, k, cols)
+    if k == 1:
+        def fp(node: int) -> tuple[int, ...]:
+            return (node,)
+    else:
+        def fp(node: int) -> tuple[int, ...]:
+            return footprint_nodes(node, k, cols)
 
     # Earliest tick from which the AGV may stay at the goal for good.
     t_free = max((res.last_use(c, me) for c in fp(goal)), default=-1) + 1
@@ -40,12 +44,17 @@ def space_time_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequ
     if h0 >= UNREACHABLE:
         return None, 0
     t_limit = max(t_free, t0 + h0 * m) + h0 * m + 64
+    # A search that needs far more nodes than its length is usually blocked by AGVs that
+    # will move later: give up early and let the loop retry rather than burn the budget.
+    max_expansions = min(max_expansions, 40 * (h0 * m + 25))
 
     def h(node: int) -> int:
         v = int(h_table[node])
         return v * m if v < UNREACHABLE else (h0 * m if node == start else UNREACHABLE)
 
     loaded_sinks = graph.has_sinks
+    expandable = graph.expandable_flat
+    neighbors = graph.neighbors
     open_heap: list[tuple[int, int, int, int]] = [(t0 + h(start), -t0, start, t0)]
     parent: dict[tuple[int, int], tuple[int, int] | None] = {(start, t0): None}
     closed: set[tuple[int, int]] = set()
@@ -67,8 +76,8 @@ def space_time_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequ
         if (node, t + 1) not in parent and all(free(c, t + 1, me) for c in here):
             parent[(node, t + 1)] = (node, t)
             heapq.heappush(open_heap, (t + 1 + h(node), -(t + 1), node, t + 1))
-        for nxt in graph.succ(node, is_start=(node == start)):
-            if loaded_sinks and nxt != goal and not graph.expandable(nxt):
+        for nxt in (neighbors[node] if node == start or expandable[node] else ()):
+            if loaded_sinks and nxt != goal and not expandable[nxt]:
                 continue  # never drive into another shelf's home
             t_arr = t + m
             if (nxt, t_arr) in parent:

@@ -68,6 +68,7 @@ class MotionGraph:
         self.sinks = sinks
         self.has_sinks = bool(sinks.any())
         self.enterable = self.valid | sinks
+        self.expandable_flat: list[bool] = self.valid.ravel().tolist()
         self._build_edges()
         n = self.rows * self.cols
         self._cap = cache_tables or max(32, min(4096, int(150e6 // max(1, 4 * n))))
@@ -118,8 +119,7 @@ class MotionGraph:
         return divmod(node, self.cols)
 
     def expandable(self, node: int) -> bool:
-        r, c = divmod(node, self.cols)
-        return bool(self.valid[r, c])
+        return self.expandable_flat[node]
 
     def is_enterable(self, cell: Cell) -> bool:
         r, c = cell
@@ -132,7 +132,7 @@ class MotionGraph:
 
     def succ(self, node: int, is_start: bool = False) -> tuple[int, ...]:
         """Nodes one move away. Sinks are left only when they are the search's start."""
-        if is_start or self.expandable(node):
+        if is_start or self.expandable_flat[node]:
             return self.neighbors[node]
         return ()
 
