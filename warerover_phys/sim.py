@@ -18,11 +18,17 @@ from .config import Scenario
 from .executors import make_executor
 from .metrics import MetricsRecorder
 from .planning import make_planner
-from .planning.base import AgentRequest, PlanRequest, TimedPath
+from .planning.astar import nearest_free_anchor
+from .planning.base import AgentRequest, PlanRequest, TimedPath, footprint_nodes
 from .schedulers import make_scheduler
-from .world import MOVING_STATES, AgvState, World
+from .world import MOVING_STATES, Agv, AgvState, World
 
 __all__ = ["EpisodeResult", "run_episode", "Simulation"]
+
+STUCK_FAILURES = 3
+"""Failed plans in a row after which AGVs waiting on the AGV's route are asked to make way."""
+YIELD_TICKS = 8
+"""How long an AGV that makes way stays away."""
 
 
 @dataclass
@@ -94,6 +100,11 @@ class Simulation:
             if not agv.standing or agv.state not in MOVING_STATES or w.tick < agv.retry_at:
                 continue
             goal = w.goal_of(agv)
+            if agv.yield_goal is not None:
+                if w.tick < agv.yield_until:
+                    goal = agv.yield_goal
+                else:
+                    agv.yield_goal = None
             path = res.paths.get(agv.id)
             if goal is None or path is None:
                 continue
@@ -117,7 +128,7 @@ class Simulation:
             self.metrics.replans_this_tick(0, 0, 0)
             return
         request = PlanRequest(tick=w.tick, agents=agents, graphs=w.graphs, reservations=res,
-                              rng=w.rngs["planner"])
+                              rng=w.rngs["planner"], keep_clear=w.keep_clear())
         result = self.planner.plan(request)
         for aid, path in result.paths.items():
             agv = w.agvs[aid]
@@ -128,8 +139,41 @@ class Simulation:
             agv = w.agvs[aid]
             agv.plan_failures += 1
             agv.retry_at = w.tick + min(agv.plan_failures, 4)
+            if agv.plan_failures % STUCK_FAILURES == 0:
+                self._make_way_for(agv)
         self.metrics.replans_this_tick(len(result.paths), len(result.failed),
                                        len(result.detours))
+
+    def _make_way_for(self, stuck: Agv) -> None:
+        """Send AGVs that stand idle or queue on ``stuck``'s shortest path somewhere else for
+        a while: prioritized planning alone can wall an AGV in with AGVs that wait for it."""
+        w = self.world
+        goal = w.goal_of(stuck)
+        if goal is None:
+            return
+        shelf = stuck.trip.shelf if stuck.loaded and stuck.trip is not None else None
+        graph = w.graphs.get(stuck.k, stuck.loaded, shelf)
+        route = graph.static_path(w.cell(stuck.node), w.cell(goal))
+        cells = frozenset(c for node in route
+                          for c in footprint_nodes(node, stuck.k, w.layout.cols))
+        for other in w.agvs:
+            if other.id == stuck.id or not other.standing or other.yield_goal is not None:
+                continue
+            waiting = other.state == AgvState.IDLE or (
+                other.state in MOVING_STATES and other.node != w.goal_of(other))
+            mine = set(footprint_nodes(other.node, other.k, w.layout.cols))
+            if not waiting or not mine & cells:
+                continue
+            g = w.graphs.get(other.k, other.loaded,
+                             other.trip.shelf if other.loaded and other.trip else None)
+            probe = AgentRequest(other.id, other.node, other.node, k=other.k)
+            spot = nearest_free_anchor(g, w.reservations, probe, keep_clear=w.keep_clear(),
+                                       avoid=cells)
+            if spot is not None:
+                other.yield_goal = spot
+                other.yield_until = w.tick + YIELD_TICKS
+                other.retry_at = w.tick
+                w.log("make_way", agv=other.id, for_agv=stuck.id, spot=list(w.cell(spot)))
 
     def _follow_up(self, blocked: list[int]) -> None:
         w = self.world

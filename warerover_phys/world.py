@@ -88,6 +88,9 @@ class Agv:
     blocked_ticks: int = 0
     plan_failures: int = 0
     retry_at: int = 0
+    yield_goal: int | None = None
+    """Where it waits while making way for a stuck AGV (until ``yield_until``)."""
+    yield_until: int = 0
 
     @property
     def k(self) -> int:
@@ -162,6 +165,21 @@ class World:
             if sid not in self.shelf_busy and can_carry(agv.spec, shelf.size):
                 out.append(sid)
         return out
+
+    def keep_clear(self) -> np.ndarray:
+        """Flat mask of the cells any AGV of the fleet covers while at a station."""
+        mask = self.__dict__.get("_keep_clear")
+        if mask is None:
+            mask = np.zeros(self.layout.rows * self.layout.cols, dtype=bool)
+            for k in {a.k for a in self.agvs}:
+                for st in range(len(self.layout.stations)):
+                    r, c = self.cell(self.station_anchor(st, k))
+                    for i in range(k):
+                        for j in range(k):
+                            mask[(r + i) * self.layout.cols + c + j] = True
+            mask.setflags(write=False)
+            self.__dict__["_keep_clear"] = mask
+        return mask
 
     def station_anchor(self, station: int, k: int) -> int:
         graph = self.graphs.get(k, True)

@@ -13,6 +13,8 @@ import time
 from collections import deque
 from dataclasses import replace
 
+import numpy as np
+
 from ..layout import CellType
 from .base import AgentRequest, PlanRequest, PlanResult, State, TimedPath, footprint_nodes
 from .graph import UNREACHABLE, MotionGraph
@@ -106,7 +108,8 @@ def goal_held(graph: MotionGraph, res: ReservationTable, agent: AgentRequest) ->
 
 
 def nearest_free_anchor(graph: MotionGraph, res: ReservationTable, agent: AgentRequest,
-                        radius: int = 8) -> int | None:
+                        radius: int = 12, keep_clear: np.ndarray | None = None,
+                        avoid: frozenset[int] = frozenset()) -> int | None:
     """The anchor nearest to the goal (breadth-first, up to ``radius`` moves) where the AGV
     could wait for good: a place to queue while the goal is taken.
 
@@ -115,12 +118,15 @@ def nearest_free_anchor(graph: MotionGraph, res: ReservationTable, agent: AgentR
     """
     goal, me, k, cols = agent.goal, agent.agv, agent.k, graph.cols
     floor = graph.layout.grid.ravel() == CellType.FLOOR
+    if keep_clear is not None:
+        floor = floor & ~keep_clear
     seen = {goal}
     frontier = deque([(goal, 0)])
     while frontier:
         node, d = frontier.popleft()
         cells = footprint_nodes(node, k, cols)
-        if d > 0 and graph.expandable(node) and all(floor[c] for c in cells) and all(
+        if d > 0 and graph.expandable(node) and all(floor[c] and c not in avoid
+                                                     for c in cells) and all(
                 res.last_use(c, me) < FOREVER for c in cells):
             return node
         if d == radius:
@@ -180,7 +186,7 @@ class AStarPlanner:
             path, n = space_time_astar(graph, res, agent, request.tick, self.max_expansions)
             if path is None and goal_held(graph, res, agent):
                 # Queue near the goal; the loop replans once the goal is free.
-                alt = nearest_free_anchor(graph, res, agent)
+                alt = nearest_free_anchor(graph, res, agent, keep_clear=request.keep_clear)
                 if alt is not None:
                     path, n2 = space_time_astar(graph, res, replace(agent, goal=alt),
                                                 request.tick, self.max_expansions)

@@ -85,6 +85,9 @@ class PlanRequest:
     """Committed paths of every AGV. The planner leaves it holding the new path of every
     AGV it planned and the old path of every AGV it could not plan."""
     rng: np.random.Generator | None = None
+    keep_clear: np.ndarray | None = None
+    """Flat bool mask of cells where no AGV should wait (e.g. every station's footprint for
+    every AGV size): planners must not park AGVs there to queue."""
     deadline: float | None = None
     """``time.monotonic()`` value after which the planner should stop planning more AGVs."""
 

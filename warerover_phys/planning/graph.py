@@ -166,6 +166,20 @@ class MotionGraph:
         best = min((int(table[v]) for v in self.neighbors[s]), default=UNREACHABLE)
         return UNREACHABLE if best >= UNREACHABLE else best + 1
 
+    def static_path(self, start: Cell, goal: Cell) -> list[int]:
+        """A shortest path of anchor nodes ignoring other AGVs (empty if unreachable)."""
+        table = self.dist_to(goal)
+        node, g = self.node(start), self.node(goal)
+        if self.distance(start, goal) >= UNREACHABLE:
+            return []
+        path = [node]
+        while node != g:
+            node = min(self.succ(node, is_start=(node == path[0])),
+                       key=lambda v: (int(table[v]) if self.expandable_flat[v] or v == g
+                                      else UNREACHABLE, v))
+            path.append(node)
+        return path
+
     def reachable_from(self, start: Cell) -> np.ndarray:
         """Boolean (rows, cols) mask of anchors reachable from ``start`` (unloaded graphs
         are symmetric, so this is the set that can reach ``start`` too)."""
