@@ -75,7 +75,10 @@ def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
     from .sim import Simulation
 
     try:
-        overrides = _overrides(set_, seed, scheduler, planner, executor, orders)
+        try:
+            overrides = _overrides(set_, seed, scheduler, planner, executor, orders)
+        except WareroverError as err:
+            raise err.with_file(str(scenario)) if hasattr(err, "with_file") else err
         from .config import load_scenario
 
         sc = load_scenario(scenario, overrides)
@@ -132,7 +135,11 @@ def check(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
           set_: SetOpt = None) -> None:
     """Load and check a scenario (schema, layout, reachability) without running it."""
     try:
-        sc, world = _load(scenario, _overrides(set_, None, None, None, None, None))
+        try:
+            overrides = _overrides(set_, None, None, None, None, None)
+        except WareroverError as err:
+            raise err.with_file(str(scenario)) if hasattr(err, "with_file") else err
+        sc, world = _load(scenario, overrides)
     except WareroverError as err:
         _fail(err)
     lay = world.layout

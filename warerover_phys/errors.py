@@ -17,7 +17,11 @@ class WareroverError(Exception):
 
 def _short(value: Any, limit: int = 60) -> str:
     text = repr(value)
-    return text if len(text) <= limit else text[: limit - 3] + "..."
+    if len(text) <= limit:
+        return text
+    if isinstance(value, str) and "/" in value:  # a path: its end says the most
+        return "'..." + text[-(limit - 4):]
+    return text[: limit - 3] + "..."
 
 
 class ScenarioError(WareroverError):

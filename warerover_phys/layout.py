@@ -265,6 +265,10 @@ def build_layout(spec: LayoutSpec, *, fleet_size: int = 0, file: str | None = No
                   if ch == "A"]
     elif spec.map is not None:
         from .movingai import read_map
+
+        if not Path(spec.map).is_file():
+            raise ScenarioError("MovingAI map file not found", file=file, field="layout.map",
+                                value=spec.map)
         grid = np.where(read_map(spec.map).obstacles, CellType.OBSTACLE,
                         CellType.FLOOR).astype(np.int8)
     elif spec.generator is not None:

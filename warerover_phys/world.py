@@ -129,11 +129,14 @@ class World:
     @classmethod
     def build(cls, scenario: Scenario) -> World:
         src = scenario.source
-        layout = build_layout(scenario.layout, fleet_size=scenario.fleet.size, file=src,
-                              name=scenario.name)
-        graphs = GraphSet(layout)
-        agvs = _place_fleet(scenario, layout, graphs)
-        check_layout(scenario, layout, graphs, agvs)
+        try:
+            layout = build_layout(scenario.layout, fleet_size=scenario.fleet.size, file=src,
+                                  name=scenario.name)
+            graphs = GraphSet(layout)
+            agvs = _place_fleet(scenario, layout, graphs)
+            check_layout(scenario, layout, graphs, agvs)
+        except ScenarioError as err:
+            raise err.with_file(src) if src else err from None
         rngs = make_rngs(scenario.seed)
         stream = OrderStream(scenario.orders, layout.sku_sizes, len(layout.stations),
                              rngs["orders"])
@@ -425,18 +428,21 @@ def check_layout(scenario: Scenario, layout: Layout, graphs: GraphSet, agvs: lis
         for i, station in enumerate(layout.stations):
             anchor = loaded.goal_anchor(station) if carries_any else unloaded.goal_anchor(station)
             if anchor is None or not reach[anchor]:
+                # Too big for the aisles, or a station nobody can reach?
+                too_big = k > 1 and bool(graphs.get(1, False).reachable_from(
+                    layout_cell(layout, start.node))[station])
                 raise LayoutError(f"station {list(station)} cannot be reached by a {k}x{k} "
-                                  f"AGV of type {tname!r}", file=src, field=where
-                                  if _reachable_by_small(layout, graphs, station) else
-                                  f"layout.stations[{i}]", value=k if
-                                  _reachable_by_small(layout, graphs, station) else list(station))
+                                  f"AGV of type {tname!r} from its start", file=src,
+                                  field=where if too_big else f"layout.stations[{i}]",
+                                  value=k if too_big else list(station))
         for shelf in layout.shelves:
             if not can_carry(spec, shelf.size):
                 continue
             if not reach[shelf.anchor]:
                 raise LayoutError(f"shelf {shelf.id} at {list(shelf.anchor)} cannot be reached "
                                   f"by a {k}x{k} AGV of type {tname!r}", file=src,
-                                  field="layout.shelf_blocks", value=list(shelf.anchor))
+                                  field=_shelf_field(scenario, shelf.anchor),
+                                  value=list(shelf.anchor))
             carrying = graphs.get(k, True, shelf.id)
             for station in layout.stations:
                 target = loaded.goal_anchor(station)
@@ -454,14 +460,19 @@ def check_layout(scenario: Scenario, layout: Layout, graphs: GraphSet, agvs: lis
                               field="layout.parking", value=[r, c])
 
 
-def _reachable_by_small(layout: Layout, graphs: GraphSet, station: Cell) -> bool:
-    """Is the station itself reachable at all (1x1, loaded)? Tells a walled-in station from
-    an AGV too big for the aisles."""
-    loaded = graphs.get(1, True)
-    anchors = [s.anchor for s in layout.shelves if s.size == 1]
-    if not anchors:
-        anchors = [layout.parking[0]] if layout.parking else []
-    return any(loaded.distance(a, station) < UNREACHABLE for a in anchors[:8])
+def _shelf_field(scenario: Scenario, anchor: Cell) -> str:
+    """The field of the scenario a shelf came from, for error messages."""
+    spec = scenario.layout
+    for i, block in enumerate(spec.shelf_blocks):
+        r0, c0 = block.origin
+        if r0 <= anchor[0] < r0 + block.rows * block.size and \
+                c0 <= anchor[1] < c0 + block.cols * block.size:
+            return f"layout.shelf_blocks[{i}]"
+    if spec.grid is not None:
+        return f"layout.grid[{anchor[0]}]"
+    if spec.generator is not None:
+        return "layout.generator"
+    return "layout.shelf_blocks"
 
 
 def layout_cell(layout: Layout, node: int) -> Cell:

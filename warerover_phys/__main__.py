@@ -1,0 +1,5 @@
+"""``python -m warerover_phys`` is the ``warerover`` command."""
+
+from .cli import main
+
+main()
