@@ -78,7 +78,7 @@ def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
         try:
             overrides = _overrides(set_, seed, scheduler, planner, executor, orders)
         except WareroverError as err:
-            raise err.with_file(str(scenario)) if hasattr(err, "with_file") else err
+            raise (err.with_file(str(scenario)) if hasattr(err, "with_file") else err) from None
         from .config import load_scenario
 
         sc = load_scenario(scenario, overrides)
@@ -138,7 +138,7 @@ def check(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
         try:
             overrides = _overrides(set_, None, None, None, None, None)
         except WareroverError as err:
-            raise err.with_file(str(scenario)) if hasattr(err, "with_file") else err
+            raise (err.with_file(str(scenario)) if hasattr(err, "with_file") else err) from None
         sc, world = _load(scenario, overrides)
     except WareroverError as err:
         _fail(err)

@@ -337,6 +337,16 @@ class Scenario(_Model):
     def _shorthand(cls, value: Any) -> Any:
         return _named(value)
 
+    @model_validator(mode="after")
+    def _faults_name_real_agvs(self) -> Scenario:
+        for i, fault in enumerate(self.faults.scheduled):
+            if fault.agv >= self.fleet.size:
+                raise ScenarioError(f"AGV {fault.agv} does not exist (the fleet has "
+                                    f"{self.fleet.size}: ids 0..{self.fleet.size - 1})",
+                                    file=self.source, field=f"faults.scheduled[{i}].agv",
+                                    value=fault.agv)
+        return self
+
     @property
     def base_dir(self) -> Path:
         return Path(self.source).parent if self.source else Path.cwd()

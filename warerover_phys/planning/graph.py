@@ -190,7 +190,7 @@ class MotionGraph:
         ``cell`` itself if valid, else the nearest valid anchor covering it."""
         r, c = cell
         k = self.k
-        options = sorted(((dr + dc, dr, dc) for dr in range(k) for dc in range(k)))
+        options = sorted((dr + dc, dr, dc) for dr in range(k) for dc in range(k))
         for _, dr, dc in options:
             a = (r - dr, c - dc)
             if 0 <= a[0] < self.rows and 0 <= a[1] < self.cols and self.valid[a]:
