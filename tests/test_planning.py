@@ -268,3 +268,45 @@ def test_distance_tables_match_bfs(k):
         for c in range(layout.cols):
             expected = dist.get((r, c), UNREACHABLE)
             assert table[r * layout.cols + c] == expected, (r, c)
+
+
+@st.composite
+def random_walks(draw):
+    rows, cols = draw(st.integers(2, 5)), draw(st.integers(2, 5))
+    n = draw(st.integers(1, 4))
+    steps = draw(st.integers(1, 6))
+    walks = {}
+    for agv in range(n):
+        r, c = draw(st.integers(0, rows - 1)), draw(st.integers(0, cols - 1))
+        states = [(r * cols + c, r * cols + c)]
+        for _ in range(steps):
+            dr, dc = draw(st.sampled_from([(0, 0), (0, 1), (1, 0), (0, -1), (-1, 0)]))
+            r2, c2 = min(max(r + dr, 0), rows - 1), min(max(c + dc, 0), cols - 1)
+            r, c = r2, c2
+            states.append((r * cols + c, r * cols + c))
+        walks[agv] = states
+    return np.zeros((rows, cols), dtype=bool), walks
+
+
+@settings(max_examples=200, deadline=None)
+@given(random_walks())
+def test_validator_agrees_with_brute_force(case):
+    """1x1 random walks: the validator reports a vertex or swap conflict iff a direct
+    comparison of every pair of agents at every tick finds one."""
+    obstacles, walks = case
+    ids = sorted(walks)
+    horizon = max(len(w) for w in walks.values())
+
+    def at(a, t):
+        return walks[a][min(t, len(walks[a]) - 1)][1]
+
+    expected = set()
+    for t in range(horizon):
+        for i, a in enumerate(ids):
+            for b in ids[i + 1:]:
+                if at(a, t) == at(b, t):
+                    expected.add(("vertex", t))
+                elif t and at(a, t) == at(b, t - 1) and at(b, t) == at(a, t - 1):
+                    expected.add(("swap", t))
+    found = {(c.kind, c.tick) for c in validate_states(walks, obstacles, max_conflicts=10**6)}
+    assert found == expected
