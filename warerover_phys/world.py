@@ -170,16 +170,18 @@ class World:
         return out
 
     def keep_clear(self) -> np.ndarray:
-        """Flat mask of the cells any AGV of the fleet covers while at a station."""
+        """Flat mask of the cells any AGV of the fleet covers while at a station, and the
+        cells next to them: queues form away from the stations so they never block the
+        way in or out."""
         mask = self.__dict__.get("_keep_clear")
         if mask is None:
-            mask = np.zeros(self.layout.rows * self.layout.cols, dtype=bool)
+            rows, cols = self.layout.rows, self.layout.cols
+            grid = np.zeros((rows, cols), dtype=bool)
             for k in {a.k for a in self.agvs}:
                 for st in range(len(self.layout.stations)):
                     r, c = self.cell(self.station_anchor(st, k))
-                    for i in range(k):
-                        for j in range(k):
-                            mask[(r + i) * self.layout.cols + c + j] = True
+                    grid[max(0, r - 1):r + k + 1, max(0, c - 1):c + k + 1] = True
+            mask = grid.ravel()
             mask.setflags(write=False)
             self.__dict__["_keep_clear"] = mask
         return mask

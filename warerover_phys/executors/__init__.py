@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..errors import ScenarioError
+from ..registry import lookup
 from .base import Executor, StepReport
 from .grid import GridExecutor
 
@@ -12,9 +12,5 @@ EXECUTORS = {"grid": GridExecutor}
 
 
 def make_executor(spec) -> Executor:
-    try:
-        cls = EXECUTORS[spec.name]
-    except KeyError:
-        raise ScenarioError(f"unknown executor (choose from {sorted(EXECUTORS)})",
-                            field="executor.name", value=spec.name) from None
+    cls = lookup(EXECUTORS, spec.name, "executor.name")
     return cls()

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..errors import ScenarioError
+from ..registry import lookup
 from .astar import AStarPlanner
 from .base import AgentRequest, Planner, PlanRequest, PlanResult, TimedPath
 from .graph import GraphSet, MotionGraph
@@ -16,9 +16,5 @@ PLANNERS = {"astar": AStarPlanner}
 
 def make_planner(spec) -> Planner:
     """Build the planner a :class:`~warerover_phys.config.PlannerSpec` names."""
-    try:
-        cls = PLANNERS[spec.name]
-    except KeyError:
-        raise ScenarioError(f"unknown planner (choose from {sorted(PLANNERS)})",
-                            field="planner.name", value=spec.name) from None
+    cls = lookup(PLANNERS, spec.name, "planner.name")
     return cls(max_expansions=spec.max_expansions)

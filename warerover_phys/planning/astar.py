@@ -28,7 +28,16 @@ def space_time_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequ
     """Search one AGV's path from tick ``t0``. Returns (path or None, expansions)."""
     cols, k, m, me = graph.cols, agent.k, agent.ticks_per_move, agent.agv
     start, goal = agent.start, agent.goal
-    free = res.free
+    occ, rest = res._occ, res._rest
+
+    def free(cell: int, t: int, me: int) -> bool:
+        slot = occ.get(cell)
+        if slot is not None:
+            a = slot.get(t)
+            if a is not None:
+                return a == me
+        r = rest.get(cell)
+        return r is None or t < r[0] or r[1] == me
 
     if k == 1:
         def fp(node: int) -> tuple[int, ...]:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..errors import ScenarioError
+from ..registry import lookup
 from .base import Assignment, Scheduler
 from .rd import RandomDispatch
 from .ta import TaskAssignment
@@ -15,9 +15,5 @@ SCHEDULERS = {"rd": RandomDispatch, "ta": TaskAssignment}
 
 def make_scheduler(spec) -> Scheduler:
     """Build the scheduler a :class:`~warerover_phys.config.SchedulerSpec` names."""
-    try:
-        cls = SCHEDULERS[spec.name]
-    except KeyError:
-        raise ScenarioError(f"unknown scheduler (choose from {sorted(SCHEDULERS)})",
-                            field="scheduler.name", value=spec.name) from None
+    cls = lookup(SCHEDULERS, spec.name, "scheduler.name")
     return cls(spec)
