@@ -100,6 +100,8 @@ class PlanResult:
     detours: list[int] = field(default_factory=list)
     """AGVs sent to wait near a goal that another AGV holds (a path is in ``paths``)."""
     expansions: int = 0
+    budget_hits: int = 0
+    """Times a planner ran out of its node / time budget and used its documented fallback."""
 
 
 @runtime_checkable

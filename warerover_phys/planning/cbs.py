@@ -1,0 +1,553 @@
+"""Windowed Conflict-Based Search (Sharon et al. 2015) on top of the reservation table.
+
+The AGVs of a request are planned *jointly*; every other AGV's committed path in the
+reservation table is a fixed obstacle at every tick, its final rest included.
+
+High level (the constraint tree, CT). Best-first on the sum of costs (each agent's cost is
+the tick at which it reaches its goal for good, minus ``request.tick``); ties go to the node
+with fewer conflicts, then to the node inserted first. A node's paths are checked pairwise
+from ``request.tick`` to ``request.tick + horizon``; the earliest conflict (ties: lowest AGV
+ids) splits the node in two, one child constraining each AGV (lower id first):
+
+- *vertex* (footprints overlap at tick ``t``): "AGV i may not occupy cell ``c`` at ``t``" for
+  one shared cell ``c``. It is checked against the AGV's whole occupancy, the ``k x k``
+  footprint and, for a slow AGV, both footprints during the ``m - 1`` transit ticks. A
+  conflict with an AGV that already rests at its goal yields the same constraint, which the
+  low level reads as "the goal may not be held before ``t + 1``" (it may finish only after
+  the last constrained tick on a goal cell), the standard CBS goal constraint;
+- *swap* (each moves into cells the other leaves, in the same tick): "AGV i may not make
+  the transition ``s -> s'`` into tick ``t``" (an edge constraint on its own states).
+
+Low level: space-time A* per AGV as in :func:`~warerover_phys.planning.astar.space_time_astar`
+(same moves, footprints, multi-tick moves, sinks, expansion cap), plus the AGV's CBS
+constraints; among equally short paths it takes the one with the fewest cells shared with
+the other planned AGVs' current paths (a conflict-avoidance table).
+
+Window. Conflicts after ``request.tick + horizon`` are ignored by the high level, but the
+grid executor follows committed paths exactly, so the result is made safe afterwards: the
+CBS paths are taken in priority order (``priority``, then id) and each one is committed only
+if it fits the reservation table over its *whole* length and rest (the same check as A*:
+every occupied cell per tick, swaps, and nobody crossing its goal after it arrives). The
+AGVs whose paths do not fit (the lower-priority side of a late conflict) are replanned by
+prioritized A* (:class:`~warerover_phys.planning.astar.AStarPlanner`) around everything
+committed so far. Use a horizon longer than any path for plain (unwindowed) CBS.
+
+Fallback. When the high level runs out of ``max_nodes`` CT nodes, ``time_budget_s`` seconds
+(monotonic clock) or the request's ``deadline``, or when the CT is exhausted, or when a
+replanned AGV of the window repair finds no path, the whole request is handed to
+:class:`~warerover_phys.planning.astar.AStarPlanner` on the table as it was received (every
+planned AGV's old path put back). A budget stop sets ``result.budget_hits = 1`` (else 0).
+
+Before the search, AGVs are given goals that cannot clash for good: an AGV whose goal a
+resting non-planned AGV holds, or whose goal footprint overlaps that of an AGV of higher
+priority in the same request, is sent to the nearest free anchor (``request.keep_clear``
+respected) and listed in ``detours``. An AGV with no path even when alone among the fixed
+AGVs keeps its old path, which then counts as fixed for the others, and is listed in
+``failed``. Everything is deterministic except where the time budget or deadline stops it.
+
+>>> from warerover_phys.config import LayoutSpec
+>>> from warerover_phys.layout import build_layout
+>>> from warerover_phys.planning import AgentRequest, GraphSet, PlanRequest, ReservationTable
+>>> from warerover_phys.planning.base import TimedPath
+>>> layout = build_layout(LayoutSpec(grid=["###.####", "........", "######SR"]))
+>>> res = ReservationTable(layout.cols)
+>>> agents = [AgentRequest(0, 8, 15), AgentRequest(1, 14, 3)]  # head-on, one pocket
+>>> for a in agents:
+...     _ = res.commit(TimedPath(a.agv, 0, ((a.start, a.start),)), a.k)
+>>> result = CBSPlanner().plan(PlanRequest(0, agents, GraphSet(layout), res))
+>>> sorted(result.paths), result.failed, result.budget_hits
+([0, 1], [], 0)
+"""
+
+from __future__ import annotations
+
+import heapq
+import logging
+import time
+from collections.abc import Mapping, Sequence, Set
+from dataclasses import dataclass, replace
+
+from .astar import AStarPlanner, goal_held, nearest_free_anchor
+from .base import (
+    AgentRequest,
+    PlanRequest,
+    PlanResult,
+    State,
+    TimedPath,
+    footprint_nodes,
+    occupancy,
+)
+from .graph import UNREACHABLE, MotionGraph
+from .reservation import FOREVER, ReservationTable
+
+__all__ = ["CBSPlanner", "Conflict", "constrained_astar", "first_conflict", "path_fits"]
+
+log = logging.getLogger(__name__)
+
+EdgeConstraint = tuple[int, State, State]
+"""``(t, s, s2)``: the AGV may not be in state ``s`` at ``t - 1`` and ``s2`` at ``t``."""
+
+
+@dataclass(frozen=True, slots=True)
+class Conflict:
+    """The earliest conflict between two planned agents (indices into the CBS agent list).
+
+    ``kind`` is ``"vertex"`` (``cell`` is a shared cell at ``tick``) or ``"swap"``
+    (``moves`` holds each agent's state transition into ``tick``).
+    """
+
+    kind: str
+    tick: int
+    i: int
+    j: int
+    cell: int = -1
+    moves: tuple[tuple[State, State], tuple[State, State]] | None = None
+
+
+# ----------------------------------------------------------------------------- low level
+
+
+def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest, t0: int,
+                      vertex: Mapping[int, Set[int]] | None = None,
+                      edge: Set[EdgeConstraint] | None = None,
+                      avoid: tuple[dict[int, dict[int, int]], dict[int, int]] | None = None,
+                      max_expansions: int = 50_000) -> tuple[TimedPath | None, int]:
+    """Space-time A* for one AGV from tick ``t0`` around the fixed AGVs in ``res`` and the
+    CBS constraints: ``vertex[t]`` (cells it may not occupy at ``t``) and ``edge``.
+
+    ``avoid`` is a conflict-avoidance table ``(per-tick cell counts, cell -> rest tick)`` of
+    the other planned AGVs: it only breaks ties between equally short paths. Returns (the
+    shortest path that satisfies every constraint, or None; expansions).
+    """
+    cols, k, m, me = graph.cols, agent.k, agent.ticks_per_move, agent.agv
+    start, goal = agent.start, agent.goal
+    occ, rest = res._occ, res._rest
+    vertex = vertex or {}
+    edge = edge or frozenset()
+    cat, cat_rest = avoid if avoid is not None else ({}, {})
+
+    def fp(node: int) -> tuple[int, ...]:
+        return footprint_nodes(node, k, cols)
+
+    def ok(cells: Sequence[int], t: int) -> bool:
+        banned = vertex.get(t)
+        for c in cells:
+            slot = occ.get(c)
+            if slot is not None:
+                a = slot.get(t)
+                if a is not None and a != me:
+                    return False
+            r = rest.get(c)
+            if r is not None and t >= r[0] and r[1] != me:
+                return False
+            if banned is not None and c in banned:
+                return False
+        return True
+
+    def hits(cells: Sequence[int], t: int) -> int:
+        row = cat.get(t)
+        n = 0
+        for c in cells:
+            if row is not None and c in row:
+                n += row[c]
+            else:
+                r = cat_rest.get(c)
+                if r is not None and t >= r:
+                    n += 1
+        return n
+
+    goal_cells = fp(goal)
+    # Earliest tick from which the AGV may stay at the goal for good: after every fixed
+    # AGV's last use of the goal's cells and after every vertex constraint on them.
+    t_free = max((res.last_use(c, me) for c in goal_cells), default=-1) + 1
+    if t_free >= FOREVER:
+        return None, 0
+    for t, cells in vertex.items():
+        if t >= t_free and not cells.isdisjoint(goal_cells):
+            t_free = t + 1
+    h_table = graph.dist_to(graph.cell(goal))
+    h0 = graph.distance(graph.cell(start), graph.cell(goal))
+    if h0 >= UNREACHABLE:
+        return None, 0
+    n_cons = len(vertex) + len(edge)
+    t_last = max(max(vertex, default=t0), max((e[0] for e in edge), default=t0))
+    t_limit = max(t_free, t0 + h0 * m, t_last + 1) + h0 * m + 64
+    max_expansions = min(max_expansions, 40 * (h0 * m + 25 + n_cons))
+
+    def h(node: int) -> int:
+        v = int(h_table[node])
+        return v * m if v < UNREACHABLE else (h0 * m if node == start else UNREACHABLE)
+
+    loaded_sinks = graph.has_sinks
+    expandable = graph.expandable_flat
+    neighbors = graph.neighbors
+    # Entries (f, conflicts, -t, node, t): lexicographic (f, conflicts) never decreases
+    # along a path, so a state is closed with its fewest conflicts among shortest routes.
+    open_heap: list[tuple[int, int, int, int, int]] = [(t0 + h(start), 0, -t0, start, t0)]
+    parent: dict[tuple[int, int], tuple[int, int] | None] = {(start, t0): None}
+    best: dict[tuple[int, int], int] = {(start, t0): 0}
+    closed: set[tuple[int, int]] = set()
+
+    def push(node: int, t: int, conf: int, hn: int, frm: tuple[int, int]) -> None:
+        key = (node, t)
+        if key in closed or conf >= best.get(key, UNREACHABLE):
+            return
+        best[key] = conf
+        parent[key] = frm
+        heapq.heappush(open_heap, (t + hn, conf, -t, node, t))
+
+    expansions = 0
+    while open_heap:
+        _, conf, _, node, t = heapq.heappop(open_heap)
+        key = (node, t)
+        if key in closed or conf > best[key]:
+            continue
+        closed.add(key)
+        if node == goal and t >= t_free:
+            return _reconstruct(parent, node, t, me), expansions
+        expansions += 1
+        if expansions > max_expansions:
+            break
+        if t >= t_limit:
+            continue
+        here = fp(node)
+        if ok(here, t + 1):  # wait one tick
+            push(node, t + 1, conf + hits(here, t + 1), h(node), key)
+        for nxt in (neighbors[node] if node == start or expandable[node] else ()):
+            if loaded_sinks and nxt != goal and not expandable[nxt]:
+                continue  # never drive into another shelf's home
+            t_arr = t + m
+            if (nxt, t_arr) in closed:
+                continue
+            hn = h(nxt)
+            if hn >= UNREACHABLE:
+                continue
+            there = fp(nxt)
+            if not ok(there, t_arr):
+                continue
+            if m > 1:
+                both = tuple(dict.fromkeys(here + there))
+                if not all(ok(both, t + i) for i in range(1, m)):
+                    continue
+                if edge and ((t + 1, (node, node), (node, nxt)) in edge
+                             or (t_arr, (node, nxt), (nxt, nxt)) in edge):
+                    continue
+                extra = sum(hits(both, t + i) for i in range(1, m))
+            else:
+                if _swaps(res, here, there, t, me):
+                    continue
+                if edge and (t_arr, (node, node), (nxt, nxt)) in edge:
+                    continue
+                extra = 0
+            push(nxt, t_arr, conf + extra + hits(there, t_arr), hn, key)
+    return None, expansions
+
+
+def _swaps(res: ReservationTable, here: tuple[int, ...], there: tuple[int, ...], t: int,
+           me: int) -> bool:
+    """True if a fixed AGV now in ``there`` moves into ``here`` during the same tick."""
+    for c in there:
+        other = res.owner(c, t)
+        if other is not None and other != me:
+            for c2 in here:
+                if res.owner(c2, t + 1) == other:
+                    return True
+    return False
+
+
+def _reconstruct(parent: dict, node: int, t: int, agv: int) -> TimedPath:
+    chain: list[tuple[int, int]] = []
+    key: tuple[int, int] | None = (node, t)
+    while key is not None:
+        chain.append(key)
+        key = parent[key]
+    chain.reverse()
+    states: list[State] = [(chain[0][0], chain[0][0])]
+    for (a, ta), (b, tb) in zip(chain, chain[1:], strict=False):
+        for _ in range(tb - ta - 1):
+            states.append((a, b))
+        states.append((b, b))
+    return TimedPath(agv=agv, start_tick=chain[0][1], states=tuple(states))
+
+
+# ----------------------------------------------------------------------------- conflicts
+
+
+def first_conflict(paths: Sequence[TimedPath], sizes: Sequence[int], cols: int, t0: int,
+                   t_end: int) -> tuple[Conflict | None, int]:
+    """The earliest conflict among ``paths`` at ticks ``t0 .. t_end`` (each path rests at
+    its end), and how many conflicts there are in all (an approximate count)."""
+    n = len(paths)
+    t_end = min(t_end, max((p.end_tick for p in paths), default=t0))
+    found: Conflict | None = None
+    count = 0
+    prev_owner: dict[int, int] = {}
+    prev_occ: list[tuple[int, ...]] = []
+    prev_state: list[State] = []
+    for t in range(t0, t_end + 1):
+        states = [p.state_at(t) for p in paths]
+        occ_t = [occupancy(s, sizes[i], cols) for i, s in enumerate(states)]
+        owner: dict[int, int] = {}
+        for i in range(n):
+            for c in occ_t[i]:
+                o = owner.get(c)
+                if o is None:
+                    owner[c] = i
+                elif o != i:
+                    count += 1
+                    if found is None:
+                        found = Conflict("vertex", t, o, i, cell=c)
+        if t > t0:
+            moved = [states[i] != prev_state[i] for i in range(n)]
+            for p in range(n):
+                if not moved[p]:
+                    continue
+                after_p, before_p = set(occ_t[p]), set(prev_occ[p])
+                for q in sorted({prev_owner.get(c, -1) for c in after_p}):
+                    if q <= p or not moved[q]:
+                        continue
+                    after_q, before_q = set(occ_t[q]), set(prev_occ[q])
+                    if after_q & before_p and not after_p & after_q \
+                            and not before_p & before_q:
+                        count += 1
+                        if found is None:
+                            found = Conflict("swap", t, p, q, moves=(
+                                (prev_state[p], states[p]), (prev_state[q], states[q])))
+        prev_owner, prev_occ, prev_state = owner, occ_t, states
+    return found, count
+
+
+def path_fits(res: ReservationTable, path: TimedPath, k: int) -> bool:
+    """Does ``path`` (footprint ``k``) fit the committed paths of ``res`` for good: no shared
+    cell at any tick, no swap, and no other AGV on its goal after it arrives?"""
+    cols, me = res.cols, path.agv
+    prev: tuple[int, ...] | None = None
+    for i, state in enumerate(path.states):
+        t = path.start_tick + i
+        cells = occupancy(state, k, cols)
+        if not all(res.free(c, t, me) for c in cells):
+            return False
+        if prev is not None and state != path.states[i - 1] \
+                and _swaps(res, prev, cells, t - 1, me):
+            return False
+        prev = cells
+    return all(res.last_use(c, me) < path.end_tick
+               for c in occupancy(path.states[-1], k, cols))
+
+
+# ----------------------------------------------------------------------------- high level
+
+
+@dataclass(slots=True)
+class _Node:
+    paths: list[TimedPath]
+    soc: int
+    constraints: tuple | None
+    """Linked list ``(agent index, kind, payload, parent's list)`` of this node's constraints."""
+    conflict: Conflict | None
+    n_conflicts: int
+
+
+def _constraints_of(node: _Node, idx: int) -> tuple[dict[int, set[int]], set[EdgeConstraint]]:
+    vertex: dict[int, set[int]] = {}
+    edge: set[EdgeConstraint] = set()
+    link = node.constraints
+    while link is not None:
+        agent, kind, payload, link = link
+        if agent != idx:
+            continue
+        if kind == "vertex":
+            cell, t = payload
+            vertex.setdefault(t, set()).add(cell)
+        else:
+            edge.add(payload)
+    return vertex, edge
+
+
+def _avoidance_table(paths: Sequence[TimedPath], skip: int, sizes: Sequence[int],
+                     cols: int) -> tuple[dict[int, dict[int, int]], dict[int, int]]:
+    cat: dict[int, dict[int, int]] = {}
+    rest: dict[int, int] = {}
+    for j, p in enumerate(paths):
+        if j == skip:
+            continue
+        k = sizes[j]
+        for i, s in enumerate(p.states[:-1]):
+            row = cat.setdefault(p.start_tick + i, {})
+            for c in occupancy(s, k, cols):
+                row[c] = row.get(c, 0) + 1
+        for c in occupancy(p.states[-1], k, cols):
+            rest[c] = min(rest.get(c, FOREVER), p.end_tick)
+    return cat, rest
+
+
+class CBSPlanner:
+    """Windowed Conflict-Based Search with a prioritized A* fallback (see the module doc)."""
+
+    name = "cbs"
+
+    def __init__(self, max_expansions: int = 50_000, horizon: int = 20, max_nodes: int = 2_000,
+                 time_budget_s: float = 0.5) -> None:
+        self.max_expansions = max_expansions
+        self.horizon = horizon
+        self.max_nodes = max_nodes
+        self.time_budget_s = time_budget_s
+
+    # ------------------------------------------------------------------------- entry point
+
+    def plan(self, request: PlanRequest) -> PlanResult:
+        t_start = time.monotonic()
+        res = request.reservations
+        old = {a.agv: res.paths.get(a.agv) for a in request.agents}
+        if request.deadline is not None and t_start > request.deadline:
+            return self._fallback(request, old, 0, budget_hit=True)
+        for a in request.agents:
+            res.release(a.agv)
+        result = PlanResult()
+        agents, paths, detours = self._roots(request, old, result)
+        order = sorted(range(len(agents)), key=lambda i: agents[i].agv)
+        agents = [agents[i] for i in order]
+        paths = [paths[i] for i in order]
+        solved, status = self._search(request, agents, paths, result, t_start)
+        if solved is None:
+            log.debug("CBS %s at tick %d: prioritized fallback", status, request.tick)
+            return self._fallback(request, old, result.expansions, budget_hit=status == "budget")
+        # Commit in priority order what fits for good; replan the rest with prioritized A*.
+        demoted: list[AgentRequest] = []
+        for i in sorted(range(len(agents)), key=lambda i: (agents[i].priority, agents[i].agv)):
+            if path_fits(res, solved[i], agents[i].k):
+                res.commit(solved[i], agents[i].k)
+                result.paths[agents[i].agv] = solved[i]
+            else:
+                demoted.append(agents[i])
+        if demoted:
+            sub = AStarPlanner(self.max_expansions).plan(replace(request, agents=demoted))
+            result.expansions += sub.expansions
+            if sub.failed:
+                log.debug("window repair failed for %s: prioritized fallback", sub.failed)
+                return self._fallback(request, old, result.expansions, budget_hit=False)
+            result.paths.update(sub.paths)
+            detours |= set(sub.detours)
+        result.detours = [a.agv for a in sorted(request.agents, key=_prio)
+                          if a.agv in detours and a.agv in result.paths]
+        result.budget_hits = 0
+        return result
+
+    # ------------------------------------------------------------------------- helpers
+
+    def _roots(self, request: PlanRequest, old: dict[int, TimedPath | None],
+               result: PlanResult) -> tuple[list[AgentRequest], list[TimedPath], set[int]]:
+        """Goals that cannot clash for good, and each agent's path alone among the fixed
+        AGVs. An agent without one keeps its old path, now fixed: start again."""
+        res, cols = request.reservations, request.reservations.cols
+        pending = sorted(request.agents, key=_prio)
+        while True:
+            agents: list[AgentRequest] = []
+            paths: list[TimedPath] = []
+            detours: set[int] = set()
+            taken: set[int] = set()
+            failed: AgentRequest | None = None
+            for agent in pending:
+                graph = request.graphs.get(agent.k, agent.loaded, agent.shelf)
+                cells = set(footprint_nodes(agent.goal, agent.k, cols))
+                if cells & taken or goal_held(graph, res, agent):
+                    alt = nearest_free_anchor(graph, res, agent, keep_clear=request.keep_clear,
+                                              avoid=frozenset(taken))
+                    if alt is None:
+                        failed = agent
+                        break
+                    agent = replace(agent, goal=alt)
+                    detours.add(agent.agv)
+                    cells = set(footprint_nodes(alt, agent.k, cols))
+                path, n = constrained_astar(graph, res, agent, request.tick,
+                                            max_expansions=self.max_expansions)
+                result.expansions += n
+                if path is None:
+                    failed = agent
+                    break
+                taken |= cells
+                agents.append(agent)
+                paths.append(path)
+            if failed is None:
+                return agents, paths, detours
+            result.failed.append(failed.agv)
+            prev = old.get(failed.agv)
+            if prev is not None:
+                res.commit(prev, failed.k)
+            pending = [a for a in pending if a.agv != failed.agv]
+
+    def _search(self, request: PlanRequest, agents: list[AgentRequest],
+                paths: list[TimedPath], result: PlanResult,
+                t_start: float) -> tuple[list[TimedPath] | None, str]:
+        """Best-first search of the constraint tree. Returns (paths, "solved") or
+        (None, "budget" | "exhausted")."""
+        res, t0 = request.reservations, request.tick
+        cols = res.cols
+        sizes = [a.k for a in agents]
+        graphs = [request.graphs.get(a.k, a.loaded, a.shelf) for a in agents]
+        t_end = t0 + self.horizon
+        stop_at = t_start + self.time_budget_s
+        if request.deadline is not None:
+            stop_at = min(stop_at, request.deadline)
+
+        def cost(p: TimedPath) -> int:
+            return p.end_tick - t0
+
+        conflict, n_conf = first_conflict(paths, sizes, cols, t0, t_end)
+        root = _Node(paths, sum(cost(p) for p in paths), None, conflict, n_conf)
+        counter = 0
+        open_list: list[tuple[int, int, int, _Node]] = [(root.soc, n_conf, counter, root)]
+        generated = 1
+        while open_list:
+            node = heapq.heappop(open_list)[3]
+            conflict = node.conflict
+            if conflict is None:
+                return node.paths, "solved"
+            if generated >= self.max_nodes or time.monotonic() > stop_at:
+                return None, "budget"
+            if conflict.kind == "vertex":
+                branches = [(conflict.i, "vertex", (conflict.cell, conflict.tick)),
+                            (conflict.j, "vertex", (conflict.cell, conflict.tick))]
+            else:
+                assert conflict.moves is not None
+                (a0, a1), (b0, b1) = conflict.moves
+                branches = [(conflict.i, "edge", (conflict.tick, a0, a1)),
+                            (conflict.j, "edge", (conflict.tick, b0, b1))]
+            for idx, kind, payload in branches:
+                constraints = (idx, kind, payload, node.constraints)
+                child = _Node(node.paths, 0, constraints, None, 0)
+                vertex, edge = _constraints_of(child, idx)
+                avoid = _avoidance_table(node.paths, idx, sizes, cols)
+                path, n = constrained_astar(graphs[idx], res, agents[idx], t0, vertex, edge,
+                                            avoid, self.max_expansions)
+                result.expansions += n
+                generated += 1
+                if path is None:
+                    continue
+                child.paths = list(node.paths)
+                child.paths[idx] = path
+                child.soc = node.soc - cost(node.paths[idx]) + cost(path)
+                child.conflict, child.n_conflicts = first_conflict(child.paths, sizes, cols,
+                                                                   t0, t_end)
+                counter += 1
+                heapq.heappush(open_list, (child.soc, child.n_conflicts, counter, child))
+        return None, "exhausted"
+
+    def _fallback(self, request: PlanRequest, old: dict[int, TimedPath | None],
+                  expansions: int, budget_hit: bool) -> PlanResult:
+        """Put the table back as received and plan the request with prioritized A*."""
+        res = request.reservations
+        for a in request.agents:
+            res.release(a.agv)
+        for a in request.agents:
+            prev = old.get(a.agv)
+            if prev is not None:
+                res.commit(prev, a.k)
+        result = AStarPlanner(self.max_expansions).plan(request)
+        result.expansions += expansions
+        result.budget_hits = int(budget_hit)
+        return result
+
+
+def _prio(agent: AgentRequest) -> tuple:
+    return (agent.priority, agent.agv)

@@ -1,0 +1,105 @@
+"""LaCAM: lazy constraints addition search for MAPF (Okumura, AAAI 2023).
+
+A depth-first search over whole configurations (one node per agent). Each high-level node
+keeps a lazily grown tree of low-level constraints ("agent i goes to v next"); every time the
+node is visited the next constraint is popped, and PIBT generates the successor
+configuration that respects it. A configuration seen before is not added twice: the search
+goes back to its node, which then tries its next constraint. LaCAM is complete: given time,
+it finds a solution if one exists and reports failure otherwise.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .graph import MotionGraph
+from .pibt import _to_paths, initial_priorities, pibt_step, update_priorities
+
+__all__ = ["lacam"]
+
+Cell = tuple[int, int]
+
+
+@dataclass(slots=True)
+class _Low:
+    who: tuple[int, ...] = ()
+    where: tuple[int, ...] = ()
+
+    @property
+    def depth(self) -> int:
+        return len(self.who)
+
+
+@dataclass(slots=True)
+class _High:
+    config: tuple[int, ...]
+    parent: _High | None
+    prio: list[float]
+    order: list[int]
+    tree: deque = field(default_factory=lambda: deque([_Low()]))
+
+
+def lacam(graph: MotionGraph, starts: Sequence[Cell], goals: Sequence[Cell], deadline: float,
+          seed: int = 0) -> tuple[list[list[Cell]] | None, dict]:
+    """Solve; returns (paths or None, stats). None with ``stats["exhausted"]`` True means
+    there is no solution; otherwise the deadline passed."""
+    rng = np.random.default_rng(seed)
+    ties = rng.random(graph.num_nodes + 4099) * 0.5
+    s = tuple(graph.node(c) for c in starts)
+    g = tuple(graph.node(c) for c in goals)
+    dists = [graph.dist_to(c) for c in goals]
+    neighbors = graph.neighbors
+
+    def make(config: tuple[int, ...], parent: _High | None, prio: list[float]) -> _High:
+        order = sorted(range(len(config)), key=lambda i: -prio[i])
+        return _High(config, parent, prio, order)
+
+    root = make(s, None, initial_priorities(dists, s))
+    stack = [root]
+    explored = {s: root}
+    iterations = 0
+    while stack:
+        iterations += 1
+        if iterations % 64 == 0 and time.monotonic() > deadline:
+            return None, {"iterations": iterations, "explored": len(explored),
+                          "exhausted": False}
+        node = stack[-1]
+        if node.config == g:
+            configs = []
+            walk: _High | None = node
+            while walk is not None:
+                configs.append(list(walk.config))
+                walk = walk.parent
+            configs.reverse()
+            return _to_paths(graph, configs), {"iterations": iterations,
+                                               "explored": len(explored)}
+        if not node.tree:
+            stack.pop()
+            continue
+        low = node.tree.popleft()
+        if low.depth < len(s):
+            i = node.order[low.depth]
+            here = node.config[i]
+            cands = list(neighbors[here] + (here,))
+            rng.shuffle(cands)
+            for v in cands:
+                node.tree.append(_Low(low.who + (i,), low.where + (v,)))
+        salt = int(rng.integers(4096))
+        nxt = pibt_step(graph, node.config, dists, node.prio, ties[salt:], goals=g,
+                        forced=tuple(zip(low.who, low.where, strict=True)))
+        if nxt is None:
+            continue
+        key = tuple(nxt)
+        known = explored.get(key)
+        if known is not None:
+            stack.append(known)
+            continue
+        new = make(key, node, update_priorities(node.prio, key, g))
+        stack.append(new)
+        explored[key] = new
+    return None, {"iterations": iterations, "explored": len(explored), "exhausted": True}

@@ -1,0 +1,94 @@
+"""One-shot MAPF on a plain grid (MovingAI instances): every agent from its start to its goal.
+
+>>> import numpy as np
+>>> from warerover_phys.planning.oneshot import solve
+>>> free = np.zeros((3, 3), dtype=bool)
+>>> result = solve(free, [(0, 0), (2, 2)], [(2, 2), (0, 0)], planner="lacam", time_limit_s=5)
+>>> result.success, result.lower_bound
+(True, 8)
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import PlanningError
+from ..layout import CellType, Layout
+from .graph import UNREACHABLE, MotionGraph
+
+__all__ = ["OneShotResult", "grid_graph", "solve", "ONESHOT_PLANNERS"]
+
+Cell = tuple[int, int]
+
+
+@dataclass
+class OneShotResult:
+    """Paths (one list of cells per agent, all padded to the makespan) and their figures."""
+
+    success: bool
+    paths: list[list[Cell]] = field(default_factory=list)
+    sum_of_costs: int = 0
+    """Sum over agents of the last tick at which the agent arrives at its goal for good."""
+    makespan: int = 0
+    lower_bound: int = 0
+    """Sum of single-agent shortest-path lengths."""
+    wall_s: float = 0.0
+    planner: str = ""
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def soc_ratio(self) -> float:
+        return self.sum_of_costs / self.lower_bound if self.lower_bound else 1.0
+
+
+def grid_graph(obstacles: np.ndarray) -> MotionGraph:
+    """The 1x1 motion graph of a bare obstacle grid."""
+    grid = np.where(obstacles, CellType.OBSTACLE, CellType.FLOOR).astype(np.int8)
+    layout = Layout(grid=grid, cell_m=1.0, shelves=(), stations=(), parking=(),
+                    access_points=(), num_skus=0, name="grid")
+    return MotionGraph(layout, 1, False)
+
+
+def _costs(paths: list[list[Cell]], goals: list[Cell]) -> tuple[int, int]:
+    soc = 0
+    for path, goal in zip(paths, goals, strict=True):
+        t = len(path) - 1
+        while t > 0 and path[t - 1] == goal:
+            t -= 1
+        soc += t
+    return soc, max((len(p) - 1 for p in paths), default=0)
+
+
+ONESHOT_PLANNERS = ("lacam", "pibt")
+
+
+def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner: str = "lacam",
+          time_limit_s: float = 60.0, seed: int = 0) -> OneShotResult:
+    """Solve a one-shot instance with the named planner; paths are not validated here
+    (use :func:`warerover_phys.validate.validate_states`)."""
+    graph = grid_graph(obstacles)
+    lb = 0
+    for s, g in zip(starts, goals, strict=True):
+        d = graph.distance(s, g)
+        if d >= UNREACHABLE:
+            raise PlanningError(f"goal {g} cannot be reached from start {s}")
+        lb += d
+    t0 = time.perf_counter()
+    deadline = time.monotonic() + time_limit_s
+    if planner == "pibt":
+        from .pibt import pibt_oneshot
+        paths, stats = pibt_oneshot(graph, starts, goals, deadline, seed)
+    elif planner == "lacam":
+        from .lacam import lacam
+        paths, stats = lacam(graph, starts, goals, deadline, seed)
+    else:
+        raise PlanningError(f"unknown one-shot planner {planner!r} "
+                            f"(choose from {', '.join(ONESHOT_PLANNERS)})")
+    wall = time.perf_counter() - t0
+    if paths is None:
+        return OneShotResult(False, [], 0, 0, lb, wall, planner, stats)
+    soc, makespan = _costs(paths, goals)
+    return OneShotResult(True, paths, soc, makespan, lb, wall, planner, stats)
