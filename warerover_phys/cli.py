@@ -148,6 +148,62 @@ def check(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
                f"cells, {len(world.agvs)} AGVs")
 
 
+@app.command()
+def solve(map_file: Annotated[Path, typer.Argument(metavar="MAP.map", help="MovingAI map.")],
+          scen_file: Annotated[Path, typer.Argument(metavar="SCEN.scen",
+                                                    help="MovingAI scenario.")],
+          agents: Annotated[int, typer.Option(help="Use the first N agents.")] = 100,
+          planner: Annotated[str, typer.Option(help="lacam | pibt | astar.")] = "lacam",
+          time_limit: Annotated[float, typer.Option(help="Seconds before giving up.")] = 60.0,
+          seed: Annotated[int, typer.Option(help="Tie-breaking seed.")] = 0,
+          json_out: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+          out: Annotated[Path | None, typer.Option(
+              help="Write the plan (t:(x,y),... per line; x = column, y = row).")] = None,
+          ) -> None:
+    """Solve a one-shot MovingAI instance, validate the plan and print its figures."""
+    from .movingai import read_map, read_scen
+    from .planning.oneshot import solve as solve_instance
+    from .planning.oneshot import write_plan
+    from .validate import validate_states
+
+    try:
+        if agents < 1:
+            raise WareroverError(f"--agents: must be at least 1 (got {agents})")
+        grid = read_map(map_file)
+        scen = read_scen(scen_file, agents, grid)
+        result = solve_instance(grid.obstacles, [a.start for a in scen], [a.goal for a in scen],
+                                planner=planner, time_limit_s=time_limit, seed=seed)
+        conflicts = []
+        if result.success:
+            cols = grid.cols
+            conflicts = validate_states(
+                {i: [(r * cols + c, r * cols + c) for r, c in path]
+                 for i, path in enumerate(result.paths)}, grid.obstacles)
+            ends_ok = all(p[0] == a.start and p[-1] == a.goal
+                          for p, a in zip(result.paths, scen, strict=True))
+            if conflicts or not ends_ok:
+                result.success = False
+        if out is not None and result.success:
+            write_plan(out, result, map_file=map_file.name, scen_file=scen_file.name)
+    except WareroverError as err:
+        _fail(err)
+    except OSError as err:
+        _fail(WareroverError(f"{getattr(err, 'filename', '') or ''}: {err.strerror or err}"))
+    figures = {"map": map_file.name, "scen": scen_file.name, "agents": agents,
+               "planner": planner, "success": result.success,
+               "sum_of_costs": result.sum_of_costs, "makespan": result.makespan,
+               "lower_bound": result.lower_bound,
+               "soc_over_lb": round(result.soc_ratio, 4) if result.success else None,
+               "wall_s": round(result.wall_s, 4), "conflicts": len(conflicts)}
+    if json_out:
+        typer.echo(json.dumps(figures, indent=2))
+    else:
+        for k, v in figures.items():
+            typer.echo(f"{k:>13}: {v}")
+    if not result.success:
+        raise typer.Exit(1)
+
+
 def main() -> None:
     """Console-script entry point."""
     try:

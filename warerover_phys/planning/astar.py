@@ -24,8 +24,14 @@ __all__ = ["AStarPlanner", "space_time_astar", "goal_held", "nearest_free_anchor
 
 
 def space_time_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest,
-                     t0: int, max_expansions: int = 50_000) -> tuple[TimedPath | None, int]:
-    """Search one AGV's path from tick ``t0``. Returns (path or None, expansions)."""
+                     t0: int, max_expansions: int = 50_000,
+                     budget_per_move: int | None = 40) -> tuple[TimedPath | None, int]:
+    """Search one AGV's path from tick ``t0``. Returns (path or None, expansions).
+
+    With ``budget_per_move`` the search also gives up after that many expansions per move
+    of the static shortest path (plus a margin): in the closed loop a search that needs far
+    more is usually blocked by AGVs that will move later, and retrying is cheaper.
+    """
     cols, k, m, me = graph.cols, agent.k, agent.ticks_per_move, agent.agv
     start, goal = agent.start, agent.goal
     occ, rest = res._occ, res._rest
@@ -55,9 +61,8 @@ def space_time_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequ
     if h0 >= UNREACHABLE:
         return None, 0
     t_limit = max(t_free, t0 + h0 * m) + h0 * m + 64
-    # A search that needs far more nodes than its length is usually blocked by AGVs that
-    # will move later: give up early and let the loop retry rather than burn the budget.
-    max_expansions = min(max_expansions, 40 * (h0 * m + 25))
+    if budget_per_move is not None:
+        max_expansions = min(max_expansions, budget_per_move * (h0 * m + 25))
 
     def h(node: int) -> int:
         v = int(h_table[node])
@@ -179,8 +184,9 @@ class AStarPlanner:
 
     name = "astar"
 
-    def __init__(self, max_expansions: int = 50_000) -> None:
+    def __init__(self, max_expansions: int = 50_000, budget_per_move: int | None = 40) -> None:
         self.max_expansions = max_expansions
+        self.budget_per_move = budget_per_move
 
     def plan(self, request: PlanRequest) -> PlanResult:
         result = PlanResult()
@@ -192,13 +198,15 @@ class AStarPlanner:
             graph = request.graphs.get(agent.k, agent.loaded, agent.shelf)
             old = res.paths.get(agent.agv)
             res.release(agent.agv)
-            path, n = space_time_astar(graph, res, agent, request.tick, self.max_expansions)
+            path, n = space_time_astar(graph, res, agent, request.tick, self.max_expansions,
+                                       self.budget_per_move)
             if path is None and goal_held(graph, res, agent):
                 # Queue near the goal; the loop replans once the goal is free.
                 alt = nearest_free_anchor(graph, res, agent, keep_clear=request.keep_clear)
                 if alt is not None:
                     path, n2 = space_time_astar(graph, res, replace(agent, goal=alt),
-                                                request.tick, self.max_expansions)
+                                                request.tick, self.max_expansions,
+                                                self.budget_per_move)
                     n += n2
                     if path is not None:
                         result.detours.append(agent.agv)

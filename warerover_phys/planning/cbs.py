@@ -80,7 +80,7 @@ from .base import (
 from .graph import UNREACHABLE, MotionGraph
 from .reservation import FOREVER, ReservationTable
 
-__all__ = ["CBSPlanner", "Conflict", "constrained_astar", "first_conflict", "path_fits"]
+__all__ = ["CBSPlanner", "PairConflict", "constrained_astar", "first_conflict", "path_fits"]
 
 log = logging.getLogger(__name__)
 
@@ -89,7 +89,7 @@ EdgeConstraint = tuple[int, State, State]
 
 
 @dataclass(frozen=True, slots=True)
-class Conflict:
+class PairConflict:
     """The earliest conflict between two planned agents (indices into the CBS agent list).
 
     ``kind`` is ``"vertex"`` (``cell`` is a shared cell at ``tick``) or ``"swap"``
@@ -274,12 +274,12 @@ def _reconstruct(parent: dict, node: int, t: int, agv: int) -> TimedPath:
 
 
 def first_conflict(paths: Sequence[TimedPath], sizes: Sequence[int], cols: int, t0: int,
-                   t_end: int) -> tuple[Conflict | None, int]:
+                   t_end: int) -> tuple[PairConflict | None, int]:
     """The earliest conflict among ``paths`` at ticks ``t0 .. t_end`` (each path rests at
     its end), and how many conflicts there are in all (an approximate count)."""
     n = len(paths)
     t_end = min(t_end, max((p.end_tick for p in paths), default=t0))
-    found: Conflict | None = None
+    found: PairConflict | None = None
     count = 0
     prev_owner: dict[int, int] = {}
     prev_occ: list[tuple[int, ...]] = []
@@ -296,7 +296,7 @@ def first_conflict(paths: Sequence[TimedPath], sizes: Sequence[int], cols: int, 
                 elif o != i:
                     count += 1
                     if found is None:
-                        found = Conflict("vertex", t, o, i, cell=c)
+                        found = PairConflict("vertex", t, o, i, cell=c)
         if t > t0:
             moved = [states[i] != prev_state[i] for i in range(n)]
             for p in range(n):
@@ -311,7 +311,7 @@ def first_conflict(paths: Sequence[TimedPath], sizes: Sequence[int], cols: int, 
                             and not before_p & before_q:
                         count += 1
                         if found is None:
-                            found = Conflict("swap", t, p, q, moves=(
+                            found = PairConflict("swap", t, p, q, moves=(
                                 (prev_state[p], states[p]), (prev_state[q], states[q])))
         prev_owner, prev_occ, prev_state = owner, occ_t, states
     return found, count
@@ -344,7 +344,7 @@ class _Node:
     soc: int
     constraints: tuple | None
     """Linked list ``(agent index, kind, payload, parent's list)`` of this node's constraints."""
-    conflict: Conflict | None
+    conflict: PairConflict | None
     n_conflicts: int
 
 
@@ -459,7 +459,9 @@ class CBSPlanner:
                     agent = replace(agent, goal=alt)
                     detours.add(agent.agv)
                     cells = set(footprint_nodes(alt, agent.k, cols))
-                path, n = constrained_astar(graph, res, agent, request.tick,
+                # Tie-break towards paths that keep clear of the roots found so far.
+                avoid = _avoidance_table(paths, -1, [a.k for a in agents], cols)
+                path, n = constrained_astar(graph, res, agent, request.tick, avoid=avoid,
                                             max_expansions=self.max_expansions)
                 result.expansions += n
                 if path is None:

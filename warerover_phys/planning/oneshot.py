@@ -19,7 +19,7 @@ from ..errors import PlanningError
 from ..layout import CellType, Layout
 from .graph import UNREACHABLE, MotionGraph
 
-__all__ = ["OneShotResult", "grid_graph", "solve", "ONESHOT_PLANNERS"]
+__all__ = ["OneShotResult", "grid_graph", "solve", "write_plan", "ONESHOT_PLANNERS"]
 
 Cell = tuple[int, int]
 
@@ -62,7 +62,7 @@ def _costs(paths: list[list[Cell]], goals: list[Cell]) -> tuple[int, int]:
     return soc, max((len(p) - 1 for p in paths), default=0)
 
 
-ONESHOT_PLANNERS = ("lacam", "pibt")
+ONESHOT_PLANNERS = ("lacam", "pibt", "astar")
 
 
 def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner: str = "lacam",
@@ -84,6 +84,8 @@ def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner:
     elif planner == "lacam":
         from .lacam import lacam
         paths, stats = lacam(graph, starts, goals, deadline, seed)
+    elif planner == "astar":
+        paths, stats = _prioritized(graph, starts, goals, deadline)
     else:
         raise PlanningError(f"unknown one-shot planner {planner!r} "
                             f"(choose from {', '.join(ONESHOT_PLANNERS)})")
@@ -92,3 +94,45 @@ def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner:
         return OneShotResult(False, [], 0, 0, lb, wall, planner, stats)
     soc, makespan = _costs(paths, goals)
     return OneShotResult(True, paths, soc, makespan, lb, wall, planner, stats)
+
+
+def _prioritized(graph: MotionGraph, starts: list[Cell], goals: list[Cell], deadline: float,
+                 ) -> tuple[list[list[Cell]] | None, dict]:
+    """Prioritized space-time A* (farthest agent first); fails if any agent finds no path."""
+    from .astar import AStarPlanner
+    from .base import AgentRequest, PlanRequest
+    from .graph import GraphSet
+    from .reservation import ReservationTable
+
+    # Classic prioritized planning: an agent avoids the agents planned before it; those not
+    # planned yet do not exist for it (they move out of its way when their turn comes).
+    res = ReservationTable(graph.cols)
+    agents = [AgentRequest(i, graph.node(s), graph.node(g), priority=(-graph.distance(s, g),))
+              for i, (s, g) in enumerate(zip(starts, goals, strict=True))]
+    graphs = GraphSet(graph.layout)
+    graphs._graphs[(1, False)] = graph
+    result = AStarPlanner(max_expansions=200_000, budget_per_move=None).plan(
+        PlanRequest(0, agents, graphs, res, deadline=deadline))
+    if result.failed or result.detours:
+        return None, {"failed": len(result.failed) + len(result.detours)}
+    horizon = max(p.end_tick for p in res.paths.values())
+    cols = graph.cols
+    return [[divmod(res.paths[i].state_at(t)[1], cols) for t in range(horizon + 1)]
+            for i in range(len(starts))], {"expansions": result.expansions}
+
+
+def write_plan(path, result: OneShotResult, *, map_file: str = "", scen_file: str = "") -> None:
+    """Write a plan in the text format MAPF visualizers read: ``key=value`` header lines,
+    then ``solution=`` and one line per timestep ``t:(x,y),(x,y),...`` (x = column,
+    y = row, agents in scenario order)."""
+    lines = [f"agents={len(result.paths)}", f"map_file={map_file}", f"scen_file={scen_file}",
+             f"solver={result.planner}", f"solved={int(result.success)}",
+             f"soc={result.sum_of_costs}", f"soc_lb={result.lower_bound}",
+             f"makespan={result.makespan}", f"comp_time={round(result.wall_s * 1000)}",
+             "solution="]
+    horizon = max((len(p) for p in result.paths), default=0)
+    for t in range(horizon):
+        cells = (p[min(t, len(p) - 1)] for p in result.paths)
+        lines.append(f"{t}:" + "".join(f"({c},{r})," for r, c in cells))
+    from pathlib import Path
+    Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
