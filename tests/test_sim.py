@@ -174,3 +174,21 @@ def test_slow_agv_takes_more_ticks_per_cell():
     assert fast.metrics["success_rate"] == slow.metrics["success_rate"] == 1.0
     assert slow.metrics["ticks"] > 2 * fast.metrics["ticks"] - 10
     assert executed_conflicts(slow) == []
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_lifelong_pibt_in_the_loop(seed):
+    result = run_episode(load("paper_homogeneous.yaml", ("planner.name", "pibt")), seed=seed)
+    m = result.metrics
+    assert m["planner"] == "pibt"
+    assert m["success_rate"] == 1.0 and m["collisions"] == 0
+    assert executed_conflicts(result) == []
+
+
+def test_pibt_refuses_fleets_it_cannot_move():
+    from warerover_phys.errors import ScenarioError
+
+    with pytest.raises(ScenarioError) as err:
+        Simulation(load("paper_heterogeneous.yaml", ("planner.name", "pibt")))
+    assert err.value.field == "planner.name"
+    assert "footprint 2" in str(err.value) and "paper_heterogeneous.yaml" in str(err.value)

@@ -14,7 +14,8 @@ Keys (units in the name or below):
 - ``collisions``: overlaps or swaps the executor carried out (0 with a valid plan);
 - ``replans``: single-AGV plans committed; ``plan_failures``: searches that found no path
   (the AGV kept its old path and retried); ``goal_busy_detours``: plans that sent an AGV to
-  wait near a goal another AGV was standing on;
+  wait near a goal another AGV was standing on; ``planner_budget_hits``: times a planner ran
+  out of its node or time budget and used its documented fallback;
 - ``wall_s``: wall seconds of the whole episode.
 
 CT keys are the only ones that change between two runs with the same scenario and seed;
@@ -48,6 +49,7 @@ class MetricsRecorder:
         self.replans = 0
         self.plan_failures = 0
         self.detours = 0
+        self.budget_hits = 0
         self._t0 = time.perf_counter()
 
     def record_tick(self, *, sched_s: float, plan_s: float, blocked: int,
@@ -57,10 +59,12 @@ class MetricsRecorder:
         self.blocked += blocked
         self.collisions += collisions
 
-    def replans_this_tick(self, planned: int, failed: int, detours: int) -> None:
+    def replans_this_tick(self, planned: int, failed: int, detours: int,
+                          budget_hits: int = 0) -> None:
         self.replans += planned
         self.plan_failures += failed
         self.detours += detours
+        self.budget_hits += budget_hits
 
     def summary(self, world: World) -> dict:
         sc = self.scenario
@@ -100,6 +104,7 @@ class MetricsRecorder:
             "replans": self.replans,
             "plan_failures": self.plan_failures,
             "goal_busy_detours": self.detours,
+            "planner_budget_hits": self.budget_hits,
             "ct_total_s": float(total.sum() / 1e3),
             "ct_mean_ms": mean(total),
             "ct_p99_ms": p99(total),

@@ -15,6 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from .config import Scenario
+from .errors import ScenarioError
 from .executors import make_executor
 from .metrics import MetricsRecorder
 from .planning import make_planner
@@ -53,6 +54,13 @@ class Simulation:
         self.scheduler = make_scheduler(scenario.scheduler)
         self.planner = make_planner(scenario.planner)
         self.executor = make_executor(scenario.executor)
+        if getattr(self.planner, "replans_all", False):
+            from .planning.pibt_planner import check_fleet
+
+            try:
+                check_fleet(self.planner.name, self.world.agvs)
+            except ScenarioError as err:
+                raise err.with_file(scenario.source) if scenario.source else err from None
         self.metrics = MetricsRecorder(scenario)
         self.planned: list[dict] = []
         self.actual: dict[int, list[tuple[int, int]]] = {a.id: [a.pos] for a in self.world.agvs}
@@ -95,6 +103,58 @@ class Simulation:
         or blocked for ``replan_blocked_ticks``."""
         w = self.world
         res = w.reservations
+        if getattr(self.planner, "replans_all", False):
+            agents = self._step_requests()
+        else:
+            agents = self._replan_requests()
+        if not agents:
+            self.metrics.replans_this_tick(0, 0, 0)
+            return
+        request = PlanRequest(tick=w.tick, agents=agents, graphs=w.graphs, reservations=res,
+                              rng=w.rngs["planner"], keep_clear=w.keep_clear())
+        result = self.planner.plan(request)
+        for aid, path in result.paths.items():
+            agv = w.agvs[aid]
+            agv.delay = agv.blocked_ticks = agv.plan_failures = 0
+            if len(path.states) > 1 or not self._lifelong:
+                self.planned.append({"agv": aid, "tick": path.start_tick,
+                                     "states": [list(s) for s in path.states]})
+        for aid in result.failed:
+            agv = w.agvs[aid]
+            agv.plan_failures += 1
+            agv.retry_at = w.tick + min(agv.plan_failures, 4)
+            if agv.plan_failures % STUCK_FAILURES == 0:
+                self._make_way_for(agv)
+        self.metrics.replans_this_tick(len(result.paths), len(result.failed),
+                                       len(result.detours), result.budget_hits)
+
+    @property
+    def _lifelong(self) -> bool:
+        return bool(getattr(self.planner, "replans_all", False))
+
+    def _step_requests(self) -> list[AgentRequest]:
+        """Every AGV, for planners that move all of them each tick."""
+        w = self.world
+        out = []
+        n = len(w.agvs)
+        for agv in w.agvs:
+            goal = w.goal_of(agv)
+            hold = goal is None
+            goal = agv.node if goal is None else goal
+            if goal != agv.last_goal:
+                agv.last_goal, agv.goal_since = goal, w.tick
+            age = w.tick - agv.goal_since + (n - agv.id) / (n + 1)
+            out.append(AgentRequest(
+                agv=agv.id, start=agv.node, goal=goal, k=agv.k, loaded=agv.loaded,
+                ticks_per_move=agv.ticks_per_move,
+                shelf=agv.trip.shelf if agv.loaded and agv.trip is not None else None,
+                priority=(0.0 if hold else age,), hold=hold))
+        return out
+
+    def _replan_requests(self) -> list[AgentRequest]:
+        """The AGVs that need a new path (see :meth:`_plan`)."""
+        w = self.world
+        res = w.reservations
         agents = []
         for agv in w.agvs:
             if not agv.standing or agv.state not in MOVING_STATES or w.tick < agv.retry_at:
@@ -124,25 +184,7 @@ class Simulation:
             # Re-anchor a delayed AGV's committed path at where it really stands.
             if agv.delay or path.state_at(w.tick) != agv.pos:
                 res.commit(TimedPath(agv.id, w.tick, (agv.pos,)), agv.k)
-        if not agents:
-            self.metrics.replans_this_tick(0, 0, 0)
-            return
-        request = PlanRequest(tick=w.tick, agents=agents, graphs=w.graphs, reservations=res,
-                              rng=w.rngs["planner"], keep_clear=w.keep_clear())
-        result = self.planner.plan(request)
-        for aid, path in result.paths.items():
-            agv = w.agvs[aid]
-            agv.delay = agv.blocked_ticks = agv.plan_failures = 0
-            self.planned.append({"agv": aid, "tick": path.start_tick,
-                                 "states": [list(s) for s in path.states]})
-        for aid in result.failed:
-            agv = w.agvs[aid]
-            agv.plan_failures += 1
-            agv.retry_at = w.tick + min(agv.plan_failures, 4)
-            if agv.plan_failures % STUCK_FAILURES == 0:
-                self._make_way_for(agv)
-        self.metrics.replans_this_tick(len(result.paths), len(result.failed),
-                                       len(result.detours))
+        return agents
 
     def _make_way_for(self, stuck: Agv) -> None:
         """Send AGVs that stand idle or queue on ``stuck``'s shortest path somewhere else for

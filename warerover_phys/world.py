@@ -91,6 +91,9 @@ class Agv:
     yield_goal: int | None = None
     """Where it waits while making way for a stuck AGV (until ``yield_until``)."""
     yield_until: int = 0
+    last_goal: int | None = None
+    goal_since: int = 0
+    """Tick its current goal was set (lifelong PIBT priorities age from it)."""
 
     @property
     def k(self) -> int:

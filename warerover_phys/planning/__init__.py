@@ -6,12 +6,13 @@ from ..registry import lookup
 from .astar import AStarPlanner
 from .base import AgentRequest, Planner, PlanRequest, PlanResult, TimedPath
 from .graph import GraphSet, MotionGraph
+from .pibt_planner import PIBTPlanner
 from .reservation import ReservationTable
 
-__all__ = ["AStarPlanner", "AgentRequest", "Planner", "PlanRequest", "PlanResult", "TimedPath",
+__all__ = ["AStarPlanner", "PIBTPlanner", "AgentRequest", "Planner", "PlanRequest", "PlanResult", "TimedPath",
            "GraphSet", "MotionGraph", "ReservationTable", "make_planner", "PLANNERS"]
 
-PLANNERS = {"astar": AStarPlanner}
+PLANNERS = {"astar": AStarPlanner, "pibt": PIBTPlanner}
 
 
 def make_planner(spec) -> Planner:

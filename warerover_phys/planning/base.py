@@ -73,7 +73,9 @@ class AgentRequest:
     shelf: int | None = None
     """The shelf it carries (if loaded): bigger AGVs may use that shelf's own cells."""
     priority: tuple = ()
-    """Sort key: lower is planned first."""
+    """Sort key: lower is planned first (lifelong PIBT: ticks since the goal was set)."""
+    hold: bool = False
+    """The AGV works in place this tick and must not move (step planners only)."""
 
 
 @dataclass

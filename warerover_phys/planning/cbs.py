@@ -515,6 +515,7 @@ class CBSPlanner:
                 (a0, a1), (b0, b1) = conflict.moves
                 branches = [(conflict.i, "edge", (conflict.tick, a0, a1)),
                             (conflict.j, "edge", (conflict.tick, b0, b1))]
+            children: list[_Node] = []
             for idx, kind, payload in branches:
                 constraints = (idx, kind, payload, node.constraints)
                 child = _Node(node.paths, 0, constraints, None, 0)
@@ -531,6 +532,15 @@ class CBSPlanner:
                 child.soc = node.soc - cost(node.paths[idx]) + cost(path)
                 child.conflict, child.n_conflicts = first_conflict(child.paths, sizes, cols,
                                                                    t0, t_end)
+                if child.soc == node.soc and child.n_conflicts < node.n_conflicts:
+                    # Bypass (Boyarski et al. 2015): the new path is as short and also meets
+                    # the parent's constraints, so the parent takes it instead of branching.
+                    node.paths, node.conflict = child.paths, child.conflict
+                    node.n_conflicts = child.n_conflicts
+                    children = [node]
+                    break
+                children.append(child)
+            for child in children:
                 counter += 1
                 heapq.heappush(open_list, (child.soc, child.n_conflicts, counter, child))
         return None, "exhausted"

@@ -18,7 +18,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .graph import MotionGraph
+from .graph import UNREACHABLE, MotionGraph
 
 __all__ = ["pibt_step", "pibt_oneshot", "initial_priorities", "update_priorities"]
 
@@ -40,14 +40,17 @@ def update_priorities(prio: list[float], config: Sequence[int], goals: Sequence[
 def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndarray],
               prio: Sequence[float], tie: np.ndarray,
               forced: Sequence[tuple[int, int]] = (), goals: Sequence[int] | None = None,
-              swap: bool = True) -> list[int] | None:
+              swap: bool = True, tables: Sequence[Sequence[tuple[int, ...]]] | None = None,
+              ) -> list[int] | None:
     """Next configuration from ``config`` (one node per agent), or None if ``forced``
     moves (agent, node) contradict each other.
 
     ``tie`` breaks ties between equally good cells (pass fresh random values each step to
     keep PIBT from repeating itself). With ``swap`` (needs ``goals``), two agents that must
     pass each other in a corridor swap places by backing one of them into a branch
-    ("swap" of Okumura, AAMAS 2024), which plain PIBT cannot do.
+    ("swap" of Okumura, AAMAS 2024), which plain PIBT cannot do. ``tables`` gives each agent
+    its own neighbour lists (e.g. loaded AGVs keep to the aisles); an agent never steps onto
+    a cell from which its goal is unreachable.
     """
     n = len(config)
     neighbors = graph.neighbors
@@ -64,14 +67,18 @@ def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndar
         occ_next[v] = i
     goal_of = goals if goals is not None else None
 
-    def free_branches(v: int, came_from: int) -> tuple[int, int]:
-        """Neighbours of v one could step aside into (not ``came_from``, not a dead end
-        where an agent already sits on its goal), and the last one seen."""
+    def free_branches(v: int, came_from: int, agent: int) -> tuple[int, int]:
+        """Neighbours of v that ``agent`` could step aside into (its own moves, cells it can
+        still reach its goal from; not ``came_from``, not a dead end where an agent already
+        sits on its goal), and the last one seen."""
         count, last = 0, -1
-        for u in neighbors[v]:
+        d = dists[agent]
+        near = tables[agent][v] if tables is not None else neighbors[v]
+        for u in near:
             a = occ_now.get(u)
-            if u == came_from or (len(neighbors[u]) == 1 and a is not None
-                                  and goal_of is not None and goal_of[a] == u):
+            if u == came_from or d[u] >= UNREACHABLE or (
+                    len(neighbors[u]) == 1 and a is not None and goal_of is not None
+                    and goal_of[a] == u):
                 continue
             count += 1
             last = u
@@ -80,7 +87,7 @@ def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndar
     def swap_required(pusher: int, puller: int, v_pusher: int, v_puller: int) -> bool:
         d_push = dists[pusher]
         while d_push[v_puller] < d_push[v_pusher]:
-            count, nxt_v = free_branches(v_puller, v_pusher)
+            count, nxt_v = free_branches(v_puller, v_pusher, puller)
             if count >= 2:
                 return False  # room to step aside: no swap needed
             if count == 0:
@@ -90,10 +97,11 @@ def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndar
         return d_pull[v_pusher] < d_pull[v_puller] and (
             d_push[v_pusher] == 0 or d_push[v_puller] < d_push[v_pusher])
 
-    def swap_possible(v_pusher: int, v_puller: int) -> bool:
+    def swap_possible(agent: int, v_pusher: int, v_puller: int) -> bool:
+        """Can ``agent`` back away from ``v_pusher`` through ``v_puller`` into a branch?"""
         origin = v_pusher
         while v_puller != origin:
-            count, nxt_v = free_branches(v_puller, v_pusher)
+            count, nxt_v = free_branches(v_puller, v_pusher, agent)
             if count >= 2:
                 return True
             if count == 0:
@@ -107,20 +115,22 @@ def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndar
             return -1
         j = occ_now.get(best)
         if j is not None and nxt[j] == -1 and swap_required(i, j, here, best) \
-                and swap_possible(best, here):
+                and swap_possible(i, best, here):
             return j
-        for u in neighbors[here]:
+        for u in (tables[i][here] if tables is not None else neighbors[here]):
             k = occ_now.get(u)
             if k is None or best == config[k]:
                 continue
-            if swap_required(k, i, here, best) and swap_possible(best, here):
+            if swap_required(k, i, here, best) and swap_possible(i, best, here):
                 return k
         return -1
 
     def push(i: int, parent: int) -> bool:
         here = config[i]
         d = dists[i]
-        cands = sorted(neighbors[here] + (here,), key=lambda v: d[v] + tie[v])
+        near = tables[i][here] if tables is not None else neighbors[here]
+        cands = sorted([v for v in near if d[v] < UNREACHABLE] + [here],
+                       key=lambda v: d[v] + tie[v])
         partner = -1
         if swap and goal_of is not None:
             partner = swap_partner(i, cands[0])
