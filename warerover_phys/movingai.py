@@ -20,7 +20,8 @@ from .errors import ScenarioError
 __all__ = ["MovingAIMap", "ScenarioAgent", "read_map", "read_scen"]
 
 OBSTACLE_CHARS = "@OTW"
-PASSABLE_CHARS = ".GS"
+PASSABLE_CHARS = ".GSE"
+"""Free cells: MovingAI uses `.`, `G`, `S`; Robot Runners maps mark task sites `E` and `S`."""
 
 # Byte -> class lookup: 0 passable, 1 obstacle, 2 unknown character.
 _LUT = np.full(256, 2, dtype=np.uint8)
