@@ -176,19 +176,21 @@ def test_slow_agv_takes_more_ticks_per_cell():
     assert executed_conflicts(slow) == []
 
 
+@pytest.mark.parametrize("planner", ["pibt", "lacam"])
 @pytest.mark.parametrize("seed", range(10))
-def test_lifelong_pibt_in_the_loop(seed):
-    result = run_episode(load("paper_homogeneous.yaml", ("planner.name", "pibt")), seed=seed)
+def test_fleet_planners_in_the_loop(planner, seed):
+    result = run_episode(load("paper_homogeneous.yaml", ("planner.name", planner)), seed=seed)
     m = result.metrics
-    assert m["planner"] == "pibt"
+    assert m["planner"] == planner
     assert m["success_rate"] == 1.0 and m["collisions"] == 0
     assert executed_conflicts(result) == []
 
 
-def test_pibt_refuses_fleets_it_cannot_move():
+@pytest.mark.parametrize("planner", ["pibt", "lacam"])
+def test_fleet_planners_refuse_fleets_they_cannot_move(planner):
     from warerover_phys.errors import ScenarioError
 
     with pytest.raises(ScenarioError) as err:
-        Simulation(load("paper_heterogeneous.yaml", ("planner.name", "pibt")))
+        Simulation(load("paper_heterogeneous.yaml", ("planner.name", planner)))
     assert err.value.field == "planner.name"
     assert "footprint 2" in str(err.value) and "paper_heterogeneous.yaml" in str(err.value)

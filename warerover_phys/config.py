@@ -272,7 +272,7 @@ class SchedulerSpec(_Model):
 
 
 class PlannerSpec(_Model):
-    name: Literal["astar", "pibt"] = "astar"
+    name: Literal["astar", "pibt", "lacam"] = "astar"
     replan_blocked_ticks: PosInt = 3
     """Replan an AGV that could not follow its plan for this many ticks."""
     max_expansions: PosInt = 50_000

@@ -6,13 +6,14 @@ from ..registry import lookup
 from .astar import AStarPlanner
 from .base import AgentRequest, Planner, PlanRequest, PlanResult, TimedPath
 from .graph import GraphSet, MotionGraph
+from .lacam_planner import LaCAMPlanner
 from .pibt_planner import PIBTPlanner
 from .reservation import ReservationTable
 
-__all__ = ["AStarPlanner", "PIBTPlanner", "AgentRequest", "Planner", "PlanRequest", "PlanResult", "TimedPath",
+__all__ = ["AStarPlanner", "PIBTPlanner", "LaCAMPlanner", "AgentRequest", "Planner", "PlanRequest", "PlanResult", "TimedPath",
            "GraphSet", "MotionGraph", "ReservationTable", "make_planner", "PLANNERS"]
 
-PLANNERS = {"astar": AStarPlanner, "pibt": PIBTPlanner}
+PLANNERS = {"astar": AStarPlanner, "pibt": PIBTPlanner, "lacam": LaCAMPlanner}
 
 
 def make_planner(spec) -> Planner:

@@ -17,10 +17,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .graph import MotionGraph
+from .graph import UNREACHABLE, MotionGraph
 from .pibt import _to_paths, initial_priorities, pibt_step, update_priorities
 
-__all__ = ["lacam"]
+__all__ = ["lacam", "lacam_nodes"]
 
 Cell = tuple[int, int]
 
@@ -48,18 +48,35 @@ def lacam(graph: MotionGraph, starts: Sequence[Cell], goals: Sequence[Cell], dea
           seed: int = 0) -> tuple[list[list[Cell]] | None, dict]:
     """Solve; returns (paths or None, stats). None with ``stats["exhausted"]`` True means
     there is no solution; otherwise the deadline passed."""
-    rng = np.random.default_rng(seed)
-    ties = rng.random(graph.num_nodes + 4099) * 0.5
-    s = tuple(graph.node(c) for c in starts)
-    g = tuple(graph.node(c) for c in goals)
+    s = [graph.node(c) for c in starts]
+    g = [graph.node(c) for c in goals]
     dists = [graph.dist_to(c) for c in goals]
+    configs, stats = lacam_nodes(graph, s, g, dists, deadline, np.random.default_rng(seed))
+    return (None if configs is None else _to_paths(graph, configs)), stats
+
+
+def lacam_nodes(graph: MotionGraph, starts: Sequence[int], goals: Sequence[int],
+                dists: Sequence[np.ndarray], deadline: float, rng: np.random.Generator,
+                tables: Sequence[Sequence[tuple[int, ...]]] | None = None,
+                held: Sequence[int] = (), prio: list[float] | None = None,
+                ) -> tuple[list[list[int]] | None, dict]:
+    """LaCAM over node indices: the configurations from ``starts`` to ``goals``.
+
+    ``tables`` gives each agent its own neighbour lists; agents in ``held`` never move (their
+    goal must be their start).
+    """
+    ties = rng.random(graph.num_nodes + 4099) * 0.5
+    s, g = tuple(starts), tuple(goals)
     neighbors = graph.neighbors
+    held_set = set(held)
+    held_moves = tuple((i, s[i]) for i in sorted(held_set))
+    movable = [i for i in range(len(s)) if i not in held_set]
 
     def make(config: tuple[int, ...], parent: _High | None, prio: list[float]) -> _High:
-        order = sorted(range(len(config)), key=lambda i: -prio[i])
+        order = sorted(movable, key=lambda i: -prio[i])
         return _High(config, parent, prio, order)
 
-    root = make(s, None, initial_priorities(dists, s))
+    root = make(s, None, prio if prio is not None else initial_priorities(dists, s))
     stack = [root]
     explored = {s: root}
     iterations = 0
@@ -76,22 +93,24 @@ def lacam(graph: MotionGraph, starts: Sequence[Cell], goals: Sequence[Cell], dea
                 configs.append(list(walk.config))
                 walk = walk.parent
             configs.reverse()
-            return _to_paths(graph, configs), {"iterations": iterations,
-                                               "explored": len(explored)}
+            return configs, {"iterations": iterations, "explored": len(explored)}
         if not node.tree:
             stack.pop()
             continue
         low = node.tree.popleft()
-        if low.depth < len(s):
+        if low.depth < len(node.order):
             i = node.order[low.depth]
             here = node.config[i]
-            cands = list(neighbors[here] + (here,))
+            near = tables[i][here] if tables is not None else neighbors[here]
+            d = dists[i]
+            cands = [v for v in near if d[v] < UNREACHABLE] + [here]
             rng.shuffle(cands)
             for v in cands:
                 node.tree.append(_Low(low.who + (i,), low.where + (v,)))
         salt = int(rng.integers(4096))
         nxt = pibt_step(graph, node.config, dists, node.prio, ties[salt:], goals=g,
-                        forced=tuple(zip(low.who, low.where, strict=True)))
+                        forced=held_moves + tuple(zip(low.who, low.where, strict=True)),
+                        tables=tables)
         if nxt is None:
             continue
         key = tuple(nxt)
