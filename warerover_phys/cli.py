@@ -28,7 +28,7 @@ SetOpt = Annotated[list[str] | None, typer.Option(
     "--set", help="Override any scenario field: --set orders.pattern=burst (repeatable).")]
 SeedOpt = Annotated[int | None, typer.Option(help="Episode seed (overrides the file's).")]
 SchedOpt = Annotated[str | None, typer.Option(help="Scheduler: ta | rd.")]
-PlanOpt = Annotated[str | None, typer.Option(help="Planner: astar.")]
+PlanOpt = Annotated[str | None, typer.Option(help="Planner: astar | pibt | lacam.")]
 ExecOpt = Annotated[str | None, typer.Option(help="Executor: grid.")]
 OrdersOpt = Annotated[str | None, typer.Option(
     help="Order pattern: oneshot | constant | wave | hotspot | burst.")]
