@@ -194,3 +194,13 @@ def test_fleet_planners_refuse_fleets_they_cannot_move(planner):
         Simulation(load("paper_heterogeneous.yaml", ("planner.name", planner)))
     assert err.value.field == "planner.name"
     assert "footprint 2" in str(err.value) and "paper_heterogeneous.yaml" in str(err.value)
+
+
+@pytest.mark.parametrize("scenario", ["paper_homogeneous.yaml", "paper_heterogeneous.yaml"])
+@pytest.mark.parametrize("seed", range(10))
+def test_cbs_in_the_loop(scenario, seed):
+    result = run_episode(load(scenario, ("planner.name", "cbs")), seed=seed)
+    m = result.metrics
+    assert m["planner"] == "cbs"
+    assert m["success_rate"] == 1.0 and m["collisions"] == 0
+    assert executed_conflicts(result) == []

@@ -272,11 +272,17 @@ class SchedulerSpec(_Model):
 
 
 class PlannerSpec(_Model):
-    name: Literal["astar", "pibt", "lacam"] = "astar"
+    name: Literal["astar", "cbs", "pibt", "lacam"] = "astar"
     replan_blocked_ticks: PosInt = 3
     """Replan an AGV that could not follow its plan for this many ticks."""
     max_expansions: PosInt = 50_000
     """Node budget of one single-agent search; past it the AGV waits and retries."""
+    horizon_ticks: PosInt = 20
+    """CBS: conflicts between jointly planned AGVs are resolved this many ticks ahead."""
+    max_nodes: PosInt = 2_000
+    """CBS: constraint-tree nodes before falling back to prioritized A* (counted)."""
+    time_budget_s: PosFloat = 0.5
+    """CBS / LaCAM: seconds per planning call before the documented fallback (counted)."""
 
 
 class ExecutorSpec(_Model):

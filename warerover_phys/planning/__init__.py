@@ -5,18 +5,25 @@ from __future__ import annotations
 from ..registry import lookup
 from .astar import AStarPlanner
 from .base import AgentRequest, Planner, PlanRequest, PlanResult, TimedPath
+from .cbs import CBSPlanner
 from .graph import GraphSet, MotionGraph
 from .lacam_planner import LaCAMPlanner
 from .pibt_planner import PIBTPlanner
 from .reservation import ReservationTable
 
-__all__ = ["AStarPlanner", "PIBTPlanner", "LaCAMPlanner", "AgentRequest", "Planner", "PlanRequest", "PlanResult", "TimedPath",
+__all__ = ["AStarPlanner", "CBSPlanner", "PIBTPlanner", "LaCAMPlanner", "AgentRequest", "Planner", "PlanRequest", "PlanResult", "TimedPath",
            "GraphSet", "MotionGraph", "ReservationTable", "make_planner", "PLANNERS"]
 
-PLANNERS = {"astar": AStarPlanner, "pibt": PIBTPlanner, "lacam": LaCAMPlanner}
+PLANNERS = {"astar": AStarPlanner, "cbs": CBSPlanner, "pibt": PIBTPlanner,
+            "lacam": LaCAMPlanner}
 
 
 def make_planner(spec) -> Planner:
     """Build the planner a :class:`~warerover_phys.config.PlannerSpec` names."""
     cls = lookup(PLANNERS, spec.name, "planner.name")
+    if cls is CBSPlanner:
+        return CBSPlanner(max_expansions=spec.max_expansions, horizon=spec.horizon_ticks,
+                          max_nodes=spec.max_nodes, time_budget_s=spec.time_budget_s)
+    if cls is LaCAMPlanner:
+        return LaCAMPlanner(time_budget_s=spec.time_budget_s)
     return cls(max_expansions=spec.max_expansions)

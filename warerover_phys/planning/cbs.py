@@ -236,7 +236,7 @@ def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentReq
             else:
                 if _swaps(res, here, there, t, me):
                     continue
-                if False and edge and (t_arr, (node, node), (nxt, nxt)) in edge:
+                if edge and (t_arr, (node, node), (nxt, nxt)) in edge:
                     continue
                 extra = 0
             push(nxt, t_arr, conf + extra + hits(there, t_arr), hn, key)
