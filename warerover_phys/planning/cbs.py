@@ -64,8 +64,8 @@ from __future__ import annotations
 import heapq
 import logging
 import time
-from collections.abc import Mapping, Sequence, Set
-from dataclasses import dataclass, replace
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
 
 from .astar import AStarPlanner, goal_held, nearest_free_anchor
 from .base import (
@@ -80,7 +80,8 @@ from .base import (
 from .graph import UNREACHABLE, MotionGraph
 from .reservation import FOREVER, ReservationTable
 
-__all__ = ["CBSPlanner", "PairConflict", "constrained_astar", "first_conflict", "path_fits"]
+__all__ = ["CBSPlanner", "Constraints", "PairConflict", "constrained_astar", "find_conflicts",
+           "path_fits"]
 
 log = logging.getLogger(__name__)
 
@@ -90,10 +91,11 @@ EdgeConstraint = tuple[int, State, State]
 
 @dataclass(frozen=True, slots=True)
 class PairConflict:
-    """The earliest conflict between two planned agents (indices into the CBS agent list).
+    """A conflict between two planned agents (indices into the CBS agent list).
 
-    ``kind`` is ``"vertex"`` (``cell`` is a shared cell at ``tick``) or ``"swap"``
-    (``moves`` holds each agent's state transition into ``tick``).
+    ``kind`` is ``"vertex"`` (``cell`` is a shared cell at ``tick``), ``"target"`` (agent
+    ``i`` is on ``cell`` of agent ``j``'s goal at ``tick``, while ``j`` already rests there)
+    or ``"swap"`` (``moves`` holds each agent's state transition into ``tick``).
     """
 
     kind: str
@@ -104,16 +106,39 @@ class PairConflict:
     moves: tuple[tuple[State, State], tuple[State, State]] | None = None
 
 
+@dataclass(slots=True)
+class Constraints:
+    """The CBS constraints on one agent."""
+
+    vertex: dict[int, set[int]] = field(default_factory=dict)
+    """tick -> cells the agent may not occupy at that tick."""
+    edge: set[EdgeConstraint] = field(default_factory=set)
+    never: dict[int, int] = field(default_factory=dict)
+    """cell -> first tick from which the agent may never occupy it (target reasoning)."""
+    finish_after: int = -1
+    """The agent may reach its goal for good only after this tick."""
+    finish_by: int = FOREVER
+    """... and at this tick at the latest."""
+
+    def __len__(self) -> int:
+        return len(self.vertex) + len(self.edge) + len(self.never) + (
+            self.finish_after >= 0) + (self.finish_by < FOREVER)
+
+    def last_tick(self, default: int) -> int:
+        return max(max(self.vertex, default=default), max((e[0] for e in self.edge),
+                                                          default=default),
+                   max(self.never.values(), default=default), self.finish_after, default)
+
+
 # ----------------------------------------------------------------------------- low level
 
 
 def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest, t0: int,
-                      vertex: Mapping[int, Set[int]] | None = None,
-                      edge: Set[EdgeConstraint] | None = None,
+                      constraints: Constraints | None = None,
                       avoid: tuple[dict[int, dict[int, int]], dict[int, int]] | None = None,
                       max_expansions: int = 50_000) -> tuple[TimedPath | None, int]:
-    """Space-time A* for one AGV from tick ``t0`` around the fixed AGVs in ``res`` and the
-    CBS constraints: ``vertex[t]`` (cells it may not occupy at ``t``) and ``edge``.
+    """Space-time A* for one AGV from tick ``t0`` around the fixed AGVs in ``res`` and its
+    CBS ``constraints``.
 
     ``avoid`` is a conflict-avoidance table ``(per-tick cell counts, cell -> rest tick)`` of
     the other planned AGVs: it only breaks ties between equally short paths. Returns (the
@@ -122,8 +147,8 @@ def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentReq
     cols, k, m, me = graph.cols, agent.k, agent.ticks_per_move, agent.agv
     start, goal = agent.start, agent.goal
     occ, rest = res._occ, res._rest
-    vertex = vertex or {}
-    edge = edge or frozenset()
+    cons = constraints if constraints is not None else Constraints()
+    vertex, edge, never = cons.vertex, cons.edge, cons.never
     cat, cat_rest = avoid if avoid is not None else ({}, {})
 
     def fp(node: int) -> tuple[int, ...]:
@@ -142,6 +167,8 @@ def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentReq
                 return False
             if banned is not None and c in banned:
                 return False
+            if never and t >= never.get(c, FOREVER):
+                return False
         return True
 
     def hits(cells: Sequence[int], t: int) -> int:
@@ -157,22 +184,25 @@ def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentReq
         return n
 
     goal_cells = fp(goal)
+    if any(c in never for c in goal_cells):
+        return None, 0  # it could not stay there for good
     # Earliest tick from which the AGV may stay at the goal for good: after every fixed
-    # AGV's last use of the goal's cells and after every vertex constraint on them.
+    # AGV's last use of the goal's cells, after every vertex constraint on them, and after
+    # its own "finish after" constraint.
     t_free = max((res.last_use(c, me) for c in goal_cells), default=-1) + 1
     if t_free >= FOREVER:
         return None, 0
+    t_free = max(t_free, cons.finish_after + 1)
     for t, cells in vertex.items():
         if t >= t_free and not cells.isdisjoint(goal_cells):
             t_free = t + 1
     h_table = graph.dist_to(graph.cell(goal))
     h0 = graph.distance(graph.cell(start), graph.cell(goal))
-    if h0 >= UNREACHABLE:
+    t_max = cons.finish_by
+    if h0 >= UNREACHABLE or max(t_free, t0 + h0 * m) > t_max:
         return None, 0
-    n_cons = len(vertex) + len(edge)
-    t_last = max(max(vertex, default=t0), max((e[0] for e in edge), default=t0))
-    t_limit = max(t_free, t0 + h0 * m, t_last + 1) + h0 * m + 64
-    max_expansions = min(max_expansions, 40 * (h0 * m + 25 + n_cons))
+    t_limit = max(t_free, t0 + h0 * m, cons.last_tick(t0) + 1) + h0 * m + 64
+    max_expansions = min(max_expansions, 40 * (h0 * m + 25 + len(cons)))
 
     def h(node: int) -> int:
         v = int(h_table[node])
@@ -190,7 +220,7 @@ def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentReq
 
     def push(node: int, t: int, conf: int, hn: int, frm: tuple[int, int]) -> None:
         key = (node, t)
-        if key in closed or conf >= best.get(key, UNREACHABLE):
+        if key in closed or conf >= best.get(key, UNREACHABLE) or t + hn > t_max:
             return
         best[key] = conf
         parent[key] = frm
@@ -273,14 +303,23 @@ def _reconstruct(parent: dict, node: int, t: int, agv: int) -> TimedPath:
 # ----------------------------------------------------------------------------- conflicts
 
 
-def first_conflict(paths: Sequence[TimedPath], sizes: Sequence[int], cols: int, t0: int,
-                   t_end: int) -> tuple[PairConflict | None, int]:
-    """The earliest conflict among ``paths`` at ticks ``t0 .. t_end`` (each path rests at
-    its end), and how many conflicts there are in all (an approximate count)."""
+def find_conflicts(paths: Sequence[TimedPath], sizes: Sequence[int], cols: int, t0: int,
+                   t_end: int, limit: int = 1) -> tuple[list[PairConflict], int]:
+    """The earliest ``limit`` conflicts among ``paths`` at ticks ``t0 .. t_end`` (at most one
+    per pair and tick; each path rests at its end), and how many there are in all (cells
+    shared plus swaps: a tie-breaker, not an exact figure)."""
     n = len(paths)
     t_end = min(t_end, max((p.end_tick for p in paths), default=t0))
-    found: PairConflict | None = None
+    found: list[PairConflict] = []
+    seen: set[tuple[int, int, int]] = set()
     count = 0
+
+    def add(conflict: PairConflict) -> None:
+        key = (conflict.tick, min(conflict.i, conflict.j), max(conflict.i, conflict.j))
+        if len(found) < limit and key not in seen:
+            seen.add(key)
+            found.append(conflict)
+
     prev_owner: dict[int, int] = {}
     prev_occ: list[tuple[int, ...]] = []
     prev_state: list[State] = []
@@ -293,10 +332,15 @@ def first_conflict(paths: Sequence[TimedPath], sizes: Sequence[int], cols: int, 
                 o = owner.get(c)
                 if o is None:
                     owner[c] = i
-                elif o != i:
-                    count += 1
-                    if found is None:
-                        found = PairConflict("vertex", t, o, i, cell=c)
+                    continue
+                count += 1
+                o_rests, i_rests = t >= paths[o].end_tick, t >= paths[i].end_tick
+                if o_rests and not i_rests:
+                    add(PairConflict("target", t, i, o, cell=c))
+                elif i_rests and not o_rests:
+                    add(PairConflict("target", t, o, i, cell=c))
+                else:
+                    add(PairConflict("vertex", t, o, i, cell=c))
         if t > t0:
             moved = [states[i] != prev_state[i] for i in range(n)]
             for p in range(n):
@@ -310,9 +354,8 @@ def first_conflict(paths: Sequence[TimedPath], sizes: Sequence[int], cols: int, 
                     if after_q & before_p and not after_p & after_q \
                             and not before_p & before_q:
                         count += 1
-                        if found is None:
-                            found = PairConflict("swap", t, p, q, moves=(
-                                (prev_state[p], states[p]), (prev_state[q], states[q])))
+                        add(PairConflict("swap", t, p, q, moves=(
+                            (prev_state[p], states[p]), (prev_state[q], states[q]))))
         prev_owner, prev_occ, prev_state = owner, occ_t, states
     return found, count
 
@@ -344,24 +387,44 @@ class _Node:
     soc: int
     constraints: tuple | None
     """Linked list ``(agent index, kind, payload, parent's list)`` of this node's constraints."""
-    conflict: PairConflict | None
+    conflicts: list[PairConflict]
     n_conflicts: int
 
 
-def _constraints_of(node: _Node, idx: int) -> tuple[dict[int, set[int]], set[EdgeConstraint]]:
-    vertex: dict[int, set[int]] = {}
-    edge: set[EdgeConstraint] = set()
-    link = node.constraints
-    while link is not None:
-        agent, kind, payload, link = link
+def _constraints_of(chain: tuple | None, idx: int) -> Constraints:
+    cons = Constraints()
+    while chain is not None:
+        agent, kind, payload, chain = chain
         if agent != idx:
             continue
         if kind == "vertex":
             cell, t = payload
-            vertex.setdefault(t, set()).add(cell)
-        else:
-            edge.add(payload)
-    return vertex, edge
+            cons.vertex.setdefault(t, set()).add(cell)
+        elif kind == "edge":
+            cons.edge.add(payload)
+        elif kind == "never":
+            cell, t = payload
+            cons.never[cell] = min(cons.never.get(cell, FOREVER), t)
+        elif kind == "after":
+            cons.finish_after = max(cons.finish_after, payload)
+        else:  # "by"
+            cons.finish_by = min(cons.finish_by, payload)
+    return cons
+
+
+def _branches(c: PairConflict) -> list[tuple[int, list[tuple[int, str, object]]]]:
+    """Each child of a conflict: (the agent to replan, the constraints it adds)."""
+    if c.kind == "vertex":
+        return [(c.i, [(c.i, "vertex", (c.cell, c.tick))]),
+                (c.j, [(c.j, "vertex", (c.cell, c.tick))])]
+    if c.kind == "target":
+        # Target reasoning (Li et al. 2020): either j reaches its goal for good after the
+        # tick, or it is there by then, and then i may never be on that cell again.
+        return [(c.j, [(c.j, "after", c.tick)]),
+                (c.i, [(c.j, "by", c.tick), (c.i, "never", (c.cell, c.tick))])]
+    assert c.moves is not None
+    (a0, a1), (b0, b1) = c.moves
+    return [(c.i, [(c.i, "edge", (c.tick, a0, a1))]), (c.j, [(c.j, "edge", (c.tick, b0, b1))])]
 
 
 def _avoidance_table(paths: Sequence[TimedPath], skip: int, sizes: Sequence[int],
@@ -385,6 +448,8 @@ class CBSPlanner:
     """Windowed Conflict-Based Search with a prioritized A* fallback (see the module doc)."""
 
     name = "cbs"
+    classify = 4
+    """How many of a node's earliest conflicts are tried when looking for a cardinal one."""
 
     def __init__(self, max_expansions: int = 50_000, horizon: int = 20, max_nodes: int = 2_000,
                  time_budget_s: float = 0.5) -> None:
@@ -495,54 +560,61 @@ class CBSPlanner:
         def cost(p: TimedPath) -> int:
             return p.end_tick - t0
 
-        conflict, n_conf = first_conflict(paths, sizes, cols, t0, t_end)
-        root = _Node(paths, sum(cost(p) for p in paths), None, conflict, n_conf)
+        def child(node: _Node, idx: int, adds: list[tuple[int, str, object]]) -> _Node | None:
+            chain = node.constraints
+            for agent, kind, payload in adds:
+                chain = (agent, kind, payload, chain)
+            path, n = constrained_astar(graphs[idx], res, agents[idx], t0,
+                                        _constraints_of(chain, idx),
+                                        _avoidance_table(node.paths, idx, sizes, cols),
+                                        self.max_expansions)
+            result.expansions += n
+            if path is None:
+                return None
+            new_paths = list(node.paths)
+            new_paths[idx] = path
+            conflicts, count = find_conflicts(new_paths, sizes, cols, t0, t_end,
+                                              self.classify)
+            return _Node(new_paths, node.soc - cost(node.paths[idx]) + cost(path), chain,
+                         conflicts, count)
+
+        def expand(node: _Node) -> list[_Node]:
+            """The children of the first cardinal conflict among the node's first few (both
+            children cost more), else of the first semi-cardinal one, else of the earliest
+            (Boyarski et al. 2015, found by building the children). A child as cheap as its
+            parent with fewer conflicts is taken by the parent instead (bypass)."""
+            choice: tuple[int, list[_Node | None]] | None = None
+            for conflict in node.conflicts:
+                kids = [child(node, idx, adds) for idx, adds in _branches(conflict)]
+                for kid in kids:
+                    if kid is not None and kid.soc == node.soc \
+                            and kid.n_conflicts < node.n_conflicts:
+                        node.paths, node.conflicts = kid.paths, kid.conflicts
+                        node.n_conflicts = kid.n_conflicts
+                        return [node]
+                rises = sum(1 for kid in kids if kid is None or kid.soc > node.soc)
+                if choice is None or rises > choice[0]:
+                    choice = (rises, kids)
+                if rises == len(kids) or time.monotonic() > stop_at:
+                    break
+            assert choice is not None
+            return [kid for kid in choice[1] if kid is not None]
+
+        conflicts, n_conf = find_conflicts(paths, sizes, cols, t0, t_end, self.classify)
+        root = _Node(paths, sum(cost(p) for p in paths), None, conflicts, n_conf)
         counter = 0
         open_list: list[tuple[int, int, int, _Node]] = [(root.soc, n_conf, counter, root)]
         generated = 1
         while open_list:
             node = heapq.heappop(open_list)[3]
-            conflict = node.conflict
-            if conflict is None:
+            if not node.conflicts:
                 return node.paths, "solved"
             if generated >= self.max_nodes or time.monotonic() > stop_at:
                 return None, "budget"
-            if conflict.kind == "vertex":
-                branches = [(conflict.i, "vertex", (conflict.cell, conflict.tick)),
-                            (conflict.j, "vertex", (conflict.cell, conflict.tick))]
-            else:
-                assert conflict.moves is not None
-                (a0, a1), (b0, b1) = conflict.moves
-                branches = [(conflict.i, "edge", (conflict.tick, a0, a1)),
-                            (conflict.j, "edge", (conflict.tick, b0, b1))]
-            children: list[_Node] = []
-            for idx, kind, payload in branches:
-                constraints = (idx, kind, payload, node.constraints)
-                child = _Node(node.paths, 0, constraints, None, 0)
-                vertex, edge = _constraints_of(child, idx)
-                avoid = _avoidance_table(node.paths, idx, sizes, cols)
-                path, n = constrained_astar(graphs[idx], res, agents[idx], t0, vertex, edge,
-                                            avoid, self.max_expansions)
-                result.expansions += n
+            for kid in expand(node):
                 generated += 1
-                if path is None:
-                    continue
-                child.paths = list(node.paths)
-                child.paths[idx] = path
-                child.soc = node.soc - cost(node.paths[idx]) + cost(path)
-                child.conflict, child.n_conflicts = first_conflict(child.paths, sizes, cols,
-                                                                   t0, t_end)
-                if child.soc == node.soc and child.n_conflicts < node.n_conflicts:
-                    # Bypass (Boyarski et al. 2015): the new path is as short and also meets
-                    # the parent's constraints, so the parent takes it instead of branching.
-                    node.paths, node.conflict = child.paths, child.conflict
-                    node.n_conflicts = child.n_conflicts
-                    children = [node]
-                    break
-                children.append(child)
-            for child in children:
                 counter += 1
-                heapq.heappush(open_list, (child.soc, child.n_conflicts, counter, child))
+                heapq.heappush(open_list, (kid.soc, kid.n_conflicts, counter, kid))
         return None, "exhausted"
 
     def _fallback(self, request: PlanRequest, old: dict[int, TimedPath | None],
