@@ -1,0 +1,548 @@
+"""Action Dependency Graph (Hoenig et al. 2019): execute timed plans without a clock.
+
+A timed path is cut into *actions*, one per cell move (waits are dropped; the several ticks
+of a slow AGV's move are one action). An action from anchor ``src`` to anchor ``dst``
+*enters* the footprint cells of ``dst`` that ``src`` does not cover and *leaves* the cells of
+``src`` that ``dst`` does not cover.
+
+Dependencies are kept per cell, never between all pairs of actions. Each cell has a queue of
+*visits* ``(agv, entering action, leaving action, planned enter tick)`` ordered by planned
+enter tick (ties: first inserted stays first). The visits an AGV physically holds (the cells
+it stands on when its first plan is set, and cells entered by started actions) are always at
+the head of their queues. An action may start when, for every cell it enters, its own visit
+is at the head; a visit leaves its queue when its leaving action *finishes* (the AGV has
+arrived at ``dst``). An AGV's own actions run one after the other (type-1 edges, implicit);
+the per-cell order gives the type-2 edges ``leave(previous visit) -> enter(next visit)``.
+
+>>> from warerover_phys.planning.base import TimedPath
+>>> # A 1 x 4 corridor: AGV 0 at cell 1 goes to 3, AGV 1 follows it from 0 to 2.
+>>> g = build({0: TimedPath(0, 0, ((1, 1), (2, 2), (3, 3))),
+...            1: TimedPath(1, 0, ((0, 0), (1, 1), (2, 2)))}, {0: 1, 1: 1}, cols=4)
+>>> g.ready(0), g.ready(1)
+(True, False)
+>>> g.start(0).enters, g.ready(1)
+((2,), False)
+>>> g.finish(0).dst, g.ready(1)
+(2, True)
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import deque
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from itertools import islice
+
+from ..planning.base import State, TimedPath, footprint_nodes
+
+__all__ = ["ADGCycleError", "Action", "Visit", "ActionGraph", "build", "path_moves"]
+
+log = logging.getLogger(__name__)
+
+
+class ADGCycleError(ValueError):
+    """The dependency graph has a cycle (or a visit that is never left): no execution order
+    exists. ``agvs`` and ``cells`` (``(row, col)``) name the AGVs and cells on the cycle."""
+
+    def __init__(self, message: str, agvs: tuple[int, ...] = (),
+                 cells: tuple[tuple[int, int], ...] = ()) -> None:
+        super().__init__(message)
+        self.agvs = agvs
+        self.cells = cells
+
+
+@dataclass(frozen=True, slots=True)
+class Action:
+    """One cell move of one AGV."""
+
+    agv: int
+    seq: int
+    """Unique and increasing per AGV, across replans."""
+    src: int
+    dst: int
+    tick: int
+    """Planned start tick: the last tick the AGV stands at ``src`` before moving."""
+    ticks: int
+    """Planned duration (the AGV stands at ``dst`` at ``tick + ticks``)."""
+    enters: tuple[int, ...]
+    leaves: tuple[int, ...]
+    direction: tuple[int, int]
+    """``(drow, dcol)``."""
+
+
+@dataclass(frozen=True, slots=True)
+class Visit:
+    """A read-only snapshot of one queue entry (see :meth:`ActionGraph.visits`)."""
+
+    agv: int
+    enter: int | None
+    """``seq`` of the entering action; ``None`` for a cell held since registration."""
+    leave: int | None
+    """``seq`` of the leaving action; ``None`` while the AGV's plan ends on the cell."""
+    tick: int
+    """Planned enter tick: the first tick the AGV occupies the cell."""
+    entered: bool
+
+
+@dataclass(slots=True, eq=False)
+class _Visit:
+    cell: int
+    agv: int
+    enter: Action | None
+    leave: Action | None
+    tick: int
+    order: int
+    entered: bool
+
+
+@dataclass(slots=True, eq=False)
+class _Step:
+    action: Action
+    enter_visits: list[_Visit]
+    leave_visits: list[_Visit]
+
+
+@dataclass(slots=True, eq=False)
+class _Agent:
+    k: int
+    node: int
+    """Anchor after the last finished action."""
+    held: dict[int, _Visit]
+    """Visits the AGV physically holds (entered, not yet left), by cell."""
+    pending: deque[_Step]
+    running: _Step | None = None
+    next_seq: int = 0
+
+
+def path_moves(path: TimedPath, cols: int) -> list[tuple[int, int, int, int]]:
+    """The moves of a timed path as ``(src, dst, tick, ticks)``; waits are dropped.
+
+    Raises ``ValueError`` if the path does not start standing, ends mid-move, or has a step
+    that is not a wait or a move to a 4-neighbour.
+
+    >>> path_moves(TimedPath(0, 5, ((0, 0), (0, 0), (0, 1), (0, 1), (1, 1), (5, 5))), 4)
+    [(0, 1, 6, 3), (1, 5, 9, 1)]
+    """
+    states = path.states
+    if not states or states[0][0] != states[0][1]:
+        raise ValueError(f"AGV {path.agv}: a path must start standing, got {states[:1]}")
+    cur = states[0][0]
+    out: list[tuple[int, int, int, int]] = []
+    n, j = len(states), 1
+    while j < n:
+        a, b = states[j]
+        if a == b == cur:
+            j += 1
+            continue
+        if a == cur:
+            dst = b
+        elif a == b:
+            dst = a
+        else:
+            raise ValueError(f"AGV {path.agv}: state {states[j]} at tick "
+                             f"{path.start_tick + j} does not continue from anchor {cur}")
+        _direction(cur, dst, cols, path.agv)
+        t0 = path.start_tick + j - 1
+        while j < n and states[j] == (cur, dst):
+            j += 1
+        if j == n or states[j] != (dst, dst):
+            raise ValueError(f"AGV {path.agv}: the move {cur} -> {dst} from tick {t0} "
+                             "does not end standing at its destination")
+        out.append((cur, dst, t0, path.start_tick + j - t0))
+        cur = dst
+        j += 1
+    return out
+
+
+def _direction(src: int, dst: int, cols: int, agv: int) -> tuple[int, int]:
+    (r0, c0), (r1, c1) = divmod(src, cols), divmod(dst, cols)
+    if abs(r1 - r0) + abs(c1 - c0) != 1:
+        raise ValueError(f"AGV {agv}: {divmod(src, cols)} -> {divmod(dst, cols)} is not a "
+                         "move to a 4-neighbour")
+    return (r1 - r0, c1 - c0)
+
+
+class ActionGraph:
+    """The per-cell visit queues of every AGV's remaining actions.
+
+    ``sizes`` maps every AGV id to its footprint ``k``. Register an AGV (and later replace
+    its remaining plan) with :meth:`set_plan`; drive it with :meth:`ready`, :meth:`start`
+    and :meth:`finish`.
+    """
+
+    def __init__(self, cols: int, sizes: Mapping[int, int]) -> None:
+        self.cols = cols
+        self._sizes = dict(sizes)
+        self._agents: dict[int, _Agent] = {}
+        self._queues: dict[int, list[_Visit]] = {}
+        self._order = 0
+
+    # ----------------------------------------------------------------- building
+
+    @property
+    def agvs(self) -> tuple[int, ...]:
+        """The registered AGVs, in id order."""
+        return tuple(sorted(self._agents))
+
+    def set_plan(self, agv: int, path: TimedPath) -> None:
+        """Commit cut and rebuild for one AGV.
+
+        Keeps the AGV's finished actions and its started one, drops every not-started action
+        (and its visits), then appends the actions of ``path``. ``path.states[0]`` must be the
+        AGV standing where it will be after the cut (``dst`` of the running action, else its
+        anchor); otherwise ``ValueError``. The visits of the cells it holds after the cut stay
+        where they are in their queues; only their leaving action changes. The first call for
+        an AGV registers where it stands (its cells go to the head of their queues).
+        """
+        if agv not in self._sizes:
+            raise KeyError(f"AGV {agv} has no footprint size")
+        if path.agv != agv:
+            raise ValueError(f"set_plan for AGV {agv} got the path of AGV {path.agv}")
+        moves = path_moves(path, self.cols)
+        k, cols = self._sizes[agv], self.cols
+        here = path.states[0][0]
+        rec = self._agents.get(agv)
+        if rec is None:
+            cells = footprint_nodes(here, k, cols)
+            for c in cells:
+                q = self._queues.get(c)
+                if q and q[0].entered:
+                    raise ValueError(f"AGV {agv} cannot start at {divmod(here, cols)}: cell "
+                                     f"{divmod(c, cols)} is held by AGV {q[0].agv}")
+            rec = _Agent(k=k, node=here, held={}, pending=deque())
+            for c in cells:
+                v = self._new_visit(c, agv, None, path.start_tick, entered=True)
+                rec.held[c] = v
+            self._agents[agv] = rec
+        else:
+            cut = rec.running.action.dst if rec.running is not None else rec.node
+            if here != cut:
+                raise ValueError(f"AGV {agv}: the new path starts at {divmod(here, cols)} but "
+                                 f"the AGV will stand at {divmod(cut, cols)} after the cut")
+            dropped = {id(s.action) for s in rec.pending}
+            for step in rec.pending:
+                for v in step.enter_visits:
+                    self._queues[v.cell].remove(v)
+            for v in rec.held.values():
+                if v.leave is not None and id(v.leave) in dropped:
+                    v.leave = None
+            rec.pending.clear()
+        running = rec.running.action if rec.running is not None else None
+        open_visits = {c: v for c, v in rec.held.items()
+                       if running is None or v.leave is not running}
+        for src, dst, tick, ticks in moves:
+            fs, fd = footprint_nodes(src, k, cols), footprint_nodes(dst, k, cols)
+            action = Action(agv=agv, seq=rec.next_seq, src=src, dst=dst, tick=tick,
+                            ticks=ticks, enters=tuple(c for c in fd if c not in fs),
+                            leaves=tuple(c for c in fs if c not in fd),
+                            direction=_direction(src, dst, cols, agv))
+            rec.next_seq += 1
+            leave_visits = [open_visits.pop(c) for c in action.leaves]
+            for v in leave_visits:
+                v.leave = action
+            enter_visits = []
+            for c in action.enters:
+                v = self._new_visit(c, agv, action, tick + 1, entered=False)
+                open_visits[c] = v
+                enter_visits.append(v)
+            rec.pending.append(_Step(action, enter_visits, leave_visits))
+
+    def _new_visit(self, cell: int, agv: int, enter: Action | None, tick: int,
+                   entered: bool) -> _Visit:
+        v = _Visit(cell, agv, enter, None, tick, self._order, entered)
+        self._order += 1
+        q = self._queues.setdefault(cell, [])
+        i = len(q)
+        if entered:
+            while i > 0 and not q[i - 1].entered:
+                i -= 1
+        else:
+            key = (tick, v.order)
+            while i > 0 and not q[i - 1].entered and (q[i - 1].tick, q[i - 1].order) > key:
+                i -= 1
+        q.insert(i, v)
+        return v
+
+    # ----------------------------------------------------------------- queries
+
+    def _rec(self, agv: int) -> _Agent:
+        rec = self._agents.get(agv)
+        if rec is None:
+            raise KeyError(f"AGV {agv} has no plan (call set_plan first)")
+        return rec
+
+    def next_action(self, agv: int) -> Action | None:
+        """The first not-started action, if any."""
+        rec = self._rec(agv)
+        return rec.pending[0].action if rec.pending else None
+
+    def current(self, agv: int) -> Action | None:
+        """The started, not yet finished action, if any."""
+        rec = self._rec(agv)
+        return rec.running.action if rec.running is not None else None
+
+    def state(self, agv: int) -> State:
+        """``(src, dst)`` while an action runs, else ``(node, node)``."""
+        rec = self._rec(agv)
+        if rec.running is not None:
+            return (rec.running.action.src, rec.running.action.dst)
+        return (rec.node, rec.node)
+
+    def done(self, agv: int) -> bool:
+        """No started and no upcoming actions."""
+        rec = self._rec(agv)
+        return rec.running is None and not rec.pending
+
+    def upcoming(self, agv: int, limit: int | None = None) -> list[Action]:
+        """The not-started actions in order (at most ``limit``)."""
+        return [s.action for s in islice(self._rec(agv).pending, limit)]
+
+    def ready(self, agv: int) -> bool:
+        """The next action exists, no action runs, and for every cell it enters the AGV's
+        visit is at the head of the queue."""
+        rec = self._rec(agv)
+        if rec.running is not None or not rec.pending:
+            return False
+        return all(self._queues[v.cell][0] is v for v in rec.pending[0].enter_visits)
+
+    def released(self, agv: int, limit: int | None = None) -> list[Action]:
+        """The leading upcoming actions that are each ready once the AGV's own earlier actions
+        are done: only the AGV's own visits are ahead of them. The AGV may drive through all
+        of them without stopping; no other AGV can take these cells before it."""
+        out: list[Action] = []
+        for step in islice(self._rec(agv).pending, limit):
+            for v in step.enter_visits:
+                for w in self._queues[v.cell]:
+                    if w is v:
+                        break
+                    if w.agv != agv:
+                        return out
+            out.append(step.action)
+        return out
+
+    def collinear_run(self, agv: int, limit: int | None = None) -> list[Action]:
+        """The leading upcoming actions with the direction of the first (one merged move)."""
+        ups = self.upcoming(agv, limit)
+        if not ups:
+            return []
+        run = [ups[0]]
+        for a in ups[1:]:
+            if a.direction != run[0].direction:
+                break
+            run.append(a)
+        return run
+
+    def visits(self, cell: int) -> tuple[Visit, ...]:
+        """The queue of a cell, head first."""
+        return tuple(Visit(v.agv, v.enter.seq if v.enter is not None else None,
+                           v.leave.seq if v.leave is not None else None, v.tick, v.entered)
+                     for v in self._queues.get(cell, ()))
+
+    def holder(self, cell: int) -> int | None:
+        """The AGV that physically holds ``cell`` (its visit is entered), if any."""
+        q = self._queues.get(cell)
+        return q[0].agv if q and q[0].entered else None
+
+    # ----------------------------------------------------------------- execution
+
+    def start(self, agv: int) -> Action:
+        """Mark the next action started. Raises ``RuntimeError`` if it is not ready."""
+        if not self.ready(agv):
+            raise RuntimeError(f"AGV {agv}: the next action is not ready "
+                               f"({self.next_action(agv)!r}, running {self.current(agv)!r})")
+        rec = self._agents[agv]
+        step = rec.pending.popleft()
+        for v in step.enter_visits:
+            v.entered = True
+            rec.held[v.cell] = v
+        rec.running = step
+        return step.action
+
+    def finish(self, agv: int) -> Action:
+        """Mark the running action finished (the AGV stands at ``dst``); the visits it leaves
+        leave their queues. Raises ``RuntimeError`` if no action runs."""
+        rec = self._rec(agv)
+        step = rec.running
+        if step is None:
+            raise RuntimeError(f"AGV {agv} has no running action to finish")
+        for v in step.leave_visits:
+            q = self._queues[v.cell]
+            if q[0] is v:
+                del q[0]
+            else:  # cannot happen while the invariants hold; stay safe
+                q.remove(v)
+            del rec.held[v.cell]
+        rec.running = None
+        rec.node = step.action.dst
+        return step.action
+
+    # ----------------------------------------------------------------- deadlocks
+
+    def waiting_for(self) -> dict[int, set[int]]:
+        """Wait-for graph: each AGV whose next action is not ready (and that runs nothing)
+        -> the other AGVs whose visits are ahead of its own in the cells it would enter."""
+        out: dict[int, set[int]] = {}
+        for agv, rec in self._agents.items():
+            if rec.running is not None or not rec.pending:
+                continue
+            ahead: set[int] = set()
+            blocked = False
+            for v in rec.pending[0].enter_visits:
+                q = self._queues[v.cell]
+                if q[0] is v:
+                    continue
+                blocked = True
+                for w in q:
+                    if w is v:
+                        break
+                    if w.agv != agv:
+                        ahead.add(w.agv)
+            if blocked:
+                out[agv] = ahead
+        return out
+
+    def deadlock_cycles(self, max_cycles: int = 64) -> list[list[int]]:
+        """Elementary cycles of :meth:`waiting_for`, each once, rotated to start at its
+        smallest AGV id, sorted; at most ``max_cycles``."""
+        graph = {a: sorted(b) for a, b in self.waiting_for().items()}
+        cycles: list[list[int]] = []
+        for comp in _sccs(graph):
+            if len(comp) < 2:
+                continue
+            members = set(comp)
+            for s in sorted(comp):
+                # Depth-first search for simple paths back to s through ids above s.
+                path, stack = [s], [iter(graph.get(s, ()))]
+                on_path = {s}
+                while stack and len(cycles) < max_cycles:
+                    nxt = next(stack[-1], None)
+                    if nxt is None:
+                        stack.pop()
+                        on_path.discard(path.pop())
+                    elif nxt == s:
+                        cycles.append(list(path))
+                    elif nxt > s and nxt in members and nxt not in on_path:
+                        path.append(nxt)
+                        on_path.add(nxt)
+                        stack.append(iter(graph.get(nxt, ())))
+        return sorted(cycles)
+
+    def check_acyclic(self) -> None:
+        """Check the remaining dependency graph (type-1 edges between an AGV's unfinished
+        actions, type-2 edges ``leave(previous visit) -> enter(next visit)`` per cell) with
+        Kahn's algorithm. Raises :class:`ADGCycleError` naming the AGVs and cells of a cycle,
+        or of a visit stuck behind an AGV whose plan ends on the cell."""
+        cols = self.cols
+        preds: dict[Action, list[tuple[Action, int | None]]] = {}
+        succs: dict[Action, list[Action]] = {}
+        for rec in self._agents.values():
+            chain = ([rec.running.action] if rec.running is not None else []) + [
+                s.action for s in rec.pending]
+            for a in chain:
+                preds[a] = []
+                succs[a] = []
+            for a, b in zip(chain, chain[1:], strict=False):
+                preds[b].append((a, None))
+                succs[a].append(b)
+        for cell, q in self._queues.items():
+            for prev, nxt in zip(q, q[1:], strict=False):
+                if prev.leave is None:
+                    raise ADGCycleError(
+                        f"AGV {nxt.agv} must enter cell {divmod(cell, cols)} after AGV "
+                        f"{prev.agv}, whose plan ends on it", (prev.agv, nxt.agv),
+                        (divmod(cell, cols),))
+                if nxt.enter is None:  # two registered AGVs on one cell: set_plan forbids it
+                    raise ADGCycleError(f"AGVs {prev.agv} and {nxt.agv} both hold cell "
+                                        f"{divmod(cell, cols)}", (prev.agv, nxt.agv),
+                                        (divmod(cell, cols),))
+                preds[nxt.enter].append((prev.leave, cell))
+                succs[prev.leave].append(nxt.enter)
+        indeg = {a: len(p) for a, p in preds.items()}
+        todo = [a for a, d in indeg.items() if d == 0]
+        seen = 0
+        while todo:
+            a = todo.pop()
+            seen += 1
+            for b in succs[a]:
+                indeg[b] -= 1
+                if indeg[b] == 0:
+                    todo.append(b)
+        if seen == len(indeg):
+            return
+        left = {a for a, d in indeg.items() if d > 0}
+        # Every action left has a predecessor left: walk back until one repeats.
+        walk: list[tuple[Action, int | None]] = []
+        index: dict[Action, int] = {}
+        a = next(iter(sorted(left, key=lambda x: (x.agv, x.seq))))
+        while a not in index:
+            index[a] = len(walk)
+            p, cell = next((p, c) for p, c in preds[a] if p in left)
+            walk.append((a, cell))
+            a = p
+        cycle = walk[index[a]:]
+        cycle.reverse()  # now in execution order: each waits for the one before it
+        agvs = tuple(dict.fromkeys(x.agv for x, _ in cycle))
+        cells = tuple(divmod(c, cols) for _, c in cycle if c is not None)
+        parts = [f"AGV {x.agv} {divmod(x.src, cols)}->{divmod(x.dst, cols)}"
+                 + (f" waits for cell {divmod(c, cols)}" if c is not None else
+                    " waits for its own previous action") for x, c in cycle]
+        raise ADGCycleError(f"the action dependency graph has a cycle through AGVs "
+                            f"{list(agvs)} and cells {list(cells)}: " + "; ".join(parts),
+                            agvs, cells)
+
+
+def _sccs(graph: Mapping[int, list[int]]) -> Iterator[list[int]]:
+    """Strongly connected components (iterative Tarjan)."""
+    index: dict[int, int] = {}
+    low: dict[int, int] = {}
+    stack: list[int] = []
+    on_stack: set[int] = set()
+    counter = 0
+    for root in sorted(graph):
+        if root in index:
+            continue
+        work = [(root, iter(graph.get(root, ())))]
+        index[root] = low[root] = counter
+        counter += 1
+        stack.append(root)
+        on_stack.add(root)
+        while work:
+            v, it = work[-1]
+            w = next(it, None)
+            if w is not None:
+                if w not in index:
+                    index[w] = low[w] = counter
+                    counter += 1
+                    stack.append(w)
+                    on_stack.add(w)
+                    work.append((w, iter(graph.get(w, ()))))
+                elif w in on_stack:
+                    low[v] = min(low[v], index[w])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[v])
+            if low[v] == index[v]:
+                comp = []
+                while True:
+                    w = stack.pop()
+                    on_stack.discard(w)
+                    comp.append(w)
+                    if w == v:
+                        break
+                yield comp
+
+
+def build(paths: Mapping[int, TimedPath], sizes: Mapping[int, int], cols: int) -> ActionGraph:
+    """Build the ADG of a whole plan (every path starts at the same tick) and check that it
+    is acyclic; raises :class:`ADGCycleError` if no execution order exists (a swap, or a
+    rotation of AGVs that each move into the cell the next one leaves in the same tick)."""
+    starts = {p.start_tick for p in paths.values()}
+    if len(starts) > 1:
+        raise ValueError(f"all paths must start at the same tick, got {sorted(starts)}")
+    graph = ActionGraph(cols, sizes)
+    for agv in sorted(paths):
+        graph.set_plan(agv, paths[agv])
+    graph.check_acyclic()
+    return graph
