@@ -14,7 +14,7 @@ $(STAMP): $(BIN)/python pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/warerover run layouts/paper_homogeneous.yaml --seed 1 --out runs/demo
+	$(BIN)/warerover run layouts/paper_homogeneous.yaml --seed 1 --executor physics --out runs/demo
 
 test: $(STAMP)
 	$(BIN)/python -m pytest

@@ -308,6 +308,38 @@ def test_a_held_cell_stays_at_the_head_whatever_the_ticks():
     assert not g2.ready(1) and g2.ready(0)
 
 
+def test_claimed_cells_keep_their_place_and_survive_a_new_plan():
+    """A driving AGV claims the released cells it will pass without stopping: a visit
+    planned earlier by a later plan queues behind them (not ahead, as it would on an
+    unclaimed cell), and the AGV's own new plan must start after them."""
+    g = ActionGraph(cols=6, sizes={0: 1, 1: 1, 2: 1})
+    g.set_plan(0, TimedPath(0, 0, stand(0, 0, 0, 1, 2, 3, 4)))  # cells 1..4 at ticks 3..6
+    g.start(0)
+    assert [a.dst for a in g.claim(0, 2)] == [2, 3]
+    assert g.cut_node(0) == 3
+    g.set_plan(1, TimedPath(1, 0, stand(9, 3, 9)))  # cell 3 (claimed) at tick 1
+    g.set_plan(2, TimedPath(2, 0, stand(10, 4, 10)))  # cell 4 (not claimed) at tick 1
+    assert [v.agv for v in g.visits(3)] == [0, 1]
+    assert [v.agv for v in g.visits(4)] == [2, 0]
+    with pytest.raises(ValueError, match="after the cut"):
+        g.set_plan(0, TimedPath(0, 5, stand(1, 7)))
+    g.set_plan(0, TimedPath(0, 5, stand(3, 4, 5)))
+    assert [a.dst for a in g.upcoming(0)] == [2, 3, 4, 5]
+    assert [v.agv for v in g.visits(4)] == [2, 0]
+    g.check_acyclic()
+
+
+def test_forced_start_ignores_dependencies():
+    g = ActionGraph(cols=5, sizes={0: 1, 1: 1})
+    g.set_plan(0, TimedPath(0, 0, stand(0, 1, 2)))
+    g.set_plan(1, TimedPath(1, 0, stand(1, 6)))
+    assert not g.ready(0)
+    with pytest.raises(RuntimeError):
+        g.start(0)
+    assert g.start(0, force=True).dst == 1
+    assert g.state(0) == (0, 1)
+
+
 def test_commit_cut_keeps_the_running_action_and_reorders_later_visits():
     # Row 0: AGV 0 drives 0 -> 3. Below: AGV 1 pops up into cell 2 at tick 5 and back.
     g = build({0: TimedPath(0, 0, stand(0, 1, 2, 3)),

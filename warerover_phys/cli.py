@@ -1,7 +1,9 @@
 """The ``warerover`` command line.
 
 ``warerover run SCENARIO`` runs one episode and writes ``metrics.json``, ``events.jsonl`` and
-``paths.json``; ``warerover check SCENARIO`` only loads and checks a scenario. Bad input
+``paths.json`` (and ``trajectories.npz`` on physics); ``warerover gap SCENARIO`` runs it on
+both executors and reports the sim-to-real gap; ``warerover check SCENARIO`` only loads and
+checks a scenario. Bad input
 prints one line naming the file, field and value, and exits with code 2.
 """
 
@@ -29,7 +31,7 @@ SetOpt = Annotated[list[str] | None, typer.Option(
 SeedOpt = Annotated[int | None, typer.Option(help="Episode seed (overrides the file's).")]
 SchedOpt = Annotated[str | None, typer.Option(help="Scheduler: ta | rd.")]
 PlanOpt = Annotated[str | None, typer.Option(help="Planner: astar | pibt | lacam.")]
-ExecOpt = Annotated[str | None, typer.Option(help="Executor: grid.")]
+ExecOpt = Annotated[str | None, typer.Option(help="Executor: grid | physics.")]
 OrdersOpt = Annotated[str | None, typer.Option(
     help="Order pattern: oneshot | constant | wave | hotspot | burst.")]
 
@@ -123,11 +125,91 @@ def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
             ("collisions", str(m["collisions"])),
             ("replans / failures / detours",
              f"{m['replans']} / {m['plan_failures']} / {m['goal_busy_detours']}")]
+    if sc.executor.name == "physics":
+        sep = m.get("min_separation_m")
+        rows += [("AGV-AGV / static contacts", f"{m['agv_contacts']} / {m['static_contacts']}"),
+                 ("min separation (m)", "-" if sep is None else f"{sep:.3f}"),
+                 ("deadlocks / executor replans",
+                  f"{m['deadlocks']} / {m['executor_replans']}"),
+                 ("real-time factor", f"{m['real_time_factor']:.1f}x")]
     for k, v in rows:
         table.add_row(k, v)
     console = Console()
     console.print(table)
-    console.print(f"wrote {files['metrics']}, {files['events'].name}, {files['paths'].name}")
+    names = ", ".join(f.name for k, f in files.items() if k != "metrics")
+    console.print(f"wrote {files['metrics']}, {names}")
+
+
+@app.command()
+def gap(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
+        seed: SeedOpt = None,
+        out: Annotated[Path | None, typer.Option(
+            help="Where to write gap.json (default: runs/NAME-seedN-gap.json).")] = None,
+        json_out: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+        set_: SetOpt = None, scheduler: SchedOpt = None, planner: PlanOpt = None,
+        orders: OrdersOpt = None) -> None:
+    """Run a scenario on the grid and on the physics executor (same seed) and report the
+    sim-to-real gap."""
+    import os
+
+    from .gap import gap_report
+
+    try:
+        try:
+            overrides = _overrides(set_, seed, scheduler, planner, None, orders)
+        except WareroverError as err:
+            raise (err.with_file(str(scenario)) if hasattr(err, "with_file") else err) from None
+        from .config import load_scenario
+
+        sc = load_scenario(scenario, overrides)
+        report = gap_report(sc)
+        path = out or Path("runs") / f"{sc.name}-seed{sc.seed}-gap.json"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(path.name + ".tmp")
+        tmp.write_text(json.dumps(report, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+        os.replace(tmp, path)
+    except WareroverError as err:
+        _fail(err)
+    except OSError as err:
+        _fail(WareroverError(f"{getattr(err, 'filename', '') or ''}: {err.strerror or err}"))
+    if json_out:
+        typer.echo(json.dumps({k: v for k, v in report.items() if k not in ("grid", "physics")},
+                              indent=2, sort_keys=True))
+        return
+    g, p = report["grid"], report["physics"]
+
+    def f(x, spec=".3f"):
+        return "-" if x is None else format(x, spec)
+
+    table = Table(title=f"sim-to-real gap: {sc.name}  seed {sc.seed}  {sc.scheduler.name} + "
+                        f"{sc.planner.name}", show_header=True)
+    for col, just in (("figure", "left"), ("grid", "right"), ("physics", "right"),
+                      ("physics / grid", "right")):
+        table.add_column(col, justify=just)
+    table.add_row("makespan (ticks) [makespan_ratio]", str(g["ticks"]), str(p["ticks"]),
+                  f(report["makespan_ratio"]))
+    table.add_row("throughput (orders/tick) [tp_ratio]", f(g["throughput"]),
+                  f(p["throughput"]), f(report["tp_ratio"]))
+    table.add_row("order latency mean (ticks) [latency_ratio]",
+                  f(g["order_latency_mean_ticks"], ".1f"), f(p["order_latency_mean_ticks"], ".1f"),
+                  f(report["latency_ratio"]))
+    table.add_row("success rate", f(g["success_rate"]), f(p["success_rate"]), "")
+    table.add_row("replans [replans = physics - grid]", str(g["replans"]), str(p["replans"]),
+                  str(report["replans"]))
+    for label, key in (("delay: dependency waits (s)", "delay_dependency_wait_s"),
+                       ("delay: kinematic lag incl. turns (s)", "delay_kinematic_s"),
+                       ("  of which turns (s)", "delay_turns_s"),
+                       ("delay: injected (s)", "delay_injected_s"),
+                       ("AGV-AGV contacts [agv_contacts]", "agv_contacts"),
+                       ("AGV-static contacts [static_contacts]", "static_contacts"),
+                       ("min separation (m) [min_separation_m]", "min_separation_m"),
+                       ("deadlocks", "deadlocks"),
+                       ("real-time factor [real_time_factor]", "real_time_factor")):
+        v = p.get(key)
+        table.add_row(label, "", f(v, ".2f") if isinstance(v, float) else str(v), "")
+    console = Console()
+    console.print(table)
+    console.print(f"wrote {path}")
 
 
 @app.command()

@@ -285,8 +285,52 @@ class PlannerSpec(_Model):
     """CBS / LaCAM: seconds per planning call before the documented fallback (counted)."""
 
 
+class DelaySpec(_Model):
+    """Random execution delays (the Robot Runners 2026 ``delayConfig`` model): each tick,
+    each AGV draws a delay event (``bernoulli``: with probability ``prob``; ``poisson``:
+    a Poisson(``prob``) count, any count > 0 starts one); a delay stops the AGV for a
+    duration in ticks drawn ``uniform`` from [``min_ticks``, ``max_ticks``] or ``gaussian``
+    (``mean_ticks``, ``std_ticks``, rounded, clipped to [``min_ticks``, ``max_ticks``])."""
+
+    model: Literal["none", "bernoulli", "poisson"] = "none"
+    prob: Prob = 0.0
+    duration: Literal["uniform", "gaussian"] = "uniform"
+    min_ticks: PosInt = 1
+    max_ticks: PosInt = 10
+    mean_ticks: PosFloat = 5.0
+    std_ticks: Annotated[float, Field(ge=0)] = 2.0
+
+    @model_validator(mode="after")
+    def _range(self) -> DelaySpec:
+        if self.max_ticks < self.min_ticks:
+            raise ValueError(f"max_ticks {self.max_ticks} is below min_ticks {self.min_ticks}")
+        return self
+
+
 class ExecutorSpec(_Model):
-    name: Literal["grid"] = "grid"
+    """How plans are carried out: ``grid`` (ideal discrete moves) or ``physics`` (pymunk
+    rigid bodies with kinematic limits, following an action dependency graph)."""
+
+    name: Literal["grid", "physics"] = "grid"
+    dt_s: PosFloat = 0.02
+    """Physics step (seconds); the planning tick is ``tick_s``."""
+    adg: bool = True
+    """Follow the action dependency graph; ``false`` = naive time-indexed following (an
+    action starts at its planned tick whatever the other AGVs do)."""
+    delays: DelaySpec = DelaySpec()
+    speed_scale: tuple[PosFloat, PosFloat] = (1.0, 1.0)
+    """Each AGV's top speed is scaled by a factor drawn uniformly from this range."""
+    deviation_m: PosFloat = 0.35
+    """An AGV farther than this from its path is stopped and replanned."""
+    trajectory_hz: PosFloat = 10.0
+    """Rate at which executed poses are recorded (``trajectories.npz``)."""
+
+    @model_validator(mode="after")
+    def _physics_fields(self) -> ExecutorSpec:
+        lo, hi = self.speed_scale
+        if lo > hi:
+            raise ValueError(f"speed_scale [{lo}, {hi}] must be [low, high]")
+        return self
 
 
 class RandomFaultsSpec(_Model):
@@ -359,6 +403,11 @@ class Scenario(_Model):
 
     def with_seed(self, seed: int) -> Scenario:
         return self.model_copy(update={"seed": seed})
+
+    def with_executor(self, name: str) -> Scenario:
+        """The same scenario on another executor (its physics settings kept)."""
+        return self.model_copy(update={"executor": self.executor.model_copy(
+            update={"name": name})})
 
 
 # --------------------------------------------------------------------------------- loading

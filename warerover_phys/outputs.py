@@ -1,4 +1,5 @@
-"""Episode outputs: ``metrics.json``, ``events.jsonl`` and ``paths.json`` in one folder.
+"""Episode outputs: ``metrics.json``, ``events.jsonl``, ``paths.json`` and (physics
+executor) ``trajectories.npz`` in one folder.
 
 ``paths.json`` holds ``agvs`` (id -> type, footprint, ticks per move), ``planned`` (every
 committed path: AGV, start tick, per-tick ``[[row, col], [row, col]]`` from/to anchors) and
@@ -51,4 +52,16 @@ def write_outputs(result: EpisodeResult, out_dir: str | Path) -> dict[str, Path]
     _atomic_write(files["events"], "".join(json.dumps(e, sort_keys=True) + "\n"
                                            for e in result.events))
     _atomic_write(files["paths"], json.dumps(paths, separators=(",", ":")) + "\n")
+    if result.trajectory is not None:
+        files["trajectory"] = out / "trajectories.npz"
+        write_trajectory(result.trajectory, files["trajectory"])
     return files
+
+
+def write_trajectory(trajectory: dict, path: Path) -> None:
+    """Executed poses (see ``PhysicsExecutor.trajectory``), compressed numpy arrays."""
+    import numpy as np
+
+    tmp = path.with_name(path.name + ".tmp.npz")
+    np.savez_compressed(tmp, **trajectory)
+    os.replace(tmp, path)

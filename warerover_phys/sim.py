@@ -15,7 +15,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from .config import Scenario
-from .errors import ScenarioError
 from .executors import make_executor
 from .metrics import MetricsRecorder
 from .planning import make_planner
@@ -41,6 +40,8 @@ class EpisodeResult:
     actual: dict[int, list[tuple[int, int]]]
     """Executed state per tick per AGV, from tick 0."""
     world: World = field(repr=False)
+    trajectory: dict | None = field(default=None, repr=False)
+    """Executed poses at a fixed rate (physics executor; see ``PhysicsExecutor.trajectory``)."""
 
 
 class Simulation:
@@ -54,13 +55,6 @@ class Simulation:
         self.scheduler = make_scheduler(scenario.scheduler)
         self.planner = make_planner(scenario.planner)
         self.executor = make_executor(scenario.executor)
-        if getattr(self.planner, "replans_all", False):
-            from .planning.pibt_planner import check_fleet
-
-            try:
-                check_fleet(self.planner.name, self.world.agvs)
-            except ScenarioError as err:
-                raise err.with_file(scenario.source) if scenario.source else err from None
         self.metrics = MetricsRecorder(scenario)
         self.planned: list[dict] = []
         self.actual: dict[int, list[tuple[int, int]]] = {a.id: [a.pos] for a in self.world.agvs}
@@ -83,6 +77,7 @@ class Simulation:
         report = self.executor.step(w)
         w.tick += 1
         self._follow_up(report.blocked)
+        self._replan_now(report.replan)
         w.advance_tasks()
         self.metrics.record_tick(sched_s=t1 - t0, plan_s=t2 - t1, blocked=len(report.blocked),
                                  collisions=report.collisions)
@@ -93,8 +88,14 @@ class Simulation:
             if progress is not None:
                 progress(self.world.tick, len(self.world.completed_tick),
                          len(self.world.status))
-        return EpisodeResult(metrics=self.metrics.summary(self.world), events=self.world.events,
-                             planned=self.planned, actual=self.actual, world=self.world)
+        metrics = self.metrics.summary(self.world)
+        summary = getattr(self.executor, "summary", None)
+        if summary is not None:
+            metrics.update(summary())
+        trajectory = getattr(self.executor, "trajectory", None)
+        return EpisodeResult(metrics=metrics, events=self.world.events, planned=self.planned,
+                             actual=self.actual, world=self.world,
+                             trajectory=trajectory() if trajectory is not None else None)
 
     # ------------------------------------------------------------------------- helpers
 
@@ -216,6 +217,15 @@ class Simulation:
                 other.yield_until = w.tick + YIELD_TICKS
                 other.retry_at = w.tick
                 w.log("make_way", agv=other.id, for_agv=stuck.id, spot=list(w.cell(spot)))
+
+    def _replan_now(self, agvs: list[int]) -> None:
+        """The executor saw a deadlock or a deviation: replan these AGVs at once (once they
+        stand), as if they had been blocked for ``replan_blocked_ticks``."""
+        for aid in agvs:
+            agv = self.world.agvs[aid]
+            agv.delay = max(agv.delay, 1)
+            agv.blocked_ticks = max(agv.blocked_ticks, self.scenario.planner.replan_blocked_ticks)
+            agv.retry_at = min(agv.retry_at, self.world.tick)
 
     def _follow_up(self, blocked: list[int]) -> None:
         w = self.world

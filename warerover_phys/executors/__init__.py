@@ -8,9 +8,13 @@ from .grid import GridExecutor
 
 __all__ = ["Executor", "StepReport", "GridExecutor", "make_executor", "EXECUTORS"]
 
-EXECUTORS = {"grid": GridExecutor}
+EXECUTORS = {"grid": GridExecutor, "physics": "physics"}
 
 
 def make_executor(spec) -> Executor:
     cls = lookup(EXECUTORS, spec.name, "executor.name")
+    if cls == "physics":  # imported only when asked for: pymunk is not needed on the grid
+        from .physics import PhysicsExecutor
+
+        return PhysicsExecutor(spec)
     return cls()

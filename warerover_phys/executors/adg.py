@@ -94,6 +94,8 @@ class _Visit:
     tick: int
     order: int
     entered: bool
+    claimed: bool = False
+    """The AGV is committed to drive through this cell (see :meth:`ActionGraph.claim`)."""
 
 
 @dataclass(slots=True, eq=False)
@@ -101,6 +103,7 @@ class _Step:
     action: Action
     enter_visits: list[_Visit]
     leave_visits: list[_Visit]
+    claimed: bool = False
 
 
 @dataclass(slots=True, eq=False)
@@ -216,21 +219,34 @@ class ActionGraph:
                 rec.held[c] = v
             self._agents[agv] = rec
         else:
-            cut = rec.running.action.dst if rec.running is not None else rec.node
+            cut = self.cut_node(agv)
             if here != cut:
                 raise ValueError(f"AGV {agv}: the new path starts at {divmod(here, cols)} but "
                                  f"the AGV will stand at {divmod(cut, cols)} after the cut")
-            dropped = {id(s.action) for s in rec.pending}
-            for step in rec.pending:
+            kept = [s for s in rec.pending if s.claimed]
+            gone = [s for s in rec.pending if not s.claimed]
+            dropped = {id(s.action) for s in gone}
+            for step in gone:
                 for v in step.enter_visits:
                     self._queues[v.cell].remove(v)
+            for step in [rec.running, *kept]:
+                if step is None:
+                    continue
+                for v in step.enter_visits:
+                    if v.leave is not None and id(v.leave) in dropped:
+                        v.leave = None
             for v in rec.held.values():
                 if v.leave is not None and id(v.leave) in dropped:
                     v.leave = None
-            rec.pending.clear()
-        running = rec.running.action if rec.running is not None else None
-        open_visits = {c: v for c, v in rec.held.items()
-                       if running is None or v.leave is not running}
+            rec.pending = deque(kept)
+        # Cells the AGV holds (or has claimed) after the cut, and not left by then.
+        committed = [s for s in (rec.running, *rec.pending) if s is not None]
+        open_visits = dict(rec.held)
+        for step in committed:
+            for v in step.leave_visits:
+                open_visits.pop(v.cell, None)
+            for v in step.enter_visits:
+                open_visits[v.cell] = v
         for src, dst, tick, ticks in moves:
             fs, fd = footprint_nodes(src, k, cols), footprint_nodes(dst, k, cols)
             action = Action(agv=agv, seq=rec.next_seq, src=src, dst=dst, tick=tick,
@@ -259,7 +275,8 @@ class ActionGraph:
                 i -= 1
         else:
             key = (tick, v.order)
-            while i > 0 and not q[i - 1].entered and (q[i - 1].tick, q[i - 1].order) > key:
+            while i > 0 and not q[i - 1].entered and not q[i - 1].claimed \
+                    and (q[i - 1].tick, q[i - 1].order) > key:
                 i -= 1
         q.insert(i, v)
         return v
@@ -271,6 +288,29 @@ class ActionGraph:
         if rec is None:
             raise KeyError(f"AGV {agv} has no plan (call set_plan first)")
         return rec
+
+    def cut_node(self, agv: int) -> int:
+        """Where the AGV will stand after its running and claimed actions: a new plan
+        (:meth:`set_plan`) must start there."""
+        rec = self._rec(agv)
+        for step in reversed(rec.pending):
+            if step.claimed:
+                return step.action.dst
+        return rec.running.action.dst if rec.running is not None else rec.node
+
+    def claim(self, agv: int, limit: int | None = None) -> list[Action]:
+        """Commit the AGV to its released actions (at most ``limit``): their visits keep
+        their place at the front of their queues (no visit placed later goes ahead of them)
+        and a new plan keeps them. The executor claims what it drives through without
+        stopping, so it never has to stop inside a braking distance. Returns the claimed
+        actions (already claimed ones included)."""
+        rec = self._rec(agv)
+        out = self.released(agv, limit)
+        for step in islice(rec.pending, len(out)):
+            step.claimed = True
+            for v in step.enter_visits:
+                v.claimed = True
+        return out
 
     def next_action(self, agv: int) -> Action | None:
         """The first not-started action, if any."""
@@ -346,9 +386,10 @@ class ActionGraph:
 
     # ----------------------------------------------------------------- execution
 
-    def start(self, agv: int) -> Action:
-        """Mark the next action started. Raises ``RuntimeError`` if it is not ready."""
-        if not self.ready(agv):
+    def start(self, agv: int, force: bool = False) -> Action:
+        """Mark the next action started. Raises ``RuntimeError`` if it is not ready, unless
+        ``force`` (naive time-indexed execution, which ignores the dependencies)."""
+        if not force and not self.ready(agv):
             raise RuntimeError(f"AGV {agv}: the next action is not ready "
                                f"({self.next_action(agv)!r}, running {self.current(agv)!r})")
         rec = self._agents[agv]

@@ -16,7 +16,10 @@ class StepReport:
     blocked: list[int] = field(default_factory=list)
     """AGVs that wanted to move but could not (their next cells were held)."""
     collisions: int = 0
-    """Overlaps or swaps that happened anyway (0 for any valid plan)."""
+    """Overlaps or swaps that happened anyway (0 for any valid plan); in physics, AGV-AGV
+    contacts that began during the tick."""
+    replan: list[int] = field(default_factory=list)
+    """AGVs the executor asks the loop to replan now (dependency deadlock, deviation)."""
 
 
 @runtime_checkable

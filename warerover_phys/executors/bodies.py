@@ -1,0 +1,177 @@
+"""The pymunk world of a layout: static shapes, AGV bodies and their control bodies.
+
+Kept apart from the executor's logic so the physical set-up reads in one place:
+
+- obstacles (and the map border) are solid static boxes; shelves are *sensors*: unloaded
+  AGVs drive under them, and a loaded AGV touching a shelf other than its own is counted as
+  a static contact;
+- each AGV is a dynamic box of its real size and mass, driven by a kinematic control body
+  through a :class:`pymunk.PivotJoint` (``max_bias = 0``, ``max_force`` = mass x max
+  acceleration x :data:`FORCE_HEADROOM`) and a :class:`pymunk.GearJoint`, so pushing and
+  contacts stay physical (the SMART / ARGoS pattern);
+- :class:`BodyIO` moves poses and velocities in and out through pymunk's batch API (one call
+  per step for the whole fleet instead of a Python loop; the module is experimental, so it is
+  wrapped here and nowhere else).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pymunk
+import pymunk.batch as batch
+
+from ..layout import CellType, Layout
+
+__all__ = ["AGV", "OBSTACLE", "SHELF", "FORCE_HEADROOM", "BodyIO", "PhysicalFleet",
+           "build_space"]
+
+AGV, OBSTACLE, SHELF = 1, 2, 3
+"""Collision types."""
+FORCE_HEADROOM = 2.0
+"""Pivot force = mass x max acceleration x this: the commanded profile obeys the limit; the
+headroom lets the joint correct small errors and push back on contacts."""
+
+
+def cell_centre(node: int, k: int, cols: int, cell_m: float) -> tuple[float, float]:
+    """World centre (metres) of a ``k x k`` footprint anchored at flat cell ``node``."""
+    r, c = divmod(node, cols)
+    return ((c + k / 2) * cell_m, (r + k / 2) * cell_m)
+
+
+def build_space(layout: Layout, n_agvs: int) -> tuple[pymunk.Space, dict[int, int]]:
+    """A space holding the layout's static shapes; returns it and ``shape id -> shelf id``
+    for the shelf sensors."""
+    space = pymunk.Space()
+    space.gravity = (0.0, 0.0)
+    space.iterations = 10
+    if n_agvs >= 300:
+        space.use_spatial_hash(2.0 * layout.cell_m, 10 * n_agvs)
+    m = layout.cell_m
+    rows, cols = layout.rows, layout.cols
+    static = space.static_body
+    shapes: list[pymunk.Shape] = []
+    obstacle = layout.obstacles
+    # One box per horizontal run of obstacle cells keeps big maps cheap.
+    for r in range(rows):
+        c = 0
+        while c < cols:
+            if not obstacle[r, c]:
+                c += 1
+                continue
+            c0 = c
+            while c < cols and obstacle[r, c]:
+                c += 1
+            shapes.append(_box(static, ((c0 + c) / 2 * m, (r + 0.5) * m), ((c - c0) * m, m)))
+    w, h = cols * m, rows * m
+    r = 0.05  # the border walls lie just outside the map
+    for a, b in (((-r, -r), (w + r, -r)), ((w + r, -r), (w + r, h + r)),
+                 ((w + r, h + r), (-r, h + r)), ((-r, h + r), (-r, -r))):
+        shapes.append(pymunk.Segment(static, a, b, r))
+    for s in shapes:
+        s.collision_type = OBSTACLE
+        s.friction = 0.0
+    shelf_of: dict[int, int] = {}
+    for shelf in layout.shelves:
+        r, c = shelf.anchor
+        k = shelf.size
+        box = _box(static, ((c + k / 2) * m, (r + k / 2) * m), (k * m * 0.9, k * m * 0.9))
+        box.sensor = True
+        box.collision_type = SHELF
+        shelf_of[id(box)] = shelf.id
+        shapes.append(box)
+    assert all(layout.grid[r, c] != CellType.OBSTACLE for s in layout.shelves
+               for r, c in [s.anchor])
+    space.add(*shapes)
+    return space, shelf_of
+
+
+def _box(body: pymunk.Body, centre: tuple[float, float], size: tuple[float, float]) -> pymunk.Poly:
+    cx, cy = centre
+    hw, hh = size[0] / 2, size[1] / 2
+    return pymunk.Poly(body, [(cx - hw, cy - hh), (cx + hw, cy - hh), (cx + hw, cy + hh),
+                              (cx - hw, cy + hh)])
+
+
+@dataclass
+class PhysicalFleet:
+    """The AGV bodies (index = AGV id) and what the controller needs about each."""
+
+    bodies: list[pymunk.Body]
+    ctrl: list[pymunk.Body]
+    shapes: list[pymunk.Poly]
+    half_size: np.ndarray
+    """(N, 2) half length / width in metres."""
+
+    @classmethod
+    def add_to(cls, space: pymunk.Space, poses: list[tuple[float, float, float]],
+               sizes: list[tuple[float, float]], masses: list[float],
+               accels: list[float]) -> PhysicalFleet:
+        bodies, ctrls, shapes = [], [], []
+        for (x, y, heading), (length, width), mass, accel in zip(poses, sizes, masses, accels,
+                                                                strict=True):
+            moment = pymunk.moment_for_box(mass, (length, width))
+            body = pymunk.Body(mass, moment)
+            body.position = (x, y)
+            body.angle = heading
+            shape = pymunk.Poly.create_box(body, (length, width))
+            shape.collision_type = AGV
+            shape.friction = 0.0
+            shape.elasticity = 0.0
+            ctrl = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+            ctrl.position = (x, y)
+            ctrl.angle = heading
+            pivot = pymunk.PivotJoint(ctrl, body, (0, 0), (0, 0))
+            pivot.max_bias = 0.0
+            pivot.max_force = mass * accel * FORCE_HEADROOM
+            gear = pymunk.GearJoint(ctrl, body, 0.0, 1.0)
+            gear.max_bias = 0.0
+            gear.max_force = moment * 200.0
+            space.add(body, shape, ctrl, pivot, gear)
+            bodies.append(body)
+            ctrls.append(ctrl)
+            shapes.append(shape)
+        half = np.array(sizes, dtype=float) / 2
+        return cls(bodies, ctrls, shapes, half)
+
+
+class BodyIO:
+    """Read every AGV's pose and velocity, and set every control body's velocity, in one
+    batch call each."""
+
+    _GET = (batch.BodyFields.BODY_ID | batch.BodyFields.POSITION | batch.BodyFields.ANGLE
+            | batch.BodyFields.VELOCITY | batch.BodyFields.ANGULAR_VELOCITY)
+    _SET = batch.BodyFields.VELOCITY | batch.BodyFields.ANGULAR_VELOCITY
+
+    def __init__(self, space: pymunk.Space, fleet: PhysicalFleet) -> None:
+        self.space = space
+        self.buf = batch.Buffer()
+        batch.get_space_bodies(space, self._GET, self.buf)
+        ids = np.frombuffer(self.buf.int_buf(), dtype=np.uintp).copy()
+        row = {int(i): r for r, i in enumerate(ids)}
+        self.n_rows = len(ids)
+        self.body_rows = np.array([row[b.id] for b in fleet.bodies], dtype=np.intp)
+        self.ctrl_rows = np.array([row[b.id] for b in fleet.ctrl], dtype=np.intp)
+        self.out = np.zeros((self.n_rows, 3))
+        self.set_buf = batch.Buffer()
+
+    def read(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(positions (N, 2), angles (N,), velocities (N, 2), angular velocities (N,)) of
+        the AGV bodies, by AGV id."""
+        self.buf.clear()
+        batch.get_space_bodies(self.space, self._GET, self.buf)
+        data = np.frombuffer(self.buf.float_buf(), dtype=np.float64).reshape(self.n_rows, 6)
+        self._all = data
+        b = data[self.body_rows]
+        return b[:, 0:2], b[:, 2], b[:, 3:5], b[:, 5]
+
+    def write(self, velocity: np.ndarray, angular: np.ndarray) -> None:
+        """Set the control bodies' velocities (every other body keeps what :meth:`read` saw)."""
+        out = self.out
+        out[:, 0:2] = self._all[:, 3:5]
+        out[:, 2] = self._all[:, 5]
+        out[self.ctrl_rows, 0:2] = velocity
+        out[self.ctrl_rows, 2] = angular
+        self.set_buf.set_float_buf(out.ravel())
+        batch.set_space_bodies(self.space, self._SET, self.set_buf)
