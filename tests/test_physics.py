@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from warerover_phys import load_scenario, scenario_from_dict
 from warerover_phys.executors.physics import PhysicsExecutor
@@ -182,3 +184,90 @@ def test_same_seed_same_physics():
             "ct_plan_mean_ms", "ct_plan_p99_ms", "wall_s", "real_time_factor"}
     assert {k: v for k, v in a.items() if k not in skip} == \
         {k: v for k, v in b.items() if k not in skip}
+
+
+# ----------------------------------------------------------------------------- random instances
+
+
+@st.composite
+def small_scenarios(draw):
+    """A small floor with a shelf row, a station column and parking, 2-5 AGVs (some
+    omnidirectional, some slower), a few one-shot orders and random delays."""
+    rows = draw(st.integers(5, 7))
+    cols = draw(st.integers(7, 10))
+    grid = [["." for _ in range(cols)] for _ in range(rows)]
+    for c in range(2, cols - 2):
+        if draw(st.booleans()):
+            grid[2][c] = "S"
+    if not any(ch == "S" for ch in grid[2]):
+        grid[2][3] = "S"
+    grid[0][cols - 1] = "R"
+    if draw(st.booleans()):
+        grid[rows - 3][cols - 1] = "R"
+    n = draw(st.integers(2, 5))
+    for c in range(n):
+        grid[rows - 1][c] = "P"
+    if draw(st.booleans()):
+        grid[rows - 2][cols - 2] = "#"
+    fast = {"max_speed_mps": draw(st.sampled_from([1.0, 1.5, 2.0])), "drive": "diff"}
+    slow = {"max_speed_mps": 0.75, "max_accel_mps2": 0.5, "drive": "omni"}
+    n_slow = draw(st.integers(0, n - 1))
+    return scenario_from_dict({
+        "max_ticks": 600,
+        "layout": {"grid": ["".join(r) for r in grid]},
+        "fleet": {"types": {"fast": fast, "slow": slow},
+                  "agvs": [{"type": "fast", "count": n - n_slow}]
+                  + ([{"type": "slow", "count": n_slow}] if n_slow else [])},
+        "orders": {"pattern": "oneshot", "oneshot": {"count": draw(st.integers(2, 6))}},
+        "scheduler": draw(st.sampled_from(["ta", "rd"])),
+        "planner": draw(st.sampled_from(["astar", "cbs"])),
+        "executor": {"name": "physics", "delays": {
+            "model": draw(st.sampled_from(["bernoulli", "poisson"])),
+            "prob": draw(st.sampled_from([0.02, 0.05])),
+            "duration": draw(st.sampled_from(["uniform", "gaussian"])), "max_ticks": 10},
+            "speed_scale": [0.8, 1.0]},
+        "seed": draw(st.integers(0, 1000)),
+    })
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(small_scenarios())
+def test_random_small_instances_finish_without_contacts(scenario):
+    m = run_episode(scenario).metrics
+    assert m["success_rate"] == 1.0, m
+    assert m["agv_contacts"] == 0, m
+
+
+def test_run_on_physics_writes_trajectories_and_gap_report(tmp_path):
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    exe = Path(sys.executable).parent / "warerover"
+    out = tmp_path / "run"
+    r = subprocess.run([str(exe), "run", "layouts/paper_heterogeneous.yaml", "--executor",
+                        "physics", "--seed", "2", "--out", str(out), "--quiet"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    traj = np.load(out / "trajectories.npz")
+    m = json.loads((out / "metrics.json").read_text())
+    n = m["agvs"]
+    assert traj["x"].shape == (len(traj["t"]), n) and traj["heading"].shape == traj["x"].shape
+    assert abs(traj["t"][-1] - m["ticks"] * 1.0) < 0.2  # recorded to the end at 10 Hz
+    assert np.all(np.diff(traj["t"]) > 0)
+    # AGVs stay on the floor (x, y in metres inside the 20 x 15 map).
+    assert traj["x"].min() > 0 and traj["x"].max() < 20 and traj["y"].max() < 15
+    g = subprocess.run([str(exe), "gap", "layouts/paper_homogeneous.yaml", "--seed", "1",
+                        "--json", "--out", str(tmp_path / "gap.json")],
+                       capture_output=True, text=True)
+    assert g.returncode == 0, g.stderr
+    report = json.loads(g.stdout)
+    for key in ("makespan_ratio", "tp_ratio", "latency_ratio", "agv_contacts",
+                "static_contacts", "min_separation_m", "deadlocks", "replans",
+                "real_time_factor", "delay_dependency_wait_s", "delay_kinematic_s",
+                "delay_injected_s"):
+        assert key in report
+    assert report["makespan_ratio"] > 1.0  # physics is slower than the ideal grid
+    saved = json.loads((tmp_path / "gap.json").read_text())
+    assert saved["physics"]["ticks"] == report["makespan_physics_ticks"]

@@ -181,20 +181,22 @@ def gap(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
     def f(x, spec=".3f"):
         return "-" if x is None else format(x, spec)
 
+    from rich.markup import escape
+
     table = Table(title=f"sim-to-real gap: {sc.name}  seed {sc.seed}  {sc.scheduler.name} + "
                         f"{sc.planner.name}", show_header=True)
     for col, just in (("figure", "left"), ("grid", "right"), ("physics", "right"),
                       ("physics / grid", "right")):
         table.add_column(col, justify=just)
-    table.add_row("makespan (ticks) [makespan_ratio]", str(g["ticks"]), str(p["ticks"]),
+    table.add_row(escape("makespan (ticks) [makespan_ratio]"), str(g["ticks"]), str(p["ticks"]),
                   f(report["makespan_ratio"]))
-    table.add_row("throughput (orders/tick) [tp_ratio]", f(g["throughput"]),
+    table.add_row(escape("throughput (orders/tick) [tp_ratio]"), f(g["throughput"]),
                   f(p["throughput"]), f(report["tp_ratio"]))
-    table.add_row("order latency mean (ticks) [latency_ratio]",
+    table.add_row(escape("order latency mean (ticks) [latency_ratio]"),
                   f(g["order_latency_mean_ticks"], ".1f"), f(p["order_latency_mean_ticks"], ".1f"),
                   f(report["latency_ratio"]))
     table.add_row("success rate", f(g["success_rate"]), f(p["success_rate"]), "")
-    table.add_row("replans [replans = physics - grid]", str(g["replans"]), str(p["replans"]),
+    table.add_row(escape("replans [replans = physics - grid]"), str(g["replans"]), str(p["replans"]),
                   str(report["replans"]))
     for label, key in (("delay: dependency waits (s)", "delay_dependency_wait_s"),
                        ("delay: kinematic lag incl. turns (s)", "delay_kinematic_s"),
@@ -206,7 +208,8 @@ def gap(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
                        ("deadlocks", "deadlocks"),
                        ("real-time factor [real_time_factor]", "real_time_factor")):
         v = p.get(key)
-        table.add_row(label, "", f(v, ".2f") if isinstance(v, float) else str(v), "")
+        label = label if "[" in label else f"{label} [{key}]"
+        table.add_row(escape(label), "", f(v, ".2f") if isinstance(v, float) else str(v), "")
     console = Console()
     console.print(table)
     console.print(f"wrote {path}")
