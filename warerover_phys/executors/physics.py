@@ -64,6 +64,19 @@ DECIDE_EVERY = 5
 """Physics steps between checks of standing AGVs (may they start their next action?)."""
 
 
+def _point_to_box(p: np.ndarray, centre: np.ndarray, angle: np.ndarray,
+                  half: np.ndarray) -> np.ndarray:
+    """Signed distance from points ``p`` (M, 2) to boxes (centre, angle, half sizes):
+    positive outside, negative inside (minus the depth to the nearest edge)."""
+    rel = p - centre
+    c, s = np.cos(angle), np.sin(angle)
+    local = np.abs(np.stack([c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1]],
+                            axis=1)) - half
+    outside = np.linalg.norm(np.maximum(local, 0.0), axis=1)
+    inside = np.minimum(local.max(axis=1), 0.0)
+    return outside + inside
+
+
 def _wrap(a: np.ndarray | float) -> np.ndarray | float:
     return (a + math.pi) % (2 * math.pi) - math.pi
 
@@ -123,6 +136,8 @@ class PhysicsExecutor:
         self.delayed_until = np.zeros(n)
         self.waiting = np.zeros(n, dtype=bool)
         self._pending = np.zeros(n, dtype=bool)
+        self.has_next = np.zeros(n, dtype=bool)
+        """AGVs with a not-started action (kept up to date on every ADG change)."""
         self.last_finish = np.zeros(n)
         """Simulated time at which each AGV last finished an action."""
         self.prev_pos = self.origin.copy()
@@ -205,6 +220,7 @@ class PhysicsExecutor:
                 continue
             self._synced[agv.id] = path
             self.adg.set_plan(agv.id, self._cut(agv.id, path))
+            self.has_next[agv.id] = self.adg.next_action(agv.id) is not None
 
     def _cut(self, i: int, path: TimedPath) -> TimedPath:
         """The part of ``path`` from where the AGV will stand after its current action."""
@@ -265,7 +281,7 @@ class PhysicsExecutor:
             self._extend(int(i))
         if decide:
             self.waiting[:] = False
-            for i in np.flatnonzero(self.mode != DRIVE):
+            for i in np.flatnonzero((self.mode != DRIVE) & self.has_next):
                 self._decide(int(i), t, bool(delayed[i]), float(ang[i]))
         turning = self.mode == TURN
         if turning.any():
@@ -337,6 +353,7 @@ class PhysicsExecutor:
         return self.adg.start(i, force=True)
 
     def _begin_action(self, i: int, a: Action, t: float) -> None:
+        self.has_next[i] = self.adg.next_action(i) is not None
         self._act_start[i] = t
         self._act_planned[i] = a.ticks * self.tick_s
         self._act_injected[i] = 0.0
@@ -451,18 +468,22 @@ class PhysicsExecutor:
         """Cheap bound: no body can move farther than v_max x headroom x dt."""
         return bool((self.vmax * 2.0 * self.dt > self.fleet.half_size.min(axis=1)).any())
 
-    def _min_separation(self, pos: np.ndarray) -> None:
+    def _min_separation(self, pos: np.ndarray, ang: np.ndarray) -> None:
+        """Smallest centre-to-edge distance between two AGVs (negative: overlap), over the
+        pairs a k-d tree finds near each other, in closed form for rotated boxes."""
         if self.n < 2:
             return
         from scipy.spatial import cKDTree
 
-        reach = float(np.linalg.norm(self.fleet.half_size, axis=1).max()) * 2 + 0.5
-        tree = cKDTree(pos)
-        shapes = self.fleet.shapes
-        for i, j in tree.query_pairs(reach):
-            d = min(shapes[j].point_query(tuple(pos[i])).distance,
-                    shapes[i].point_query(tuple(pos[j])).distance)
-            self.min_sep = min(self.min_sep, d)
+        half = self.fleet.half_size
+        reach = float(np.linalg.norm(half, axis=1).max()) * 2 + 0.5
+        pairs = cKDTree(pos).query_pairs(reach, output_type="ndarray")
+        if len(pairs) == 0:
+            return
+        i, j = pairs[:, 0], pairs[:, 1]
+        d = np.minimum(_point_to_box(pos[i], pos[j], ang[j], half[j]),
+                       _point_to_box(pos[j], pos[i], ang[i], half[i]))
+        self.min_sep = min(self.min_sep, float(d.min()))
 
     def _record(self) -> None:
         pos, ang, _, _ = self.io.read()
@@ -474,8 +495,8 @@ class PhysicsExecutor:
     # ------------------------------------------------------------------------- back to the grid
 
     def _write_back(self, world: World) -> StepReport:
-        pos, _, _, _ = self.io.read()
-        self._min_separation(pos)
+        pos, ang, _, _ = self.io.read()
+        self._min_separation(pos, ang)
         report = StepReport(collisions=self._tick_agv_contacts)
         tick_next = world.tick + 1
         pending = np.zeros(self.n, dtype=bool)
