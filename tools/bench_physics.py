@@ -7,10 +7,11 @@ on the physics executor with the fleet size overridden, for ``--ticks`` ticks, a
   figure to compare with SMART's ~2.2x for 1,000 robots);
 - ``rtf_loop``: simulated seconds / wall seconds of the whole closed loop (scheduler and
   planner included);
-- physics steps per second, contacts, deadlocks, orders completed.
+- physics steps per second, the share of AGVs driving or turning (``moving``), contacts,
+  deadlocks, orders completed.
 
     .venv/bin/python tools/bench_physics.py
-    .venv/bin/python tools/bench_physics.py --agvs 1000 --ticks 60 --dt 0.05
+    .venv/bin/python tools/bench_physics.py --agvs 1000 --ticks 100 --dt 0.05
 
 Prints a table and writes ``tools/out/bench_physics.json``.
 """
@@ -47,6 +48,7 @@ def bench(n: int, ticks: int, dt: float, planner: str) -> dict:
         "physics_steps_per_s": s["physics_steps"] / ex._wall,
         "agv_contacts": s["agv_contacts"], "static_contacts": s["static_contacts"],
         "deadlocks": s["deadlocks"], "actions_executed": s["actions_executed"],
+        "moving_share": s["moving_share"],
         "orders_completed": len(sim.world.completed_tick),
     }
 
@@ -54,21 +56,22 @@ def bench(n: int, ticks: int, dt: float, planner: str) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--agvs", type=int, nargs="+", default=[100, 300, 1000])
-    ap.add_argument("--ticks", type=int, default=60)
+    ap.add_argument("--ticks", type=int, default=200)
     ap.add_argument("--dt", type=float, nargs="+", default=[0.02, 0.05])
     ap.add_argument("--planner", default="pibt")
     ap.add_argument("--out", default="tools/out/bench_physics.json")
     args = ap.parse_args()
     rows = []
     print(f"{'AGVs':>5} {'dt':>5} {'ticks':>5} {'RTF exec':>9} {'RTF loop':>9} "
-          f"{'steps/s':>8} {'contacts':>8} {'deadl.':>6} {'actions':>8} {'orders':>6}",
+          f"{'steps/s':>8} {'moving':>6} {'contacts':>8} {'deadl.':>6} {'actions':>8} "
+          f"{'orders':>6}",
           flush=True)
     for n in args.agvs:
         for dt in args.dt:
             r = bench(n, args.ticks, dt, args.planner)
             rows.append(r)
             print(f"{r['agvs']:>5} {r['dt_s']:>5.2f} {r['ticks']:>5} {r['rtf_executor']:>8.1f}x "
-                  f"{r['rtf_loop']:>8.1f}x {r['physics_steps_per_s']:>8.0f} "
+                  f"{r['rtf_loop']:>8.1f}x {r['physics_steps_per_s']:>8.0f} {r['moving_share']:>6.0%} "
                   f"{r['agv_contacts']:>8} {r['deadlocks']:>6} {r['actions_executed']:>8} "
                   f"{r['orders_completed']:>6}", flush=True)
     out = Path(args.out)

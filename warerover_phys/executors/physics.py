@@ -165,6 +165,7 @@ class PhysicsExecutor:
         self._act_planned = np.zeros(n)
         self._act_injected = np.zeros(n)
         self.actions_done = 0
+        self._active = 0
         # trajectories
         self._traj_every = max(1, round(1.0 / (spec.trajectory_hz * self.dt)))
         self._traj: list[tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
@@ -300,6 +301,7 @@ class PhysicsExecutor:
         self.dep_wait += self.waiting * self.dt
         self.injected += (delayed & (busy | self._pending_mask())) * self.dt
         self.turn_time += (self.mode == TURN) * self.dt
+        self._active += int(np.count_nonzero(self.mode != HOLD))
         self._act_injected += (delayed & (self.mode == DRIVE)) * self.dt
         self._swept_check(raw)
         if self._step_count % self._traj_every == 0:
@@ -556,6 +558,7 @@ class PhysicsExecutor:
             "kinematic_lag_mean_s": float(lag.mean()),
             "physics_dt_s": self.dt,
             "physics_steps": self._step_count,
+            "moving_share": self._active / max(1, self._step_count * self.n),
             "real_time_factor": self.sim_s / self._wall if self._wall > 0 else 0.0,
         }
 
