@@ -1,0 +1,9 @@
+"""Faults: safety corridors around failed AGVs and the checks that keep others out."""
+
+from __future__ import annotations
+
+from .corridors import Corridor, cover_mask, plan_corridor
+from .intrusion import Intrusion, IntrusionChecker, agv_boxes, intrusions_shapely
+
+__all__ = ["Corridor", "plan_corridor", "cover_mask", "Intrusion", "IntrusionChecker",
+           "agv_boxes", "intrusions_shapely"]
