@@ -16,6 +16,11 @@ Keys (units in the name or below):
   (the AGV kept its old path and retried); ``goal_busy_detours``: plans that sent an AGV to
   wait near a goal another AGV was standing on; ``planner_budget_hits``: times a planner ran
   out of its node or time budget and used its documented fallback;
+- ``failures`` (AGV breakdowns), ``down_ticks`` (AGV-ticks spent failed),
+  ``orders_delayed_by_failures`` (orders held by an AGV when it failed),
+  ``corridor_intrusions`` (an AGV entering an open safety corridor's protected zone; counted
+  once per AGV and corridor visit), ``failure_replans`` (AGVs stopped and replanned because
+  a corridor opened across their path);
 - ``wall_s``: wall seconds of the whole episode.
 
 CT keys are the only ones that change between two runs with the same scenario and seed;
@@ -105,6 +110,11 @@ class MetricsRecorder:
             "plan_failures": self.plan_failures,
             "goal_busy_detours": self.detours,
             "planner_budget_hits": self.budget_hits,
+            "failures": world.fault_stats["failures"],
+            "down_ticks": world.fault_stats["down_ticks"],
+            "orders_delayed_by_failures": len(world.delayed_orders),
+            "corridor_intrusions": world.fault_stats["corridor_intrusions"],
+            "failure_replans": world.fault_stats["failure_replans"],
             "ct_total_s": float(total.sum() / 1e3),
             "ct_mean_ms": mean(total),
             "ct_p99_ms": p99(total),

@@ -19,7 +19,7 @@ from .executors import make_executor
 from .metrics import MetricsRecorder
 from .planning import make_planner
 from .planning.astar import nearest_free_anchor
-from .planning.base import AgentRequest, PlanRequest, TimedPath, footprint_nodes
+from .planning.base import AgentRequest, PlanRequest, TimedPath, footprint_nodes, occupancy
 from .schedulers import make_scheduler
 from .world import MOVING_STATES, Agv, AgvState, World
 
@@ -56,6 +56,11 @@ class Simulation:
         self.planner = make_planner(scenario.planner)
         self.executor = make_executor(scenario.executor)
         self.metrics = MetricsRecorder(scenario)
+        self.faults = None
+        if scenario.faults.enabled:
+            from .faults.model import FaultProcess
+
+            self.faults = FaultProcess(self.world, self.executor)
         self.planned: list[dict] = []
         self.actual: dict[int, list[tuple[int, int]]] = {a.id: [a.pos] for a in self.world.agvs}
 
@@ -64,9 +69,31 @@ class Simulation:
         w = self.world
         return w.all_done() or w.tick >= self.scenario.max_ticks
 
+    # ------------------------------------------------------------------------- failures
+
+    def fail(self, agv_id: int, repair_ticks: int | None = None) -> None:
+        """Fail an AGV now (on demand): it stops, a safety corridor opens around it, and it
+        stays down for ``repair_ticks`` ticks, or until :meth:`repair` if None."""
+        if repair_ticks is not None and repair_ticks < 1:
+            raise ValueError(f"repair_ticks must be >= 1 (got {repair_ticks})")
+        self._fault_process().fail(agv_id, repair_ticks)
+
+    def repair(self, agv_id: int) -> None:
+        """Repair a failed AGV now; its corridor closes."""
+        self._fault_process().repair(agv_id)
+
+    def _fault_process(self):
+        if self.faults is None:
+            from .faults.model import FaultProcess
+
+            self.faults = FaultProcess(self.world, self.executor)
+        return self.faults
+
     def step(self) -> None:
         """Run one tick of the loop."""
         w = self.world
+        if self.faults is not None:
+            self.faults.step()
         w.add_orders(w.stream.arrivals(w.tick))
         t0 = time.perf_counter()
         for a in self.scheduler.assign(w, w.rngs["scheduler"]):
@@ -78,6 +105,12 @@ class Simulation:
         w.tick += 1
         self._follow_up(report.blocked)
         self._replan_now(report.replan)
+        if w.corridors:
+            from .faults.intrusion_log import update_exemptions
+
+            update_exemptions(w, getattr(self.executor, "route_states", None))
+            if self.executor.name == "grid":
+                self._grid_intrusions()
         w.advance_tasks()
         self.metrics.record_tick(sched_s=t1 - t0, plan_s=t2 - t1, blocked=len(report.blocked),
                                  collisions=report.collisions)
@@ -217,6 +250,23 @@ class Simulation:
                 other.yield_until = w.tick + YIELD_TICKS
                 other.retry_at = w.tick
                 w.log("make_way", agv=other.id, for_agv=stuck.id, spot=list(w.cell(spot)))
+
+    def _grid_intrusions(self) -> None:
+        """On the grid, an AGV intrudes a corridor when one of its cells is a corridor cell
+        (AGVs inside when it opened leave first and are exempt until they are out)."""
+        from .faults.intrusion_log import record_intrusions
+
+        w = self.world
+        cols = w.layout.cols
+        hits = []
+        for cid, corridor in w.corridors.items():
+            for agv in w.agvs:
+                if agv.id == corridor.agv:
+                    continue
+                inside = len(corridor.cells.intersection(occupancy(agv.pos, agv.k, cols)))
+                if inside:
+                    hits.append((agv.id, cid, float(inside)))
+        record_intrusions(w, hits, unit="cells")
 
     def _replan_now(self, agvs: list[int]) -> None:
         """The executor saw a deadlock or a deviation: replan these AGVs at once (once they

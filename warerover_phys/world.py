@@ -94,6 +94,10 @@ class Agv:
     last_goal: int | None = None
     goal_since: int = 0
     """Tick its current goal was set (lifelong PIBT priorities age from it)."""
+    resume_state: AgvState | None = None
+    """While FAILED: the state it returns to when repaired."""
+    repair_at: int | None = None
+    """While FAILED: the tick it is repaired (None: only on demand)."""
 
     @property
     def k(self) -> int:
@@ -126,6 +130,15 @@ class World:
     events: list[dict] = field(default_factory=list)
     tick: int = 0
     _next_trip: int = 0
+    corridors: dict = field(default_factory=dict)
+    """Open safety corridors, by id (``faults.corridors.Corridor``)."""
+    corridor_exempt: dict[int, set[int]] = field(default_factory=dict)
+    """Corridor id -> AGVs that were inside (or committed to enter) when it opened: they
+    leave it and are not intruders until they are out."""
+    fault_stats: dict[str, int] = field(default_factory=lambda: {
+        "failures": 0, "down_ticks": 0, "corridor_intrusions": 0, "failure_replans": 0})
+    delayed_orders: set[int] = field(default_factory=set)
+    """Orders that were held by an AGV when it failed."""
 
     # ------------------------------------------------------------------------- building
 
@@ -138,6 +151,12 @@ class World:
             graphs = GraphSet(layout)
             agvs = _place_fleet(scenario, layout, graphs)
             check_layout(scenario, layout, graphs, agvs)
+            width = scenario.faults.corridor_width_m
+            if width > min(layout.rows, layout.cols) * layout.cell_m:
+                raise ScenarioError(f"safety corridors {width} m wide do not fit the "
+                                    f"{layout.rows} x {layout.cols} cell map of "
+                                    f"{layout.cell_m} m cells", field="faults.corridor_width_m",
+                                    value=width)
         except ScenarioError as err:
             raise err.with_file(src) if src else err from None
         rngs = make_rngs(scenario.seed)
@@ -286,6 +305,55 @@ class World:
                 self._begin_work(agv, AgvState.HANDOVER, tasks.handover_ticks)
             elif agv.state == AgvState.RETURNING:
                 self._begin_work(agv, AgvState.PLACING, tasks.place_ticks)
+
+    # ------------------------------------------------------------------------- failures
+
+    def fail(self, agv_id: int, repair_at: int | None) -> Agv:
+        """Stop an AGV where it is; it keeps its cargo. Orders of a trip whose shelf it has
+        not lifted yet go back to PENDING (``faults.orders_of_failed: reassign``) or wait
+        with it (``wait``); orders on a shelf it carries always wait for the repair."""
+        agv = self._agv(agv_id)
+        if agv.state == AgvState.FAILED:
+            raise ValueError(f"AGV {agv_id} has already failed (since its repair is due at "
+                             f"tick {agv.repair_at})")
+        agv.resume_state, agv.repair_at = agv.state, repair_at
+        agv.state = AgvState.FAILED
+        agv.yield_goal = None
+        self.fault_stats["failures"] += 1
+        trip = agv.trip
+        released: list[int] = []
+        if trip is not None:
+            self.delayed_orders.update(trip.orders)
+            if not agv.loaded and agv.resume_state == AgvState.TO_SHELF and \
+                    self.scenario.faults.orders_of_failed == "reassign":
+                for oid in trip.orders:
+                    self.status[oid] = OrderStatus.PENDING
+                    released.append(oid)
+                del self.shelf_busy[trip.shelf]
+                agv.trip = None
+                agv.resume_state = AgvState.IDLE
+        self.log("agv_failed", agv=agv_id, repair_at=repair_at, orders_released=released,
+                 loaded=agv.loaded)
+        return agv
+
+    def repair(self, agv_id: int) -> Agv:
+        """Put a failed AGV back to work where it left off."""
+        agv = self._agv(agv_id)
+        if agv.state != AgvState.FAILED:
+            raise ValueError(f"AGV {agv_id} is working ({agv.state.name}), not failed: "
+                             "nothing to repair")
+        assert agv.resume_state is not None
+        agv.state, agv.resume_state, agv.repair_at = agv.resume_state, None, None
+        agv.delay = agv.blocked_ticks = agv.plan_failures = 0
+        agv.retry_at = self.tick
+        self.log("agv_repaired", agv=agv_id)
+        return agv
+
+    def _agv(self, agv_id: int) -> Agv:
+        if not isinstance(agv_id, int | np.integer) or not 0 <= agv_id < len(self.agvs):
+            raise ValueError(f"unknown AGV id {agv_id!r} (the fleet has {len(self.agvs)}: ids "
+                             f"0..{len(self.agvs) - 1})")
+        return self.agvs[int(agv_id)]
 
     def _begin_work(self, agv: Agv, state: AgvState, ticks: int) -> None:
         agv.state = state

@@ -312,6 +312,24 @@ class ActionGraph:
                 v.claimed = True
         return out
 
+    def claimed(self, agv: int) -> list[Action]:
+        """The AGV's claimed upcoming actions (a leading run of them)."""
+        out = []
+        for step in self._rec(agv).pending:
+            if not step.claimed:
+                break
+            out.append(step.action)
+        return out
+
+    def unclaim(self, agv: int, keep: int = 0) -> None:
+        """Give back the claims on the AGV's upcoming actions after the first ``keep``
+        (it stops sooner than it planned to, e.g. before a corridor that just opened)."""
+        for n, step in enumerate(self._rec(agv).pending):
+            if n >= keep and step.claimed:
+                step.claimed = False
+                for v in step.enter_visits:
+                    v.claimed = False
+
     def next_action(self, agv: int) -> Action | None:
         """The first not-started action, if any."""
         rec = self._rec(agv)

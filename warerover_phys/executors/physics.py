@@ -135,6 +135,11 @@ class PhysicsExecutor:
         """Reference position along the current run (metres from its origin)."""
         self.delayed_until = np.zeros(n)
         self.waiting = np.zeros(n, dtype=bool)
+        self.failed = np.zeros(n, dtype=bool)
+        self._corridor_keys: tuple[int, ...] = ()
+        self._resync: set[int] = set()
+        """AGVs whose new plan did not fit their commit cut: replanned once they stand."""
+        self._checker = None
         self._pending = np.zeros(n, dtype=bool)
         self.has_next = np.zeros(n, dtype=bool)
         """AGVs with a not-started action (kept up to date on every ADG change)."""
@@ -206,12 +211,67 @@ class PhysicsExecutor:
         wall0 = time.perf_counter()
         self._sync_plans(world)
         self._draw_delays(world)
+        self._sync_faults(world)
         self._tick_agv_contacts = 0
         for s in range(self.steps_per_tick):
             self._physics_step(decide=(s % DECIDE_EVERY == 0))
         report = self._write_back(world)
         self._wall += time.perf_counter() - wall0
         return report
+
+    def _sync_faults(self, world: World) -> None:
+        """Failed AGVs brake and start nothing; open corridors go to the fcl checker."""
+        from ..world import AgvState
+
+        self.failed = np.array([a.state == AgvState.FAILED for a in world.agvs])
+        keys = tuple(sorted(world.corridors))
+        if keys != self._corridor_keys:
+            self._corridor_keys = keys
+            if keys:
+                if self._checker is None:
+                    from ..faults.intrusion import IntrusionChecker
+
+                    self._checker = IntrusionChecker(self.fleet.half_size)
+                self._checker.set_corridors([world.corridors[k] for k in keys])
+
+    def route_states(self, i: int) -> list[tuple[int, int]]:
+        """What AGV ``i`` still has to drive, as states (running action, then the rest)."""
+        out = []
+        cur = self.adg.current(i)
+        if cur is not None:
+            out.append((cur.src, cur.dst))
+        out += [(a.src, a.dst) for a in self.adg.upcoming(i)]
+        return out
+
+    def stop_short(self, i: int, cells: frozenset[int]) -> bool:
+        """A corridor opened over ``cells``: stop AGV ``i`` as soon as its braking distance
+        allows (its later claims are given back). Returns True if the part it can no longer
+        drop (running and still claimed actions) enters ``cells``."""
+        committed = []
+        cur = self.adg.current(i)
+        if cur is not None:
+            committed.append(cur)
+            keep = 0
+            if self.mode[i] == DRIVE:
+                brake = self.speed[i] ** 2 / (2 * self.amax[i])
+                over = self.s_ref[i] + brake - self.cur_end[i]
+                keep = max(0, math.ceil(over / self.cell_m - 1e-9))
+            claimed = self.adg.claimed(i)
+            kept = claimed[:keep]
+            self.adg.unclaim(i, len(kept))
+            committed += kept
+            self.stop_s[i] = min(self.stop_s[i], self.cur_end[i] + len(kept) * self.cell_m)
+        return any(cells.intersection(a.enters) for a in committed)
+
+    def _check_corridors(self, pos: np.ndarray, ang: np.ndarray) -> None:
+        """fcl check of every AGV body against the open corridors' protected zones."""
+        from ..faults.intrusion_log import record_intrusions
+
+        w = self.world
+        poses = np.column_stack([pos, ang])
+        skip = {c.agv for c in w.corridors.values()}
+        hits = [(h.agv, h.corridor, h.depth_m) for h in self._checker.check(poses, skip)]
+        record_intrusions(w, hits)
 
     def _sync_plans(self, world: World) -> None:
         paths = world.reservations.paths
@@ -232,6 +292,9 @@ class PhysicsExecutor:
         for j, (a, b) in enumerate(path.states):
             if a == b == node:
                 return TimedPath(i, path.start_tick + j, path.states[j:])
+        # The plan does not pass where the AGV will stop (it was made from a stale view):
+        # stop there and ask for a new plan.
+        self._resync.add(i)
         return TimedPath(i, path.start_tick, ((node, node),))
 
     def _synced_once(self, i: int) -> bool:
@@ -261,14 +324,15 @@ class PhysicsExecutor:
             world.log("delay", agv=int(i), ticks=int(ticks[i]))
 
     def _physics_step(self, decide: bool) -> None:
-        raw, ang, v_now, w_now = self.io.read()
-        raw = raw.copy()
+        raw, raw_ang, v_now, w_now = self.io.read()
+        raw, raw_ang = raw.copy(), raw_ang.copy()
         # pymunk moves bodies with the velocity of the previous step before it solves the
         # joints: decide and steer on the pose the body has after this step's move.
         pos = raw + v_now * self.dt
-        ang = ang + w_now * self.dt
+        ang = raw_ang + w_now * self.dt
         t = self.sim_s
-        delayed = self.delayed_until > t
+        injected = self.delayed_until > t
+        delayed = injected | self.failed
         along = ((pos - self.origin) * self.direction).sum(axis=1)
         driving = self.mode == DRIVE
         # Arrived at the action's target: the reference has reached it and the body is
@@ -299,11 +363,13 @@ class PhysicsExecutor:
         # accounting
         busy = (self.mode != HOLD) | self.waiting
         self.dep_wait += self.waiting * self.dt
-        self.injected += (delayed & (busy | self._pending_mask())) * self.dt
+        self.injected += (injected & (busy | self._pending_mask())) * self.dt
         self.turn_time += (self.mode == TURN) * self.dt
         self._active += int(np.count_nonzero(self.mode != HOLD))
-        self._act_injected += (delayed & (self.mode == DRIVE)) * self.dt
+        self._act_injected += (injected & (self.mode == DRIVE)) * self.dt
         self._swept_check(raw)
+        if self._corridor_keys:
+            self._check_corridors(raw, raw_ang)
         if self._step_count % self._traj_every == 0:
             self._record()
 
@@ -386,7 +452,7 @@ class PhysicsExecutor:
         self.last_finish[i] = t
         self.kin_lag.append(t - self._act_start[i] - self._act_injected[i] - self._act_planned[i])
         nxt = self.adg.next_action(i)
-        if nxt is not None and nxt.direction == done.direction and \
+        if nxt is not None and nxt.direction == done.direction and not self.failed[i] and \
                 self.stop_s[i] > self.cur_end[i] + ARRIVE_EPS_M:
             a = self.adg.start(i) if self.spec.adg and self.adg.ready(i) else (
                 None if self.spec.adg else self._force_start(i))
@@ -395,6 +461,7 @@ class PhysicsExecutor:
                 self._begin_action(i, a, t)
                 return
         self.mode[i] = HOLD
+        self.adg.unclaim(i)  # it stops here: claims further on are stale
         self.hold_xy[i] = cell_centre(done.dst, self.k[i], self.cols, self.cell_m)
         self.stop_s[i] = self.cur_end[i]
 
@@ -520,6 +587,10 @@ class PhysicsExecutor:
                     self.deviations += 1
                     report.replan.append(i)
         self._pending = pending
+        for i in sorted(self._resync):
+            if i not in report.replan:
+                report.replan.append(i)
+        self._resync.clear()
         cycles = self.adg.deadlock_cycles() if self.spec.adg else []
         seen = set()
         for cyc in cycles:

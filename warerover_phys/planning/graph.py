@@ -10,6 +10,10 @@ A *node* is the flat index ``row * cols + col`` of an AGV's anchor (its top-left
   but never drives through. A bigger AGV leaving its shelf's home overlaps the home's own
   cells for a while, so its loaded graph is built per carried shelf (those cells are free).
 
+Cells can be *closed* for a while (safety corridors around failed AGVs): no move may enter
+an anchor whose footprint touches a closed area from outside; an AGV already inside may only
+move one step nearer the area's edge at a time, so it leaves by the shortest way.
+
 Distances are exact shortest-path move counts on this graph, computed once per goal with
 scipy's breadth-first Dijkstra and cached.
 """
@@ -19,6 +23,7 @@ from __future__ import annotations
 from collections import OrderedDict
 
 import numpy as np
+from scipy.ndimage import distance_transform_cdt
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
@@ -46,8 +51,9 @@ class MotionGraph:
     """Anchors and moves of one AGV class (footprint ``k``, loaded or not) on a layout."""
 
     def __init__(self, layout: Layout, k: int, loaded: bool, carrying: int | None = None,
-                 cache_tables: int = 0) -> None:
+                 cache_tables: int = 0, closed: np.ndarray | None = None) -> None:
         self.layout = layout
+        self.closed_cells = closed
         self.k = k
         self.loaded = loaded
         self.carrying = carrying if loaded and k > 1 else None
@@ -68,6 +74,16 @@ class MotionGraph:
         self.sinks = sinks
         self.has_sinks = bool(sinks.any())
         self.enterable = self.valid | sinks
+        # Per closed area (one mask each), the anchors whose footprint touches it:
+        # exit-only for that area.
+        areas = [] if closed is None else [m for m in np.reshape(
+            closed, (-1, self.rows, self.cols)) if m.any()]
+        self._closed_areas = [~_window_all(~m, k) for m in areas]
+        self._exit_steps = [distance_transform_cdt(a, metric="taxicab")
+                            for a in self._closed_areas]
+        """Per closed area, moves from each anchor to the nearest anchor outside it."""
+        self.closed = (np.logical_or.reduce(self._closed_areas) if self._closed_areas
+                       else np.zeros_like(self.valid))
         self.expandable_flat: list[bool] = self.valid.ravel().tolist()
         self._build_edges()
         n = self.rows * self.cols
@@ -89,6 +105,12 @@ class MotionGraph:
             u = idx[r0:r1, c0:c1]
             v = idx[r0 + dr:r1 + dr, c0 + dc:c1 + dc]
             ok = self.enterable[r0:r1, c0:c1] & self.enterable[r0 + dr:r1 + dr, c0 + dc:c1 + dc]
+            # Into a closed area only from inside the same area, and there only one step
+            # nearer its edge: an AGV inside takes the shortest way out.
+            for area, out in zip(self._closed_areas, self._exit_steps, strict=True):
+                into = area[r0 + dr:r1 + dr, c0 + dc:c1 + dc]
+                ok &= ~into | (area[r0:r1, c0:c1] & (
+                    out[r0 + dr:r1 + dr, c0 + dc:c1 + dc] < out[r0:r1, c0:c1]))
             src.append(u[ok])
             dst.append(v[ok])
         src_a = np.concatenate(src)
@@ -205,8 +227,12 @@ class GraphSet:
     a small LRU cache.
     """
 
-    def __init__(self, layout: Layout, per_shelf_cache: int = 64) -> None:
+    def __init__(self, layout: Layout, per_shelf_cache: int = 64,
+                 closed: np.ndarray | None = None) -> None:
         self.layout = layout
+        self.closed = closed if closed is not None and closed.any() else None
+        """Bool mask of closed cells, ``(rows, cols)`` or one per area ``(n, rows, cols)``
+        (see the module doc), or None."""
         self._graphs: dict[tuple[int, bool], MotionGraph] = {}
         self._per_shelf: OrderedDict[tuple[int, int], MotionGraph] = OrderedDict()
         self._cap = per_shelf_cache
@@ -216,7 +242,8 @@ class GraphSet:
             key2 = (k, shelf)
             graph = self._per_shelf.get(key2)
             if graph is None:
-                graph = self._per_shelf[key2] = MotionGraph(self.layout, k, True, shelf)
+                graph = self._per_shelf[key2] = MotionGraph(self.layout, k, True, shelf,
+                                                            closed=self.closed)
                 if len(self._per_shelf) > self._cap:
                     self._per_shelf.popitem(last=False)
             else:
@@ -225,5 +252,5 @@ class GraphSet:
         key = (k, loaded)
         graph = self._graphs.get(key)
         if graph is None:
-            graph = self._graphs[key] = MotionGraph(self.layout, k, loaded)
+            graph = self._graphs[key] = MotionGraph(self.layout, k, loaded, closed=self.closed)
         return graph
