@@ -137,6 +137,9 @@ class World:
     leave it and are not intruders until they are out."""
     fault_stats: dict[str, int] = field(default_factory=lambda: {
         "failures": 0, "down_ticks": 0, "corridor_intrusions": 0, "failure_replans": 0})
+    corridor_log: list[dict] = field(default_factory=list)
+    """Every corridor of the episode: id, AGV, open / close tick, polygon and protected zone
+    (exterior rings in metres) and cells, for outputs and rendering."""
     delayed_orders: set[int] = field(default_factory=set)
     """Orders that were held by an AGV when it failed."""
 

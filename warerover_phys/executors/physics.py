@@ -27,6 +27,7 @@ step (tunnelling). :meth:`summary` gives the figures that go into ``metrics.json
 
 from __future__ import annotations
 
+import json
 import math
 import time
 from typing import TYPE_CHECKING
@@ -634,8 +635,10 @@ class PhysicsExecutor:
         }
 
     def trajectory(self) -> dict[str, np.ndarray]:
-        """Recorded poses: ``t`` (T,), ``x``, ``y``, ``heading`` (T, N), ``state`` and
-        ``loaded`` (T, N), and what a renderer needs to draw them."""
+        """Recorded poses: ``t`` (T,), ``x``, ``y``, ``heading`` (T, N), ``state`` (task
+        state, 7 = failed) and ``loaded`` (T, N), and what a renderer needs to draw them:
+        ``footprint``, ``body_m``, ``cell_m``, ``tick_s``, the layout ``grid`` and
+        ``corridors_json`` (the episode's corridors, see ``World.corridor_log``)."""
         w = self.world
         if not self._traj:
             self._record()
@@ -651,4 +654,5 @@ class PhysicsExecutor:
             "cell_m": np.array(self.cell_m),
             "tick_s": np.array(self.tick_s),
             "grid": w.layout.grid.copy(),
+            "corridors_json": np.array(json.dumps(w.corridor_log)),
         }

@@ -98,6 +98,10 @@ class FaultProcess:
         w.corridor_exempt[corridor.id] = set()
         w.log("corridor_opened", corridor=corridor.id, agv=agv.id,
               access=list(corridor.access), cells=len(corridor.cells))
+        w.corridor_log.append({
+            "id": corridor.id, "agv": agv.id, "open_tick": w.tick, "close_tick": None,
+            "polygon": _rings(corridor.polygon), "zone": _rings(corridor.zone),
+            "cells": sorted(corridor.cells)})
         self._close_cells()
         self._clear_paths(corridor)
 
@@ -109,6 +113,9 @@ class FaultProcess:
             w.corridors.pop(cid, None)
             w.corridor_exempt.pop(cid, None)
             w.log("corridor_closed", corridor=cid, agv=agv_id)
+            for entry in w.corridor_log:
+                if entry["id"] == cid:
+                    entry["close_tick"] = w.tick
             self._close_cells()
 
     # ------------------------------------------------------------------------- helpers
@@ -159,3 +166,10 @@ class FaultProcess:
                     w.fault_stats["failure_replans"] += 1
             if exempt:
                 w.corridor_exempt[corridor.id].add(agv.id)
+
+
+def _rings(shape) -> list[list[list[float]]]:
+    """Exterior rings of a (multi)polygon as ``[[x, y], ...]`` lists in metres."""
+    geoms = getattr(shape, "geoms", [shape])
+    return [[[round(x, 4), round(y, 4)] for x, y in g.exterior.coords] for g in geoms
+            if not g.is_empty]
