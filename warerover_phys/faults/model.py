@@ -5,7 +5,7 @@ Each tick, before the scheduler runs (:meth:`FaultProcess.step`):
 
 1. AGVs whose repair is due are repaired and their corridors close;
 2. scheduled failures of this tick fire (``faults.scheduled``);
-3. every working AGV that is *active* (not standing idle at its home spot) fails with
+3. every *active* AGV (one working on a trip, not idle) fails with
    probability ``faults.random.prob_per_tick``, at most ``max_down`` AGVs down at once; a
    repair takes ``repair_ticks`` ticks, or a number drawn uniformly from
    [``repair_ticks``, ``repair_ticks_max``]. The draws come from the episode's ``faults``
@@ -74,9 +74,8 @@ class FaultProcess:
         return sum(1 for a in self.world.agvs if a.state == AgvState.FAILED)
 
     def _active(self, agv: Agv) -> bool:
-        if agv.state == AgvState.FAILED:
-            return False
-        return not (agv.state == AgvState.IDLE and agv.standing and agv.node == agv.home)
+        """Working on a trip (WareRover draws failures for AGVs with a task)."""
+        return agv.state not in (AgvState.FAILED, AgvState.IDLE)
 
     # ------------------------------------------------------------------------- events
 
