@@ -29,6 +29,14 @@ def executed_conflicts(result):
                            ticks_per_move={a.id: a.ticks_per_move for a in w.agvs})
 
 
+def assert_still_while_working(result):
+    """An AGV stands still during the tick that ends its pick, hand-over or put-back."""
+    for e in result.events:
+        if e["event"] in ("shelf_picked", "order_completed", "shelf_returned"):
+            states = result.actual[e["agv"]]
+            assert states[e["tick"]] == states[e["tick"] - 1], e
+
+
 def without_timing(metrics: dict) -> dict:
     return {k: v for k, v in metrics.items() if k not in TIMING_KEYS}
 
@@ -184,16 +192,24 @@ def test_fleet_planners_in_the_loop(planner, seed):
     assert m["planner"] == planner
     assert m["success_rate"] == 1.0 and m["collisions"] == 0
     assert executed_conflicts(result) == []
+    assert_still_while_working(result)
 
 
 @pytest.mark.parametrize("planner", ["pibt", "lacam"])
-def test_fleet_planners_refuse_fleets_they_cannot_move(planner):
-    from warerover_phys.errors import ScenarioError
-
-    with pytest.raises(ScenarioError) as err:
-        Simulation(load("paper_heterogeneous.yaml", ("planner.name", planner)))
-    assert err.value.field == "planner.name"
-    assert "footprint 2" in str(err.value) and "paper_heterogeneous.yaml" in str(err.value)
+@pytest.mark.parametrize("scheduler", ["ta", "rd"])
+@pytest.mark.parametrize("seed", range(10))
+def test_fleet_planners_move_2x2_and_slow_agvs_in_the_loop(planner, scheduler, seed):
+    result = run_episode(load("paper_heterogeneous.yaml", ("planner.name", planner),
+                              ("scheduler.name", scheduler)), seed=seed)
+    m = result.metrics
+    assert m["planner"] == planner
+    assert m["success_rate"] == 1.0 and m["collisions"] == 0
+    assert executed_conflicts(result) == []
+    # The 2x2 AGVs drove (two ticks per cell) and no AGV moved while it worked in place.
+    world = result.world
+    big = [a.id for a in world.agvs if a.k == 2 and a.ticks_per_move == 2]
+    assert any(len(set(result.actual[aid])) > 1 for aid in big)
+    assert_still_while_working(result)
 
 
 @pytest.mark.parametrize("scenario", ["paper_homogeneous.yaml", "paper_heterogeneous.yaml"])

@@ -13,6 +13,11 @@ problem solvable:
 
 If LaCAM does not finish within ``time_budget_s``, the fleet takes one PIBT step instead and
 the budget hit is counted (``PlanResult.budget_hits``), never silently.
+
+A fleet of 1x1 AGVs that move one cell per tick takes the fast path (:func:`lacam_nodes`).
+Any other fleet is solved by :func:`footprint_lacam` over poses (an AGV in the middle of a
+multi-tick move has one successor; its progress is read back from its committed path), with
+footprint-aware effective goals: goal footprints of different AGVs never overlap.
 """
 
 from __future__ import annotations
@@ -23,12 +28,16 @@ from collections import deque
 import numpy as np
 
 from ..layout import CellType
-from .base import AgentRequest, PlanRequest, PlanResult, TimedPath
+from .base import AgentRequest, PlanRequest, PlanResult, TimedPath, footprint_nodes
+from .footprint_lacam import footprint_lacam
+from .footprint_pibt import footprint_step, pose_states
 from .graph import UNREACHABLE, MotionGraph
 from .lacam import lacam_nodes
 from .pibt import pibt_step
+from .pibt_planner import current_pose, movers_for, uniform_fleet
+from .reservation import ReservationTable
 
-__all__ = ["LaCAMPlanner"]
+__all__ = ["LaCAMPlanner", "effective_goals", "on_plan", "solve_footprints"]
 
 
 class LaCAMPlanner:
@@ -43,16 +52,14 @@ class LaCAMPlanner:
         result = PlanResult()
         if not agents:
             return result
+        if not uniform_fleet(agents):
+            return self._plan_footprints(request, agents)
         res = request.reservations
         unloaded, loaded = request.graphs.get(1, False), request.graphs.get(1, True)
         graphs = [loaded if a.loaded else unloaded for a in agents]
-        goals = _effective_goals(agents, graphs, request.keep_clear)
+        goals = effective_goals(agents, graphs, request.keep_clear)
         starts = [a.start for a in agents]
-        on_plan = all(
-            (p := res.paths.get(a.agv)) is not None and p.goal == g
-            and p.state_at(request.tick)[1] == a.start
-            for a, g in zip(agents, goals, strict=True))
-        if on_plan:
+        if on_plan(res, agents, goals, request.tick):
             return result
         dists = [gr.dist_to(gr.cell(g)) for gr, g in zip(graphs, goals, strict=True)]
         tables = [gr.neighbors for gr in graphs]
@@ -78,6 +85,59 @@ class LaCAMPlanner:
                 result.detours.append(a.agv)
         return result
 
+    def _plan_footprints(self, request: PlanRequest, agents: list[AgentRequest]) -> PlanResult:
+        """The same for a fleet of mixed sizes and speeds (poses, footprint-aware LaCAM)."""
+        deadline = time.monotonic() + self.time_budget_s
+        if request.deadline is not None:
+            deadline = min(deadline, request.deadline)
+        return solve_footprints(request, agents, deadline, keep=True)
+
+
+def solve_footprints(request: PlanRequest, agents: list[AgentRequest], deadline: float,
+                     keep: bool) -> PlanResult:
+    """Footprint-aware LaCAM for the whole fleet towards its effective goals; commit every
+    AGV's full path. With ``keep``, nothing is planned while every committed path still
+    leads to its effective goal. Past ``deadline``, one footprint-aware PIBT step (counted
+    as a budget hit)."""
+    res, tick = request.reservations, request.tick
+    graphs = [request.graphs.get(a.k, a.loaded, a.shelf) for a in agents]
+    goals = effective_goals(agents, graphs, request.keep_clear)
+    result = PlanResult()
+    if keep and on_plan(res, agents, goals, tick):
+        return result
+    movers = movers_for(request, agents, goals)
+    poses = [current_pose(res, a, tick) for a in agents]
+    held = [i for i, a in enumerate(agents) if a.hold and poses[i][2] == 0]
+    prio = [float(a.priority[0]) if a.priority else 0.0 for a in agents]
+    rng = request.rng if request.rng is not None else np.random.default_rng(0)
+    configs, _ = footprint_lacam(movers, poses, res.cols, deadline, rng, held=held, prio=prio)
+    if configs is None:
+        result.budget_hits += 1
+        nxt = footprint_step(movers, poses, prio, rng.random(len(movers[0].dist)) * 0.5,
+                             res.cols, forced={i: poses[i][1] for i in held})
+        configs = [tuple(poses), tuple(nxt if nxt is not None else poses)]
+    for i, a in enumerate(agents):
+        path = TimedPath(a.agv, tick, pose_states([c[i] for c in configs]))
+        res.commit(path, a.k)
+        result.paths[a.agv] = path
+        if goals[i] != a.goal:
+            result.detours.append(a.agv)
+    return result
+
+
+def on_plan(res: ReservationTable, agents: list[AgentRequest], goals: list[int],
+            tick: int) -> bool:
+    """Does every AGV's committed path go on from where it is to its effective goal, and
+    keep every held AGV where it is? (A joint plan may pass through an AGV's goal early:
+    once there the AGV starts working and is held, and the plan is made again.)"""
+    for a, g in zip(agents, goals, strict=True):
+        p = res.paths.get(a.agv)
+        if p is None or p.goal != g or p.state_at(tick)[1] != a.start:
+            return False
+        if a.hold and p.end_tick > tick:
+            return False
+    return True
+
 
 def _compress(states: list[tuple[int, int]]) -> tuple[tuple[int, int], ...]:
     """Drop the trailing repeats of the final state (the AGV stays there anyway)."""
@@ -87,29 +147,36 @@ def _compress(states: list[tuple[int, int]]) -> tuple[tuple[int, int], ...]:
     return tuple(states[:end])
 
 
-def _effective_goals(agents: list[AgentRequest], graphs: list[MotionGraph],
-                     keep_clear: np.ndarray | None) -> list[int]:
+def effective_goals(agents: list[AgentRequest], graphs: list[MotionGraph],
+                    keep_clear: np.ndarray | None) -> list[int]:
+    """Goals whose footprints never overlap: held AGVs keep where they stand; in priority
+    order, an AGV whose goal footprint overlaps one already claimed queues nearby."""
     goals = [-1] * len(agents)
     taken: set[int] = set()
     for i, a in enumerate(agents):
         if a.hold:
             goals[i] = a.start
-            taken.add(a.start)
+            taken.update(_cells(graphs[i], a.start))
     order = sorted((i for i, a in enumerate(agents) if not a.hold),
                    key=lambda i: (-(agents[i].priority[0] if agents[i].priority else 0.0), i))
     for i in order:
         a, graph = agents[i], graphs[i]
         goal = a.goal
-        if goal in taken:
+        if not taken.isdisjoint(_cells(graph, goal)):
             goal = _queue_spot(graph, goal, a.start, taken, keep_clear)
         goals[i] = goal
-        taken.add(goal)
+        taken.update(_cells(graph, goal))
     return goals
+
+
+def _cells(graph: MotionGraph, anchor: int) -> tuple[int, ...]:
+    return footprint_nodes(anchor, graph.k, graph.cols)
 
 
 def _queue_spot(graph: MotionGraph, goal: int, start: int, taken: set[int],
                 keep_clear: np.ndarray | None) -> int:
-    """Nearest free floor cell to ``goal`` that nobody else aims for (else stay put)."""
+    """Nearest anchor to ``goal`` whose footprint is free floor that nobody else aims for
+    (else stay put)."""
     floor = graph.layout.grid.ravel() == CellType.FLOOR
     if keep_clear is not None:
         floor = floor & ~keep_clear
@@ -118,11 +185,11 @@ def _queue_spot(graph: MotionGraph, goal: int, start: int, taken: set[int],
     frontier = deque([goal])
     while frontier:
         node = frontier.popleft()
-        if node != goal and floor[node] and node not in taken \
-                and graph.expandable(node) and dist_here[node] < UNREACHABLE:
+        if node != goal and graph.expandable(node) and dist_here[node] < UNREACHABLE \
+                and all(floor[c] and c not in taken for c in _cells(graph, node)):
             return node
         for nxt in graph.neighbors[node]:
             if nxt not in seen and graph.expandable(nxt):
                 seen.add(nxt)
                 frontier.append(nxt)
-    return start if start not in taken else goal
+    return start if taken.isdisjoint(_cells(graph, start)) else goal

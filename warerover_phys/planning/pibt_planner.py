@@ -7,28 +7,58 @@ so an AGV that keeps being pushed aside eventually wins. AGVs working in place (
 handing over, placing) are held where they are. Loaded AGVs keep to the aisles (their own
 motion graph) and never step where their goal is unreachable from.
 
-PIBT moves 1x1 AGVs one cell per tick; :func:`check_fleet` refuses other fleets.
+A fleet of 1x1 AGVs that move one cell per tick takes the fast path (:func:`pibt_step`,
+with swap). Any other fleet (``k x k`` AGVs, slow AGVs) is stepped by the footprint-aware
+PIBT of :mod:`footprint_pibt`: an AGV in the middle of a multi-tick move keeps going, one
+that starts a move gets the whole move as its path (the next tick reads its progress back
+from that path in the reservation table).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
-from ..errors import ScenarioError
 from .base import AgentRequest, PlanRequest, PlanResult, TimedPath
+from .footprint_pibt import Mover, Pose, footprint_step, pose_states, successor
 from .pibt import pibt_step
+from .reservation import ReservationTable
 
-__all__ = ["PIBTPlanner", "check_fleet"]
+__all__ = ["PIBTPlanner", "uniform_fleet", "movers_for", "current_pose"]
 
 
-def check_fleet(name: str, agvs) -> None:
-    """PIBT-style planners move 1x1 AGVs one cell per tick; say so for any other fleet."""
-    for agv in agvs:
-        if agv.k != 1 or agv.ticks_per_move != 1:
-            raise ScenarioError(
-                f"{name} moves 1x1 AGVs one cell per tick, but AGV type {agv.type_name!r} has "
-                f"footprint {agv.k} and {agv.ticks_per_move} ticks per move; use astar or cbs "
-                "for this fleet", field="planner.name", value=name)
+def uniform_fleet(agents: Sequence[AgentRequest]) -> bool:
+    """Only 1x1 AGVs that move one cell per tick (the fast path)?"""
+    return all(a.k == 1 and a.ticks_per_move == 1 for a in agents)
+
+
+def movers_for(request: PlanRequest, agents: Sequence[AgentRequest],
+               goals: Sequence[int]) -> list[Mover]:
+    """Each AGV on its own motion graph (footprint, loaded, carried shelf), heading for
+    ``goals``."""
+    out = []
+    for a, goal in zip(agents, goals, strict=True):
+        graph = request.graphs.get(a.k, a.loaded, a.shelf)
+        out.append(Mover(a.k, a.ticks_per_move, graph.neighbors,
+                         graph.dist_to(graph.cell(goal)), goal))
+    return out
+
+
+def current_pose(res: ReservationTable, agent: AgentRequest, tick: int) -> Pose:
+    """Where the AGV is at ``tick``: at rest on ``agent.start``, or in the middle of the
+    move its committed path makes into ``agent.start`` (with the ticks it still needs)."""
+    here = agent.start
+    path = res.paths.get(agent.agv)
+    if path is None:
+        return (here, here, 0)
+    a, b = path.state_at(tick)
+    if a == b or b != here:
+        return (here, here, 0)
+    left = 1
+    while left < agent.ticks_per_move - 1 and path.state_at(tick + left) == (a, b):
+        left += 1
+    return (a, b, left)
 
 
 class PIBTPlanner:
@@ -44,6 +74,8 @@ class PIBTPlanner:
         result = PlanResult()
         if not agents:
             return result
+        if not uniform_fleet(agents):
+            return self._plan_footprints(request, agents)
         graphs = request.graphs
         unloaded, loaded = graphs.get(1, False), graphs.get(1, True)
         config = [a.start for a in agents]
@@ -64,5 +96,24 @@ class PIBTPlanner:
             states = ((here, here),) if here == there else ((here, here), (there, there))
             path = TimedPath(a.agv, request.tick, states)
             res.commit(path, 1)
+            result.paths[a.agv] = path
+        return result
+
+    def _plan_footprints(self, request: PlanRequest, agents: list[AgentRequest]) -> PlanResult:
+        """One footprint-aware PIBT step for a fleet of mixed sizes and speeds."""
+        res, tick = request.reservations, request.tick
+        movers = movers_for(request, agents, [a.goal for a in agents])
+        poses = [current_pose(res, a, tick) for a in agents]
+        prio = [float(a.priority[0]) if a.priority else 0.0 for a in agents]
+        held = {i: a.start for i, a in enumerate(agents) if a.hold and poses[i][2] == 0}
+        rng = request.rng if request.rng is not None else np.random.default_rng(0)
+        tie = rng.random(len(movers[0].dist)) * 0.5
+        nxt = footprint_step(movers, poses, prio, tie, res.cols, forced=held)
+        if nxt is None:  # holds never contradict each other; be safe and keep still
+            nxt = [successor(p, p[1], mv.m) for p, mv in zip(poses, movers, strict=True)]
+        result = PlanResult()
+        for a, here, there in zip(agents, poses, nxt, strict=True):
+            path = TimedPath(a.agv, tick, pose_states([here, there]))
+            res.commit(path, a.k)
             result.paths[a.agv] = path
         return result

@@ -1,0 +1,141 @@
+"""LaCAM for fleets of ``k x k`` AGVs with multi-tick moves.
+
+The search of :mod:`lacam` (Okumura, AAAI 2023) over configurations of *poses* (see
+:mod:`footprint_pibt`): a pose holds the agent's anchor and, while it is moving, where it
+moves and how many ticks it still needs, so two configurations that look alike but differ
+in a slow agent's progress are different nodes. An agent in the middle of a move has one
+successor (its next pose), so low-level constraints only bind agents at rest ("agent ``i``
+heads for node ``v`` next"); the footprint-aware PIBT step generates each successor
+configuration under them. With every agent at rest constrained the step either builds that
+exact configuration or rejects it, so the search stays complete: it finds a solution if one
+exists and otherwise reports the space exhausted.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .footprint_pibt import Mover, Pose, footprint_step
+from .graph import UNREACHABLE
+
+__all__ = ["footprint_lacam", "footprint_priorities", "update_footprint_priorities"]
+
+Config = tuple[Pose, ...]
+
+
+@dataclass(slots=True)
+class _Low:
+    who: tuple[int, ...] = ()
+    where: tuple[int, ...] = ()
+
+    @property
+    def depth(self) -> int:
+        return len(self.who)
+
+
+@dataclass(slots=True)
+class _High:
+    config: Config
+    parent: _High | None
+    prio: list[float]
+    order: list[int]
+    """Agents at rest that are not held, highest priority first: the constraint order."""
+    tree: deque = field(default_factory=lambda: deque([_Low()]))
+
+
+def footprint_priorities(movers: Sequence[Mover], poses: Sequence[Pose]) -> list[float]:
+    """Ties broken by remaining moves: farther agents first (a value in [0, 1))."""
+    d = [float(mv.dist[p[1]]) for mv, p in zip(movers, poses, strict=True)]
+    top = max(d, default=0.0) + 1.0
+    return [x / top for x in d]
+
+
+def update_footprint_priorities(prio: Sequence[float], movers: Sequence[Mover],
+                                config: Config) -> list[float]:
+    """Back to the fractional part on arrival (at rest on the goal), else one more."""
+    return [p - int(p) if c[2] == 0 and c[1] == mv.goal else p + 1.0
+            for p, mv, c in zip(prio, movers, config, strict=True)]
+
+
+def footprint_lacam(movers: Sequence[Mover], starts: Sequence[Pose], cols: int,
+                    deadline: float, rng: np.random.Generator, held: Sequence[int] = (),
+                    prio: list[float] | None = None,
+                    ) -> tuple[list[Config] | None, dict]:
+    """Configurations from ``starts`` until every agent rests on its goal, or None.
+
+    Agents in ``held`` never move (their goal must be where they stand). Returns
+    (configurations or None, stats); None with ``stats["exhausted"]`` True means there is
+    no solution, otherwise the deadline (a ``time.monotonic()`` value) passed.
+    """
+    n_nodes = len(movers[0].dist) if movers else 0
+    ties = rng.random(n_nodes + 4099) * 0.5
+    start: Config = tuple(starts)
+    goal: Config = tuple((mv.goal, mv.goal, 0) for mv in movers)
+    held_set = set(held)
+    stay = {i: start[i][1] for i in held_set}
+
+    def make(config: Config, parent: _High | None, prio: list[float]) -> _High:
+        order = sorted((i for i in range(len(config)) if i not in held_set and config[i][2] == 0),
+                       key=lambda i: -prio[i])
+        return _High(config, parent, prio, order)
+
+    root = make(start, None, prio if prio is not None else footprint_priorities(movers, start))
+    stack = [root]
+    explored = {start: root}
+    iterations = 0
+    while stack:
+        iterations += 1
+        if iterations % 64 == 0 and time.monotonic() > deadline:
+            return None, {"iterations": iterations, "explored": len(explored),
+                          "exhausted": False}
+        node = stack[-1]
+        if node.config == goal:
+            return _unwind(node), {"iterations": iterations, "explored": len(explored)}
+        if not node.tree:
+            stack.pop()
+            continue
+        low = node.tree.popleft()
+        if low.depth < len(node.order):
+            _grow(node, low, movers, rng)
+        salt = int(rng.integers(4096))
+        forced = dict(stay)
+        forced.update(zip(low.who, low.where, strict=True))
+        nxt = footprint_step(movers, node.config, node.prio, ties[salt:], cols, forced)
+        if nxt is None:
+            continue
+        key = tuple(nxt)
+        known = explored.get(key)
+        if known is not None:
+            stack.append(known)
+            continue
+        new = make(key, node, update_footprint_priorities(node.prio, movers, key))
+        stack.append(new)
+        explored[key] = new
+    return None, {"iterations": iterations, "explored": len(explored), "exhausted": True}
+
+
+def _grow(node: _High, low: _Low, movers: Sequence[Mover], rng: np.random.Generator) -> None:
+    """Add the children of a low-level node: the next agent in order heads for each of its
+    possible targets."""
+    i = node.order[low.depth]
+    mv = movers[i]
+    here = node.config[i][1]
+    cands = [v for v in mv.neighbors[here] if mv.dist[v] < UNREACHABLE] + [here]
+    rng.shuffle(cands)
+    for v in cands:
+        node.tree.append(_Low(low.who + (i,), low.where + (v,)))
+
+
+def _unwind(node: _High) -> list[Config]:
+    configs: list[Config] = []
+    walk: _High | None = node
+    while walk is not None:
+        configs.append(walk.config)
+        walk = walk.parent
+    configs.reverse()
+    return configs

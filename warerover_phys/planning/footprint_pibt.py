@@ -1,0 +1,339 @@
+"""Footprint-aware PIBT: one step for fleets of ``k x k`` AGVs with multi-tick moves.
+
+PIBT (Okumura et al., AIJ 2022) generalised the standard way to large and slow agents:
+
+- every agent has a *pose* ``(a, b, r)``: at rest on anchor ``b`` when ``r == 0`` (then
+  ``a == b``), else moving from ``a`` to ``b`` and arriving in ``r`` ticks; while moving it
+  covers both footprints;
+- an agent in the middle of a move is fixed for the step (its next pose is forced); an agent
+  at rest that starts a move to ``u`` commits to it: a fast agent (``m == 1`` tick per move)
+  covers ``fp(u)`` next tick, a slow one covers ``fp(a) | fp(u)`` for ``m - 1`` ticks;
+- agents decide in priority order. An agent that wants a pose claims the cells it would
+  cover and *pushes* every undecided agent whose current cells overlap them (priority
+  inheritance, recursively); if any pushed agent cannot get out of the way, every tentative
+  decision made for that pose is rolled back and the agent tries its next pose, staying put
+  last. An agent that could not be pushed is not pushed again in the same chain (as plain
+  PIBT keeps it in place), which bounds the work;
+- a slow agent at rest cannot free its cells within one tick (its move covers them too), so
+  a pose that overlaps one is not taken this tick; instead, for its best pose, the agent
+  *nudges* such agents: they are asked to start a move whose destination keeps clear of it;
+- no agent enters cells of an agent that enters its own cells in the same tick (no swaps);
+  instead, when an agent's best move runs head-on into an agent that wants its cells
+  and has no room to step aside there, the agent makes way (tries its moves worst first)
+  and pulls the other one along behind it, the "swap" of Okumura (AAMAS 2024) with a local
+  room test: any neighbouring anchor of the other agent off the first one's way that no
+  immovable agent (slow, decided, or already failed) covers.
+
+The step is used by the lifelong PIBT planner and, with forced moves as its constraints, as
+the configuration generator of :mod:`footprint_lacam`.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .base import State, footprint_nodes
+from .graph import UNREACHABLE
+
+__all__ = ["Mover", "Pose", "pose_cells", "successor", "arrive", "pose_states",
+           "footprint_step"]
+
+Pose = tuple[int, int, int]
+"""``(a, b, r)``: at rest on ``b`` if ``r == 0``, else moving ``a -> b``, ``r`` ticks to go."""
+
+
+@dataclass(frozen=True, slots=True)
+class Mover:
+    """One agent as the footprint-aware solvers see it."""
+
+    k: int
+    """Footprint side (cells)."""
+    m: int
+    """Ticks per one-cell move."""
+    neighbors: Sequence[tuple[int, ...]]
+    """Adjacency of its own motion graph (anchor nodes)."""
+    dist: np.ndarray
+    """Moves from every anchor to its goal (``UNREACHABLE`` where none)."""
+    goal: int
+
+
+def pose_cells(pose: Pose, k: int, cols: int) -> tuple[int, ...]:
+    """Cells a pose covers: the footprint, or both footprints while moving."""
+    a, b, r = pose
+    if r == 0:
+        return footprint_nodes(b, k, cols)
+    return tuple(dict.fromkeys(footprint_nodes(a, k, cols) + footprint_nodes(b, k, cols)))
+
+
+def successor(pose: Pose, target: int, m: int) -> Pose:
+    """The pose one tick later for an agent at rest that heads for ``target`` (itself to
+    stay), or the forced next pose of an agent in the middle of a move."""
+    a, b, r = pose
+    if r > 1:
+        return (a, b, r - 1)
+    if r == 1:
+        return (b, b, 0)
+    if target == b or m == 1:
+        return (target, target, 0)
+    return (b, target, m - 1)
+
+
+def arrive(pose: Pose) -> tuple[State, ...]:
+    """The states after ``pose`` until the agent is at rest (empty if it is)."""
+    a, b, r = pose
+    return ((a, b),) * (r - 1) + ((b, b),) if r > 0 else ()
+
+
+def pose_states(poses: Sequence[Pose]) -> tuple[State, ...]:
+    """Per-tick states of a sequence of poses, finishing any move still under way, without
+    trailing repeats (after its last state an AGV stays where it is)."""
+    states = [(a, b) for a, b, _ in poses] + list(arrive(poses[-1]))
+    end = len(states)
+    while end > 1 and states[end - 1] == states[end - 2]:
+        end -= 1
+    return tuple(states[:end])
+
+
+class _Step:
+    """The working state of one step (see the module doc)."""
+
+    def __init__(self, movers: Sequence[Mover], poses: Sequence[Pose], cols: int,
+                 tie: np.ndarray, budget: int) -> None:
+        self.movers, self.poses, self.cols, self.tie = movers, poses, cols, tie
+        self.cur = [pose_cells(p, mv.k, cols) for p, mv in zip(poses, movers, strict=True)]
+        self.cur_set = [frozenset(c) for c in self.cur]
+        self.occ_now = {c: i for i, cells in enumerate(self.cur) for c in cells}
+        n = len(poses)
+        self.nxt: list[Pose | None] = [None] * n
+        self.nxt_cells: list[tuple[int, ...]] = [()] * n
+        self.occ_next: dict[int, int] = {}
+        self.log: list[int] = []
+        self.stuck: set[int] = set()
+        self.keep: set[int] = set()
+        """Agents decided for a nudge: never rolled back."""
+        self.chain = 0
+        """Log length when the current top-level push began."""
+        self.budget = budget
+
+    # ------------------------------------------------------------------ bookkeeping
+
+    def decide(self, i: int, pose: Pose, cells: tuple[int, ...]) -> None:
+        self.nxt[i], self.nxt_cells[i] = pose, cells
+        for c in cells:
+            self.occ_next[c] = i
+        self.log.append(i)
+
+    def undo(self, i: int) -> None:
+        for c in self.nxt_cells[i]:
+            del self.occ_next[c]
+        self.nxt[i], self.nxt_cells[i] = None, ()
+
+    def rollback(self, mark: int) -> None:
+        """Forget every decision taken since the log had ``mark`` entries, except those
+        taken for a nudge (they stay valid: see :meth:`nudge`)."""
+        kept = []
+        while len(self.log) > mark:
+            i = self.log.pop()
+            if i in self.keep:
+                kept.append(i)
+            else:
+                self.undo(i)
+        self.log.extend(reversed(kept))
+
+    def fits(self, i: int, cells: tuple[int, ...]) -> bool:
+        """No cell claimed by another agent, and no swap with an agent already decided."""
+        for c in cells:
+            owner = self.occ_next.get(c)
+            if owner is not None and owner != i:
+                return False
+            x = self.occ_now.get(c)
+            if x is not None and x != i and self.nxt[x] is not None \
+                    and not self.cur_set[i].isdisjoint(self.nxt_cells[x]):
+                return False
+        return True
+
+    def blockers(self, i: int, cells: tuple[int, ...]) -> list[int] | None:
+        """Undecided agents standing on ``cells`` that must move away, or None if one
+        cannot (already failed in this chain, or slow: its move would keep its cells)."""
+        out: list[int] = []
+        for c in cells:
+            x = self.occ_now.get(c)
+            if x is None or x == i or self.nxt[x] is not None or x in out:
+                continue
+            if x in self.stuck or self.movers[x].m > 1:
+                return None
+            out.append(x)
+        return out
+
+    # ------------------------------------------------------------------ PIBT
+
+    def candidates(self, i: int, avoid: frozenset[int]) -> list[int]:
+        """Targets of an agent at rest, best first (its own node last among equals)."""
+        mv, here = self.movers[i], self.poses[i][1]
+        d, tie = mv.dist, self.tie
+        near = [v for v in mv.neighbors[here] if d[v] < UNREACHABLE] + [here]
+        if avoid:
+            near = [v for v in near
+                    if avoid.isdisjoint(footprint_nodes(v, mv.k, self.cols))]
+        return sorted(near, key=lambda v: d[v] + tie[v])
+
+    def try_target(self, i: int, target: int) -> bool:
+        """Take ``target`` for agent ``i`` if every agent in the way can be pushed aside."""
+        mv = self.movers[i]
+        pose = successor(self.poses[i], target, mv.m)
+        cells = pose_cells(pose, mv.k, self.cols)
+        if not self.fits(i, cells):
+            return False
+        ahead = self.blockers(i, cells)
+        if ahead is None or (ahead and self.budget <= 0):
+            return False
+        self.budget -= len(ahead)
+        mark = len(self.log)
+        self.decide(i, pose, cells)
+        for x in ahead:
+            if self.nxt[x] is None and not self.push(x):
+                self.rollback(mark)
+                return False
+        return True
+
+    def push(self, i: int, avoid: frozenset[int] = frozenset()) -> bool:
+        """Decide agent ``i`` (at rest); with ``avoid``, its destination keeps clear of
+        those cells (a nudge). False if it has no pose that fits."""
+        cands = self.candidates(i, avoid)
+        here = self.poses[i][1]
+        partner = -1
+        if not avoid and cands[0] != here:
+            partner = self.head_on(i, cands[0])
+            if partner >= 0:
+                cands.reverse()  # make way, then pull the partner along behind
+            else:
+                self.nudge(i, cands[0])
+        for idx, target in enumerate(cands):
+            if self.try_target(i, target):
+                if idx == 0 and partner >= 0 and target != here \
+                        and self.nxt[partner] is None:
+                    self.try_target(partner, self.candidates(partner, frozenset())[0])
+                return True
+        if not avoid:
+            self.stuck.add(i)
+        return False
+
+    # ------------------------------------------------------------------ swap
+
+    def head_on(self, i: int, best: int) -> int:
+        """An agent at rest on ``best``'s footprint that heads into ``i``'s cells and
+        cannot step aside there: the two must swap (Okumura, AAMAS 2024), so ``i`` makes
+        way. -1 if none."""
+        mv = self.movers[i]
+        for c in footprint_nodes(best, mv.k, self.cols):
+            j = self.occ_now.get(c)
+            if j is None or j == i or self.nxt[j] is not None or j in self.stuck:
+                continue
+            want = self.candidates(j, frozenset())[0]
+            if want == self.poses[j][1] or self.cur_set[i].isdisjoint(
+                    footprint_nodes(want, self.movers[j].k, self.cols)):
+                continue
+            if not self.can_step_aside(j, i, best):
+                return j
+        return -1
+
+    def can_step_aside(self, j: int, i: int, best: int) -> bool:
+        """Has ``j`` a neighbouring anchor off ``i``'s way (clear of ``i``'s cells and of
+        ``best``, no closer to ``i``'s goal) that nothing immovable covers?"""
+        mj, mi = self.movers[j], self.movers[i]
+        blocked = self.cur_set[i].union(footprint_nodes(best, mi.k, self.cols))
+        ref = mi.dist[best]
+        for u in mj.neighbors[self.poses[j][1]]:
+            if mj.dist[u] >= UNREACHABLE or mi.dist[u] < ref:
+                continue
+            cells = footprint_nodes(u, mj.k, self.cols)
+            if blocked.isdisjoint(cells) and not any(self.immovable(c, j) for c in cells):
+                return True
+        return False
+
+    def immovable(self, c: int, j: int) -> bool:
+        """Does something ``j`` cannot push keep cell ``c`` next tick?"""
+        owner = self.occ_next.get(c)
+        if owner is not None:
+            return owner != j
+        x = self.occ_now.get(c)
+        return x is not None and x != j and self.nxt[x] is None and (
+            self.movers[x].m > 1 or x in self.stuck)
+
+    def nudge(self, i: int, target: int) -> None:
+        """Ask slow agents at rest on ``target``'s footprint to start moving off it.
+
+        Their moves (and the pushes they need) are kept even if a decision of this chain is
+        rolled back later, so they keep clear of the cells of ``i`` and of every agent with
+        a decision in this chain: each of those may still stay where it is.
+        """
+        mv = self.movers[i]
+        dest = footprint_nodes(target, mv.k, self.cols)
+        slow = [x for x in dict.fromkeys(self.occ_now.get(c) for c in dest)
+                if x is not None and x != i and self.nxt[x] is None
+                and self.movers[x].m > 1 and x not in self.stuck]
+        if not slow or self.budget <= 0:
+            return
+        self.budget -= len(slow)
+        guard = [c for y in [i, *self.log[self.chain:]] for c in self.cur[y]
+                 if c not in self.occ_next]
+        for c in guard:
+            self.occ_next[c] = -1
+        mark = len(self.log)
+        avoid = frozenset(dest)
+        for x in slow:
+            if self.nxt[x] is None:
+                self.push(x, avoid)
+        for c in guard:
+            self.occ_next.pop(c, None)
+        self.keep.update(self.log[mark:])
+
+    def force(self, i: int, target: int) -> bool:
+        pose = successor(self.poses[i], target, self.movers[i].m)
+        cells = pose_cells(pose, self.movers[i].k, self.cols)
+        if not self.fits(i, cells):
+            return False
+        self.decide(i, pose, cells)
+        return True
+
+
+def footprint_step(movers: Sequence[Mover], poses: Sequence[Pose], prio: Sequence[float],
+                   tie: np.ndarray, cols: int, forced: Mapping[int, int] | None = None,
+                   budget: int | None = None) -> list[Pose] | None:
+    """Next pose of every agent, or None if the ``forced`` targets (agent -> node; the
+    agent's own node to stay) contradict each other or cannot be made room for.
+
+    Agents in the middle of a move always take their forced next pose. ``tie`` (one value
+    in [0, 0.5) per node) breaks ties between equally good targets; ``budget`` caps the
+    number of pushes (default ``50 * len(poses) + 100``); when it runs out, agents only
+    take targets nobody stands on.
+    """
+    n = len(poses)
+    step = _Step(movers, poses, cols, tie, 50 * n + 100 if budget is None else budget)
+    fixed = {i: p[1] for i, p in enumerate(poses) if p[2] > 0}
+    fixed.update(forced or {})
+    for i in sorted(fixed):
+        if not step.force(i, fixed[i]):
+            return None
+    order = sorted(range(n), key=lambda i: -prio[i])
+    # Agents standing where a forced agent goes must move first.
+    first = [i for i in order if step.nxt[i] is None
+             and any(step.occ_next.get(c, i) != i for c in step.cur[i])]
+    limit = sys.getrecursionlimit()
+    sys.setrecursionlimit(max(limit, 8 * n + 1000))
+    try:
+        for i in first + order:
+            if step.nxt[i] is None:
+                step.chain = len(step.log)
+                ok = step.push(i)
+                step.stuck.clear()
+                if not ok:
+                    return None
+    finally:
+        sys.setrecursionlimit(limit)
+    out = [p for p in step.nxt if p is not None]
+    return out if len(out) == n else None
