@@ -281,7 +281,12 @@ class PhysicsExecutor:
             if path is None or path is self._synced[agv.id]:
                 continue
             self._synced[agv.id] = path
-            self.adg.set_plan(agv.id, self._cut(agv.id, path))
+            cut = self._cut(agv.id, path)
+            node = cut.states[0][0]
+            if all(a == b == node for a, b in cut.states) and self._synced_once(agv.id) \
+                    and self.adg.next_action(agv.id) is None:
+                continue  # a plan to stay where it will stop anyway: nothing changes
+            self.adg.set_plan(agv.id, cut)
             self.has_next[agv.id] = self.adg.next_action(agv.id) is not None
 
     def _cut(self, i: int, path: TimedPath) -> TimedPath:
@@ -341,11 +346,13 @@ class PhysicsExecutor:
         for i in np.flatnonzero(driving & (self.s_ref >= self.cur_end - 1e-9)
                                 & (along >= self.cur_end - ARRIVE_EPS_M)):
             self._arrive(int(i), t)
-        driving = self.mode == DRIVE
-        brake = self.speed ** 2 / (2 * self.amax) + 2 * self.vmax * self.dt * DECIDE_EVERY
-        for i in np.flatnonzero(driving & ~delayed & (self.stop_s - along < brake + 0.05)):
-            self._extend(int(i))
         if decide:
+            # Look further ahead for AGVs that would otherwise start braking before the
+            # next look (the margin covers two decision intervals).
+            driving = self.mode == DRIVE
+            brake = self.speed ** 2 / (2 * self.amax) + 2 * self.vmax * self.dt * DECIDE_EVERY
+            for i in np.flatnonzero(driving & ~delayed & (self.stop_s - along < brake + 0.05)):
+                self._extend(int(i))
             self.waiting[:] = False
             for i in np.flatnonzero((self.mode != DRIVE) & self.has_next):
                 self._decide(int(i), t, bool(delayed[i]), float(ang[i]))
