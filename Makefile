@@ -10,11 +10,12 @@ $(BIN)/python:
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
 $(STAMP): $(BIN)/python pyproject.toml
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet -e '.[test,render]'
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/warerover run layouts/paper_homogeneous.yaml --seed 1 --executor physics --out runs/demo
+	$(BIN)/warerover run layouts/paper_homogeneous.yaml --seed 1 --executor physics --out runs/demo \
+		--video videos/demo.mp4
 
 test: $(STAMP)
 	$(BIN)/python -m pytest

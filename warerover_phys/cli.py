@@ -3,7 +3,8 @@
 ``warerover run SCENARIO`` runs one episode and writes ``metrics.json``, ``events.jsonl`` and
 ``paths.json`` (and ``trajectories.npz`` on physics); ``warerover gap SCENARIO`` runs it on
 both executors and reports the sim-to-real gap; ``warerover check SCENARIO`` only loads and
-checks a scenario. Bad input
+checks a scenario; ``warerover render TRAJECTORY_FILE --out PATH`` re-renders a recorded run
+to MP4 or PNG (``run --video PATH`` renders right after the run). Bad input
 prints one line naming the file, field and value, and exits with code 2.
 """
 
@@ -34,6 +35,11 @@ PlanOpt = Annotated[str | None, typer.Option(help="Planner: astar | pibt | lacam
 ExecOpt = Annotated[str | None, typer.Option(help="Executor: grid | physics.")]
 OrdersOpt = Annotated[str | None, typer.Option(
     help="Order pattern: oneshot | constant | wave | hotspot | burst.")]
+FpsOpt = Annotated[float, typer.Option(help="Video frames per second.")]
+SpeedOpt = Annotated[float | None, typer.Option(
+    help="Playback speed, simulated s per video s (default: real time, or faster to keep "
+         "the video under a minute).")]
+SizeOpt = Annotated[str, typer.Option(help="Frame size: 720p | 1080p | WxH.")]
 
 
 def _fail(err: Exception) -> None:
@@ -71,12 +77,17 @@ def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
         set_: SetOpt = None, scheduler: SchedOpt = None, planner: PlanOpt = None,
         executor: ExecOpt = None, orders: OrdersOpt = None,
         quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
+        video: Annotated[Path | None, typer.Option(
+            help="Also render the episode to this MP4 (H.264).")] = None,
+        fps: FpsOpt = 30.0, speed: SpeedOpt = None, size: SizeOpt = "720p",
         ) -> None:
-    """Run one episode and write metrics.json, events.jsonl and paths.json."""
+    """Run one episode and write metrics.json, events.jsonl and paths.json (and an MP4 with
+    --video)."""
     from .outputs import write_outputs
     from .sim import Simulation
 
     try:
+        style = _video_style(size, fps, speed, None) if video is not None else None
         try:
             overrides = _overrides(set_, seed, scheduler, planner, executor, orders)
         except WareroverError as err:
@@ -100,6 +111,8 @@ def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
         else:
             result = sim.run()
         files = write_outputs(result, out_dir)
+        if video is not None:
+            files.update(_run_video(result, files, video, style, fps, speed, sc.name))
     except WareroverError as err:
         _fail(err)
     except OSError as err:
@@ -138,6 +151,94 @@ def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
     console.print(table)
     names = ", ".join(f.name for k, f in files.items() if k != "metrics")
     console.print(f"wrote {files['metrics']}, {names}")
+
+
+def _video_style(size: str, fps: float, speed: float | None, viewport: str | None,
+                 paths: bool = True):
+    """Check the video options before any work is done; the render ``Style``."""
+    try:
+        from .render import Style, parse_size
+    except ImportError as err:
+        raise WareroverError(f"rendering needs opencv-python-headless and av ({err}): "
+                             "pip install 'warerover-phys[render]'") from None
+    if not fps > 0 or fps > 240:
+        raise WareroverError(f"--fps: must be in (0, 240] (got {fps})")
+    if speed is not None and not speed > 0:
+        raise WareroverError(f"--speed: must be positive (got {speed})")
+    view = None
+    if viewport is not None:
+        parts = viewport.split(",")
+        if len(parts) != 4 or not all(p.strip().isdigit() for p in parts):
+            raise WareroverError(f"--viewport: expected row0,col0,row1,col1 (got {viewport!r})")
+        view = tuple(int(p) for p in parts)
+    try:
+        return Style(size=parse_size(size), viewport=view, show_paths=paths)
+    except ValueError as err:
+        raise WareroverError(f"--size/--viewport: {err}") from None
+
+
+def _run_video(result, files: dict, video: Path, style, fps: float, speed: float | None,
+               title: str) -> dict[str, Path]:
+    """Render a finished episode to ``video``; a grid episode also gets a
+    ``trajectories.npz`` so that ``warerover render`` can redo it."""
+    from dataclasses import replace
+
+    from .outputs import write_trajectory
+    from .render import grid_trajectory, recording_from_episode, render_video
+
+    out = {}
+    if "trajectory" not in files:
+        out["trajectory"] = files["metrics"].with_name("trajectories.npz")
+        write_trajectory(grid_trajectory(result), out["trajectory"])
+    try:
+        render_video(recording_from_episode(result), video, fps=fps, speed=speed,
+                     style=replace(style, title=title))
+    except ValueError as err:
+        raise WareroverError(f"--video: {err}") from None
+    out["video"] = video
+    return out
+
+
+@app.command()
+def render(trajectory: Annotated[Path, typer.Argument(
+               metavar="TRAJECTORY_FILE",
+               help="trajectories.npz of a run (or its folder); events.jsonl and paths.json "
+                    "beside it add order counts and planned paths.")],
+           out: Annotated[Path, typer.Option(help="Output MP4 (or PNG with --png).")],
+           png: Annotated[float | None, typer.Option(
+               help="Write the frame at this tick as a PNG instead of a video.")] = None,
+           fps: FpsOpt = 30.0, speed: SpeedOpt = None, size: SizeOpt = "720p",
+           viewport: Annotated[str | None, typer.Option(
+               help="Show only cells row0,col0,row1,col1 (inclusive).")] = None,
+           paths: Annotated[bool, typer.Option(help="Draw planned paths ahead.")] = True,
+           ) -> None:
+    """Re-render a recorded run to MP4 (or one frame to PNG) without re-simulating."""
+    try:
+        style = _video_style(size, fps, speed, viewport, paths)
+        from .render import load_trajectory, render_video, write_png
+
+        rec = load_trajectory(trajectory)
+        rows, cols = rec.grid.shape
+        if style.viewport is not None and (style.viewport[0] >= rows or
+                                           style.viewport[1] >= cols):
+            raise WareroverError(f"--viewport: {viewport} starts outside the {rows}x{cols} "
+                                 "layout")
+        if png is not None:
+            if not 0 <= png <= rec.end_s / rec.tick_s + 1e-9:
+                raise WareroverError(f"--png: tick {png:g} is outside the recording "
+                                     f"(0..{rec.ticks})")
+            write_png(rec, out, png, style)
+            typer.echo(f"wrote {out}")
+            return
+        info = render_video(rec, out, fps=fps, speed=speed, style=style)
+    except WareroverError as err:
+        _fail(err)
+    except ValueError as err:
+        _fail(WareroverError(str(err)))
+    except OSError as err:
+        _fail(WareroverError(f"{getattr(err, 'filename', '') or ''}: {err.strerror or err}"))
+    typer.echo(f"wrote {out}: {info['frames']} frames at {info['fps']:g} fps, "
+               f"{info['speed']:g}x, {info['codec']}")
 
 
 @app.command()

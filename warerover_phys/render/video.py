@@ -1,0 +1,197 @@
+"""Writing frames: H.264 MP4 through PyAV, still PNGs, and whole recordings to video.
+
+:class:`VideoWriter` takes BGR frames of one size. With PyAV (``av``) it writes H.264
+(``libx264``, ``yuv420p``, ``movflags=+faststart``: plays in browsers, starts before it has
+fully loaded). Without PyAV it falls back to OpenCV's ``mp4v`` (MPEG-4 Part 2) with a warning:
+that file plays in VLC/ffmpeg but not in Chrome or Firefox.
+
+:func:`render_video` samples a :class:`~.trajectory.Recording` at the video's own frame times:
+frame ``k`` shows simulated time ``start + k * speed / fps``, so the frame rate and playback
+speed are independent of the physics step and of the recording rate.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import warnings
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import cv2
+import numpy as np
+
+from .frame import Style, draw_frame
+
+if TYPE_CHECKING:
+    from .trajectory import Recording
+
+__all__ = ["VideoWriter", "render_video", "write_png", "frame_times", "auto_speed",
+           "parse_size", "SIZES"]
+
+log = logging.getLogger(__name__)
+
+SIZES = {"720p": (1280, 720), "1080p": (1920, 1080), "480p": (854, 480), "4k": (3840, 2160)}
+MAX_VIDEO_S = 60.0
+"""Default playback speed aims at videos no longer than this (seconds)."""
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """``720p``, ``1080p``, ``480p``, ``4k`` or ``WxH`` (pixels) -> (width, height)."""
+    key = text.strip().lower()
+    if key in SIZES:
+        return SIZES[key]
+    parts = key.split("x")
+    if len(parts) == 2 and all(p.strip().isdigit() for p in parts):
+        w, h = int(parts[0]), int(parts[1])
+        if 16 <= w <= 8192 and 16 <= h <= 8192:
+            return w, h
+    raise ValueError(f"size must be 720p, 1080p, 480p, 4k or WxH with 16..8192 pixels a side "
+                     f"(got {text!r})")
+
+
+class VideoWriter:
+    """Write BGR frames to an MP4 file; use as a context manager.
+
+    ``codec="h264"`` (default) needs PyAV and falls back to ``mp4v`` with a warning when it is
+    missing; ``codec="mp4v"`` always uses OpenCV. Odd frame sizes are padded by one pixel
+    (yuv420p needs even sides). ``preset`` and ``crf`` are libx264's speed/quality knobs.
+    """
+
+    def __init__(self, path: str | Path, fps: float, size: tuple[int, int], *,
+                 codec: str = "h264", preset: str = "superfast", crf: int = 23) -> None:
+        if fps <= 0:
+            raise ValueError(f"fps must be positive (got {fps})")
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.size = (int(size[0]), int(size[1]))
+        self.enc_size = (self.size[0] + self.size[0] % 2, self.size[1] + self.size[1] % 2)
+        self.fps = fps
+        self.frames = 0
+        self._av = None
+        self._cv = None
+        if codec == "h264":
+            try:
+                import av
+            except ImportError:
+                warnings.warn("PyAV (av) is not installed: writing mp4v MPEG-4, which browsers "
+                              "do not play; pip install av for H.264", stacklevel=2)
+                codec = "mp4v"
+            else:
+                self._open_av(av, preset, crf)
+        if codec == "mp4v":
+            self.codec = "mp4v"
+            self._cv = cv2.VideoWriter(str(self.path), cv2.VideoWriter_fourcc(*"mp4v"),
+                                       float(fps), self.enc_size)
+            if not self._cv.isOpened():
+                raise OSError(f"{self.path}: OpenCV cannot open an mp4v writer")
+        elif codec != "h264":
+            raise ValueError(f"codec must be h264 or mp4v (got {codec!r})")
+
+    def _open_av(self, av, preset: str, crf: int) -> None:
+        from fractions import Fraction
+
+        self.codec = "h264"
+        self._container = av.open(str(self.path), mode="w", format="mp4",
+                                  options={"movflags": "+faststart"})
+        rate = Fraction(self.fps).limit_denominator(1001)
+        stream = self._container.add_stream("libx264", rate=rate)
+        stream.width, stream.height = self.enc_size
+        stream.pix_fmt = "yuv420p"
+        stream.options = {"preset": preset, "crf": str(crf)}
+        self._stream = stream
+        self._av = av
+
+    def write(self, frame: np.ndarray) -> None:
+        """Append one ``(height, width, 3)`` BGR uint8 frame of the writer's size."""
+        h, w = frame.shape[:2]
+        if (w, h) != self.size or frame.ndim != 3 or frame.dtype != np.uint8:
+            raise ValueError(f"frame must be {self.size[1]}x{self.size[0]}x3 uint8 "
+                             f"(got {frame.shape} {frame.dtype})")
+        if self.enc_size != self.size:
+            frame = cv2.copyMakeBorder(frame, 0, self.enc_size[1] - h, 0, self.enc_size[0] - w,
+                                       cv2.BORDER_REPLICATE)
+        if self._av is not None:
+            vf = self._av.VideoFrame.from_ndarray(frame, format="bgr24")
+            for packet in self._stream.encode(vf):
+                self._container.mux(packet)
+        else:
+            self._cv.write(frame)
+        self.frames += 1
+
+    def close(self) -> None:
+        if self._av is not None:
+            for packet in self._stream.encode():
+                self._container.mux(packet)
+            self._container.close()
+            self._av = None
+        elif self._cv is not None:
+            self._cv.release()
+            self._cv = None
+
+    def __enter__(self) -> VideoWriter:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def auto_speed(duration_s: float) -> float:
+    """Playback speed (simulated s per video s): real time, or faster so the video lasts at
+    most ``MAX_VIDEO_S``; rounded up to 1, 2 or 5 times a power of ten."""
+    need = max(1.0, duration_s / MAX_VIDEO_S)
+    mag = 10 ** math.floor(math.log10(need))
+    for m in (1, 2, 5, 10):
+        if m * mag >= need - 1e-9:
+            return float(m * mag)
+    return float(10 * mag)
+
+
+def frame_times(start_s: float, end_s: float, fps: float, speed: float,
+                max_frames: int | None = None) -> np.ndarray:
+    """Simulated times of the video frames: ``start + k * speed / fps`` up to ``end``."""
+    if fps <= 0 or speed <= 0:
+        raise ValueError(f"fps and speed must be positive (got fps={fps}, speed={speed})")
+    n = int(math.floor((end_s - start_s) * fps / speed + 1e-9)) + 1
+    if max_frames is not None:
+        n = min(n, max_frames)
+    return start_s + np.arange(max(n, 1)) * (speed / fps)
+
+
+def render_video(recording: Recording, path: str | Path, *, fps: float = 30.0,
+                 speed: float | None = None, style: Style | None = None,
+                 start_s: float | None = None, end_s: float | None = None,
+                 max_frames: int | None = None, codec: str = "h264",
+                 preset: str = "superfast") -> dict:
+    """Render ``recording`` to an MP4 at ``fps`` frames per video second, ``speed`` simulated
+    seconds per video second (None: :func:`auto_speed`). Returns what was written."""
+    style = style or Style()
+    start = recording.start_s if start_s is None else max(start_s, recording.start_s)
+    end = recording.end_s if end_s is None else min(end_s, recording.end_s)
+    if speed is None:
+        speed = auto_speed(end - start)
+    times = frame_times(start, end, fps, speed, max_frames)
+    horizon = style.path_ticks if style.show_paths and recording.plans else 0
+    with VideoWriter(path, fps, style.size, codec=codec, preset=preset) as writer:
+        for t in times:
+            writer.write(draw_frame(recording.at(float(t), horizon), style))
+    log.info("wrote %s: %d frames, %s", path, writer.frames, writer.codec)
+    return {"path": str(path), "frames": int(writer.frames), "fps": fps, "speed": speed,
+            "codec": writer.codec, "size": list(style.size), "start_s": float(times[0]),
+            "end_s": float(times[-1])}
+
+
+def write_png(recording: Recording, path: str | Path, tick: float,
+              style: Style | None = None) -> Path:
+    """Write the frame at ``tick`` (``tick * tick_s`` simulated seconds) as a PNG."""
+    style = style or Style()
+    if not 0 <= tick <= recording.end_s / recording.tick_s + 1e-9:
+        raise ValueError(f"tick {tick} is outside the recording (0..{recording.ticks})")
+    horizon = style.path_ticks if style.show_paths and recording.plans else 0
+    img = draw_frame(recording.at(tick * recording.tick_s, horizon), style)
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if not cv2.imwrite(str(out), img):
+        raise OSError(f"{out}: cannot write PNG")
+    return out
+
