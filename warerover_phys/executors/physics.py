@@ -262,6 +262,10 @@ class PhysicsExecutor:
             self.adg.unclaim(i, len(kept))
             committed += kept
             self.stop_s[i] = min(self.stop_s[i], self.cur_end[i] + len(kept) * self.cell_m)
+        # Drop everything after the stop (a new plan comes once it stands there).
+        node = self.adg.cut_node(i)
+        self.adg.set_plan(i, TimedPath(i, self.world.tick, ((node, node),)))
+        self.has_next[i] = self.adg.next_action(i) is not None
         return any(cells.intersection(a.enters) for a in committed)
 
     def _check_corridors(self, pos: np.ndarray, ang: np.ndarray) -> None:

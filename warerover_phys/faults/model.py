@@ -143,7 +143,7 @@ class FaultProcess:
                 continue
             exempt = bool(cells.intersection(occupancy(agv.pos, agv.k, cols)))
             path = res.paths.get(agv.id)
-            if path is not None and agv.state != AgvState.FAILED:
+            if path is not None:
                 # Grid AGVs run ``delay`` ticks behind their plan; physics ones follow the
                 # action graph, which holds what they have left.
                 ahead = list(path.states[max(0, t - agv.delay - path.start_tick):])
@@ -160,9 +160,10 @@ class FaultProcess:
                             keep.append(s)
                         exempt |= any(cells.intersection(occupancy(s, agv.k, cols))
                                       for s in keep)
-                    res.commit(TimedPath(agv.id, t, tuple(keep)), agv.k)
-                    agv.retry_at = t
-                    w.fault_stats["failure_replans"] += 1
+                    if agv.state != AgvState.FAILED:  # a failed one keeps standing
+                        res.commit(TimedPath(agv.id, t, tuple(keep)), agv.k)
+                        agv.retry_at = t
+                        w.fault_stats["failure_replans"] += 1
             if exempt:
                 w.corridor_exempt[corridor.id].add(agv.id)
 
