@@ -397,3 +397,9 @@ def main() -> None:
     except KeyboardInterrupt:
         err_console.print("interrupted")
         sys.exit(130)
+
+
+# `warerover sweep` and `warerover report` live in warerover_phys/sweep/cli.py.
+from .sweep.cli import register as _register_sweep  # noqa: E402
+
+_register_sweep(app)

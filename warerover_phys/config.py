@@ -14,11 +14,20 @@ from __future__ import annotations
 
 import copy
 import math
+import re
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from .errors import ScenarioError
 
@@ -34,6 +43,28 @@ PosInt = Annotated[int, Field(ge=1)]
 NonNegInt = Annotated[int, Field(ge=0)]
 PosFloat = Annotated[float, Field(gt=0)]
 Prob = Annotated[float, Field(ge=0.0, le=1.0)]
+
+
+PLUGIN_PATH = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*:[A-Za-z_]\w*")
+"""A user class named by import path, ``package.module:ClassName`` (a plugin)."""
+
+
+def _builtin_or_plugin(*builtins: str) -> AfterValidator:
+    """A built-in name, or a plugin class as ``package.module:ClassName`` (imported when the
+    scenario runs, see :func:`warerover_phys.registry.lookup`)."""
+    choices = ", ".join(repr(n) for n in builtins[:-1]) + f" or {builtins[-1]!r}"
+
+    def check(value: str) -> str:
+        if value in builtins or PLUGIN_PATH.fullmatch(value):
+            return value
+        raise ValueError(f"Input should be {choices}, or a plugin class as "
+                         "'package.module:ClassName'")
+
+    return AfterValidator(check)
+
+
+SchedulerName = Annotated[str, _builtin_or_plugin("rd", "ta")]
+PlannerName = Annotated[str, _builtin_or_plugin("astar", "cbs", "pibt", "lacam")]
 
 
 class _Model(BaseModel):
@@ -264,7 +295,8 @@ class TasksSpec(_Model):
 
 
 class SchedulerSpec(_Model):
-    name: Literal["rd", "ta"] = "ta"
+    name: SchedulerName = "ta"
+    """``rd``, ``ta``, or a plugin class ``package.module:ClassName``."""
     max_orders_per_trip: PosInt = 4
     """Orders one shelf trip may serve (TA batches orders of the shelf's SKUs)."""
     candidate_shelves: PosInt = 3
@@ -272,7 +304,8 @@ class SchedulerSpec(_Model):
 
 
 class PlannerSpec(_Model):
-    name: Literal["astar", "cbs", "pibt", "lacam"] = "astar"
+    name: PlannerName = "astar"
+    """``astar``, ``cbs``, ``pibt``, ``lacam``, or a plugin class ``package.module:ClassName``."""
     replan_blocked_ticks: PosInt = 3
     """Replan an AGV that could not follow its plan for this many ticks."""
     max_expansions: PosInt = 50_000

@@ -1,0 +1,344 @@
+"""Run every episode of a sweep once: a local process pool, or Ray.
+
+The parent process alone writes the results file; workers run one episode per task and
+return its row. An episode that raises becomes a ``status: failed`` row with its error and
+traceback; a worker process that dies (segfault, out of memory) is retried alone once, and
+recorded as failed if it dies alone too. Re-running the same sweep into the same folder runs
+only the episodes without a row.
+
+>>> from warerover_phys.sweep import load_sweep, run_sweep  # doctest: +SKIP
+>>> run_sweep(load_sweep("tools/reproduce_table1.yaml"), "runs/table1", workers=2)  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import logging
+import multiprocessing as mp
+import os
+import signal
+import socket
+import sys
+import threading
+import time
+import traceback
+from collections import deque
+from collections.abc import Callable, Iterable
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..config import Scenario
+from ..errors import WareroverError
+from .results import RESULTS_NAME, ResultsFile
+from .spec import Episode, SweepSpec, compile_scenarios, expand
+
+__all__ = ["Task", "SweepSummary", "run_task", "run_sweep", "plan_sweep", "SPEC_NAME"]
+
+log = logging.getLogger(__name__)
+
+SPEC_NAME = "sweep.json"
+"""The sweep's spec as last run, kept next to the results (the report reads it)."""
+
+
+@dataclass(frozen=True)
+class Task:
+    """What a worker needs to run one episode (picklable, no files needed)."""
+
+    key: str
+    label: str
+    file: str
+    overrides: tuple[tuple[str, Any], ...]
+    variant: tuple[tuple[str, Any], ...]
+    seed: int
+    scenario: Scenario
+    sys_path: tuple[str, ...] = ()
+
+
+@dataclass
+class SweepSummary:
+    total: int
+    """Episodes in the sweep."""
+    done_before: int
+    """Episodes that already had a row when this run started."""
+    ran: int = 0
+    failed: int = 0
+    """Episodes of this run recorded as failed."""
+    failed_total: int = 0
+    """Failed rows of the sweep in the results file after this run."""
+    wall_s: float = 0.0
+    out_dir: Path = field(default_factory=Path)
+
+    @property
+    def results(self) -> Path:
+        return self.out_dir / RESULTS_NAME
+
+
+def _now() -> str:
+    return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+
+
+def _row(task: Task, status: str, **extra: Any) -> dict[str, Any]:
+    sc = task.scenario
+    return {"key": task.key, "scenario": task.label, "file": task.file,
+            "overrides": dict(task.overrides), "variant": dict(task.variant), "seed": task.seed,
+            "scheduler": sc.scheduler.name, "planner": sc.planner.name,
+            "executor": sc.executor.name, "pattern": sc.orders.pattern, "status": status,
+            "metrics": None, "error": None, "traceback": None, "host": socket.gethostname(),
+            "pid": os.getpid(), "finished": _now(), **extra}
+
+
+def failed_row(task: Task, error: str, tb: str | None = None) -> dict[str, Any]:
+    """The row of an episode that did not finish."""
+    return _row(task, "failed", error=error, traceback=tb)
+
+
+def run_task(task: Task) -> dict[str, Any]:
+    """Run one episode; never raises for an error of the episode (it becomes the row)."""
+    from ..sim import run_episode
+
+    for extra in reversed(task.sys_path):
+        if extra not in sys.path:
+            sys.path.insert(0, extra)
+    t0 = time.perf_counter()
+    try:
+        metrics = run_episode(task.scenario, seed=task.seed).metrics
+    except Exception as err:  # noqa: BLE001 - every episode error is recorded, not raised
+        tb = "".join(traceback.format_exception(err)[-12:])
+        return {**failed_row(task, f"{type(err).__name__}: {err}", tb),
+                "elapsed_s": time.perf_counter() - t0}
+    return {**_row(task, "ok", metrics=metrics), "elapsed_s": time.perf_counter() - t0}
+
+
+# ------------------------------------------------------------------------------- planning
+
+
+def plan_sweep(spec: SweepSpec, out_dir: str | Path, *, retry_failed: bool = False,
+               ) -> tuple[list[Task], SweepSummary, ResultsFile]:
+    """Validate the sweep, read what ``out_dir`` holds, and return the tasks still to run."""
+    out_dir = Path(out_dir)
+    episodes = expand(spec)
+    results = ResultsFile(out_dir / RESULTS_NAME)
+    rows = results.load()
+    keys = {ep.key for ep in episodes}
+    if len(keys) != len(episodes):
+        raise WareroverError(f"{spec.source}: two episodes of the sweep have the same key")
+    if retry_failed:
+        retry = {k for k, r in rows.items() if k in keys and r.get("status") != "ok"}
+        if retry:
+            results.rewrite([r for k, r in rows.items() if k not in retry])
+            rows = {k: r for k, r in rows.items() if k not in retry}
+    todo = [ep for ep in episodes if ep.key not in rows]
+    scenarios = compile_scenarios(spec, todo)
+    paths = spec.plugin_paths()
+    tasks = [_task(spec, ep, scenarios[ep.combo], paths) for ep in todo]
+    summary = SweepSummary(total=len(episodes), done_before=len(episodes) - len(todo),
+                           failed_total=sum(1 for k, r in rows.items()
+                                            if k in keys and r.get("status") != "ok"),
+                           out_dir=out_dir)
+    return tasks, summary, results
+
+
+def _task(spec: SweepSpec, ep: Episode, scenario: Scenario, paths: tuple[str, ...]) -> Task:
+    return Task(key=ep.key, label=ep.label, file=spec.scenarios[ep.label].file,
+                overrides=ep.overrides, variant=ep.variant, seed=ep.seed, scenario=scenario,
+                sys_path=paths)
+
+
+def _write_spec(spec: SweepSpec, out_dir: Path) -> None:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    data = {**spec.model_dump(mode="json"), "source": spec.source}
+    tmp = out_dir / (SPEC_NAME + ".tmp")
+    tmp.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+    os.replace(tmp, out_dir / SPEC_NAME)
+
+
+def run_sweep(spec: SweepSpec, out_dir: str | Path, *, workers: int | None = None,
+              ray_address: str | None = None, retry_failed: bool = False,
+              on_start: Callable[[SweepSummary, int], None] | None = None,
+              on_row: Callable[[dict[str, Any]], None] | None = None) -> SweepSummary:
+    """Run the episodes of ``spec`` that ``out_dir`` has no row for.
+
+    ``workers``: local processes (default: CPU count); ``ray_address``: run on Ray instead
+    (``auto``, ``local`` or a cluster address; a Ray already initialised in this process is
+    used as it is). ``on_start(summary, to_run)`` and ``on_row(row)`` drive a progress display.
+    Raises :class:`KeyboardInterrupt` through (what finished is on disk).
+    """
+    t0 = time.perf_counter()
+    tasks, summary, results = plan_sweep(spec, out_dir, retry_failed=retry_failed)
+    _write_spec(spec, summary.out_dir)
+    if on_start is not None:
+        on_start(summary, len(tasks))
+    workers = max(1, workers or os.cpu_count() or 1)
+
+    def sink(row: dict[str, Any]) -> None:
+        results.append(row)
+        summary.ran += 1
+        if row["status"] != "ok":
+            summary.failed += 1
+            summary.failed_total += 1
+        if on_row is not None:
+            on_row(row)
+
+    results.open_for_append()
+    try:
+        if tasks:
+            if ray_address is not None:
+                _run_ray(tasks, ray_address, workers, sink)
+            else:
+                _run_pool(tasks, workers, sink)
+    finally:
+        results.close()
+        summary.wall_s = time.perf_counter() - t0
+    return summary
+
+
+# ------------------------------------------------------------------------------- process pool
+
+
+def _worker_init(parent: int) -> None:
+    """In each pool worker: leave Ctrl-C to the parent, and exit when the parent is gone
+    (a SIGKILL-ed sweep must not leave workers behind)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    def watch() -> None:
+        while True:
+            time.sleep(0.5)
+            if os.getppid() != parent:
+                os._exit(3)
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
+
+
+def _new_pool(workers: int) -> ProcessPoolExecutor:
+    return ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
+                               initializer=_worker_init, initargs=(os.getpid(),))
+
+
+def _kill_pool(pool: ProcessPoolExecutor) -> None:
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in procs:
+        if proc.is_alive():
+            proc.kill()
+    for proc in procs:
+        proc.join(timeout=5)
+
+
+def _run_pool(tasks: Iterable[Task], workers: int,
+              sink: Callable[[dict[str, Any]], None]) -> None:
+    """Keep ``2 x workers`` tasks in flight. When a worker dies, the pool is rebuilt and the
+    tasks it held run again one at a time; one that kills its worker alone is failed."""
+    pending = deque(tasks)
+    suspects: deque[Task] = deque()
+    inflight: dict[Future, tuple[Task, bool]] = {}
+    pool = _new_pool(workers)
+    try:
+        while pending or suspects or inflight:
+            broken = False
+            while not broken:
+                if suspects:
+                    if inflight:
+                        break
+                    task, alone = suspects.popleft(), True
+                elif pending and len(inflight) < 2 * workers:
+                    task, alone = pending.popleft(), False
+                else:
+                    break
+                try:
+                    inflight[pool.submit(run_task, task)] = (task, alone)
+                except BrokenProcessPool:
+                    (suspects if alone else pending).appendleft(task)
+                    broken = True
+                if alone:
+                    break
+            if not broken:
+                done, _ = wait(list(inflight), return_when=FIRST_COMPLETED)
+                for fut in done:
+                    task, alone = inflight.pop(fut)
+                    err = fut.exception()
+                    if err is None:
+                        sink(fut.result())
+                    elif isinstance(err, BrokenProcessPool):
+                        broken = True
+                        _dead_worker(task, alone, suspects, sink)
+                    elif isinstance(err, KeyboardInterrupt):
+                        raise KeyboardInterrupt
+                    else:
+                        sink(failed_row(task, f"{type(err).__name__}: {err}"))
+            if broken:
+                for fut, (task, alone) in list(inflight.items()):
+                    if fut.done() and fut.exception() is None:
+                        sink(fut.result())
+                    else:
+                        _dead_worker(task, alone, suspects, sink)
+                inflight.clear()
+                _kill_pool(pool)
+                log.warning("a worker process died; restarting the pool")
+                pool = _new_pool(workers)
+    finally:
+        _kill_pool(pool)
+
+
+def _dead_worker(task: Task, alone: bool, suspects: deque[Task],
+                 sink: Callable[[dict[str, Any]], None]) -> None:
+    if alone:
+        sink(failed_row(task, "worker process died while running this episode (alone)"))
+    else:
+        suspects.append(task)
+
+
+# ------------------------------------------------------------------------------- Ray
+
+
+def _import_ray() -> Any:
+    try:
+        import ray
+    except ImportError:
+        raise WareroverError("--ray: Ray is not installed (pip install "
+                             "'warerover-phys[ray]')") from None
+    return ray
+
+
+def _run_ray(tasks: Iterable[Task], address: str, workers: int,
+             sink: Callable[[dict[str, Any]], None]) -> None:
+    """Run the tasks as Ray tasks (1 CPU each), ``2 x cluster CPUs`` in flight."""
+    ray = _import_ray()
+    started = False
+    if not ray.is_initialized():
+        try:
+            if address == "local":
+                ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+            else:
+                ray.init(address=address, log_to_driver=False)
+        except (ConnectionError, RuntimeError, ValueError) as err:
+            first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+            raise WareroverError(f"--ray {address}: cannot connect to a Ray cluster ({first}); "
+                                 "start one with `ray start --head` or use --ray local") from None
+        started = True
+    remote = ray.remote(num_cpus=1, max_retries=1)(run_task)
+    capacity = max(2, 2 * int(ray.cluster_resources().get("CPU", workers)))
+    pending = deque(tasks)
+    inflight: dict[Any, Task] = {}
+    try:
+        while pending or inflight:
+            while pending and len(inflight) < capacity:
+                task = pending.popleft()
+                inflight[remote.remote(task)] = task
+            ready, _ = ray.wait(list(inflight), num_returns=1)
+            for ref in ready:
+                task = inflight.pop(ref)
+                try:
+                    row = ray.get(ref)
+                except ray.exceptions.RayError as err:
+                    first = str(err).strip().splitlines()[0] if str(err).strip() else ""
+                    row = failed_row(task, f"ray: {type(err).__name__}: {first}")
+                sink(row)
+    finally:
+        for ref in inflight:
+            ray.cancel(ref, force=True)
+        if started:
+            ray.shutdown()
