@@ -59,6 +59,18 @@ def _overrides(sets: list[str] | None, seed: int | None, scheduler: str | None,
     return out
 
 
+def _scenario(path: Path, sets: list[str] | None, seed: int | None, scheduler: str | None,
+              planner: str | None, executor: str | None, orders: str | None):
+    """Load ``path`` with the command line's overrides (errors name the file)."""
+    from .config import load_scenario
+
+    try:
+        overrides = _overrides(sets, seed, scheduler, planner, executor, orders)
+    except WareroverError as err:
+        raise (err.with_file(str(path)) if hasattr(err, "with_file") else err) from None
+    return load_scenario(path, overrides)
+
+
 def _load(scenario: Path, overrides: list[tuple[str, Any]]):
     from .config import load_scenario
     from .world import World
@@ -88,13 +100,7 @@ def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
 
     try:
         style = _video_style(size, fps, speed, None) if video is not None else None
-        try:
-            overrides = _overrides(set_, seed, scheduler, planner, executor, orders)
-        except WareroverError as err:
-            raise (err.with_file(str(scenario)) if hasattr(err, "with_file") else err) from None
-        from .config import load_scenario
-
-        sc = load_scenario(scenario, overrides)
+        sc = _scenario(scenario, set_, seed, scheduler, planner, executor, orders)
         sim = Simulation(sc)
         out_dir = out or Path("runs") / f"{sc.name}-seed{sc.seed}"
         show = not quiet and not json_out and err_console.is_terminal
@@ -256,13 +262,7 @@ def gap(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
     from .gap import gap_report
 
     try:
-        try:
-            overrides = _overrides(set_, seed, scheduler, planner, None, orders)
-        except WareroverError as err:
-            raise (err.with_file(str(scenario)) if hasattr(err, "with_file") else err) from None
-        from .config import load_scenario
-
-        sc = load_scenario(scenario, overrides)
+        sc = _scenario(scenario, set_, seed, scheduler, planner, None, orders)
         report = gap_report(sc)
         path = out or Path("runs") / f"{sc.name}-seed{sc.seed}-gap.json"
         path.parent.mkdir(parents=True, exist_ok=True)
