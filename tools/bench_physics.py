@@ -29,10 +29,12 @@ from warerover_phys import load_scenario
 from warerover_phys.sim import Simulation
 
 
-def bench(n: int, ticks: int, dt: float, planner: str) -> dict:
-    sc = load_scenario("layouts/industrial.yaml", [
-        ("fleet.agvs.0.count", n), ("executor.name", "physics"), ("executor.dt_s", dt),
-        ("planner.name", planner), ("max_ticks", ticks)])
+def bench(n: int, ticks: int, dt: float, planner: str, batch: int | None = None) -> dict:
+    overrides = [("fleet.agvs.0.count", n), ("executor.name", "physics"), ("executor.dt_s", dt),
+                 ("planner.name", planner), ("max_ticks", ticks)]
+    if batch is not None:
+        overrides.append(("orders.constant.batch", batch))
+    sc = load_scenario("layouts/industrial.yaml", overrides)
     sim = Simulation(sc, seed=0)
     t0 = time.perf_counter()
     while not sim.done:
@@ -59,6 +61,9 @@ def main() -> None:
     ap.add_argument("--ticks", type=int, default=200)
     ap.add_argument("--dt", type=float, nargs="+", default=[0.02, 0.05])
     ap.add_argument("--planner", default="pibt")
+    ap.add_argument("--batch", type=int, default=None,
+                    help="orders per 10-tick batch (default: the scenario's 20); more orders "
+                         "keep more of the fleet moving")
     ap.add_argument("--out", default="tools/out/bench_physics.json")
     args = ap.parse_args()
     rows = []
@@ -68,7 +73,7 @@ def main() -> None:
           flush=True)
     for n in args.agvs:
         for dt in args.dt:
-            r = bench(n, args.ticks, dt, args.planner)
+            r = bench(n, args.ticks, dt, args.planner, args.batch)
             rows.append(r)
             print(f"{r['agvs']:>5} {r['dt_s']:>5.2f} {r['ticks']:>5} {r['rtf_executor']:>8.1f}x "
                   f"{r['rtf_loop']:>8.1f}x {r['physics_steps_per_s']:>8.0f} {r['moving_share']:>6.0%} "
