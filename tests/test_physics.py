@@ -271,3 +271,12 @@ def test_run_on_physics_writes_trajectories_and_gap_report(tmp_path):
     assert report["makespan_ratio"] > 1.0  # physics is slower than the ideal grid
     saved = json.loads((tmp_path / "gap.json").read_text())
     assert saved["physics"]["ticks"] == report["makespan_physics_ticks"]
+
+
+@pytest.mark.parametrize("path", sorted(str(p) for p in __import__("pathlib").Path(
+    "layouts").glob("*.yaml")))
+def test_every_shipped_scenario_runs_on_physics(path):
+    sc = load_scenario(path, [("executor.name", "physics"), ("max_ticks", 15)])
+    m = run_episode(sc, seed=0).metrics
+    assert m["ticks"] == 15 and m["agv_contacts"] == 0 and m["static_contacts"] == 0
+    assert m["actions_executed"] > 0
