@@ -141,6 +141,7 @@ class World:
     """Every corridor of the episode: id, AGV, open / close tick, polygon and protected zone
     (exterior rings in metres) and cells, for outputs and rendering."""
     delayed_orders: set[int] = field(default_factory=set)
+    _pending: set[int] = field(default_factory=set, repr=False)
     """Orders that were held by an AGV when it failed."""
 
     # ------------------------------------------------------------------------- building
@@ -180,7 +181,8 @@ class World:
         return cell[0] * self.layout.cols + cell[1]
 
     def pending_orders(self) -> list[Order]:
-        return [self.orders[i] for i, s in self.status.items() if s == OrderStatus.PENDING]
+        """Pending orders, by id."""
+        return [self.orders[i] for i in sorted(self._pending)]
 
     def idle_agvs(self) -> list[Agv]:
         return [a for a in self.agvs if a.state == AgvState.IDLE]
@@ -212,10 +214,15 @@ class World:
         return mask
 
     def station_anchor(self, station: int, k: int) -> int:
-        graph = self.graphs.get(k, True)
-        anchor = graph.goal_anchor(self.layout.stations[station])
-        assert anchor is not None, "checked at load"
-        return self.node(anchor)
+        """Anchor a loaded ``k x k`` AGV uses at ``station`` (depends on the layout only:
+        closed corridor cells do not change which anchors are valid)."""
+        cache = self.__dict__.setdefault("_station_anchor", {})
+        node = cache.get((station, k))
+        if node is None:
+            anchor = self.graphs.get(k, True).goal_anchor(self.layout.stations[station])
+            assert anchor is not None, "checked at load"
+            node = cache[(station, k)] = self.node(anchor)
+        return node
 
     def goal_of(self, agv: Agv) -> int | None:
         """Anchor node the AGV should drive to now (None while it works in place)."""
@@ -231,7 +238,19 @@ class World:
         return None
 
     def trip_distance(self, agv: Agv, shelf: int, stations: list[int]) -> int:
-        """True path length of a trip: to the shelf unloaded, then loaded to each station."""
+        """True path length of a trip: to the shelf unloaded, then loaded to each station
+        (cached per motion-graph set: corridors opening or closing start a new cache)."""
+        graphs, cache = self.__dict__.get("_trip_cache", (None, None))
+        if graphs is not self.graphs or len(cache) > 200_000:
+            cache = {}
+            self.__dict__["_trip_cache"] = (self.graphs, cache)
+        key = (agv.node, agv.k, shelf, tuple(stations))
+        d = cache.get(key)
+        if d is None:
+            d = cache[key] = self._trip_distance(agv, shelf, stations)
+        return d
+
+    def _trip_distance(self, agv: Agv, shelf: int, stations: list[int]) -> int:
         anchor = self.layout.shelves[shelf].anchor
         d = self.graphs.get(agv.k, False).distance(self.cell(agv.node), anchor)
         loaded = self.graphs.get(agv.k, True, shelf)
@@ -249,13 +268,21 @@ class World:
 
     # ------------------------------------------------------------------------- changes
 
+    def _set_status(self, order_id: int, status: OrderStatus) -> None:
+        """The one place order statuses change (keeps the pending set in step)."""
+        self.status[order_id] = status
+        if status == OrderStatus.PENDING:
+            self._pending.add(order_id)
+        else:
+            self._pending.discard(order_id)
+
     def log(self, event: str, **fields) -> None:
         self.events.append({"tick": self.tick, "event": event, **fields})
 
     def add_orders(self, orders: list[Order]) -> None:
         for order in orders:
             self.orders[order.id] = order
-            self.status[order.id] = OrderStatus.PENDING
+            self._set_status(order.id, OrderStatus.PENDING)
             self.log("order_created", order=order.id, sku=order.sku, station=order.station,
                      size=order.size)
 
@@ -278,7 +305,7 @@ class World:
         self.trips[trip.id] = trip
         self.shelf_busy[shelf] = trip.id
         for oid in order_ids:
-            self.status[oid] = OrderStatus.ASSIGNED
+            self._set_status(oid, OrderStatus.ASSIGNED)
             self.log("order_assigned", order=oid, agv=agv_id, trip=trip.id, shelf=shelf)
         agv.trip = trip
         agv.state = AgvState.TO_SHELF
@@ -330,7 +357,7 @@ class World:
             if not agv.loaded and agv.resume_state == AgvState.TO_SHELF and \
                     self.scenario.faults.orders_of_failed == "reassign":
                 for oid in trip.orders:
-                    self.status[oid] = OrderStatus.PENDING
+                    self._set_status(oid, OrderStatus.PENDING)
                     released.append(oid)
                 del self.shelf_busy[trip.shelf]
                 agv.trip = None
@@ -370,14 +397,14 @@ class World:
         if agv.state == AgvState.PICKING:
             agv.loaded = True
             for oid in trip.orders:
-                self.status[oid] = OrderStatus.IN_PROGRESS
+                self._set_status(oid, OrderStatus.IN_PROGRESS)
             self.log("shelf_picked", agv=agv.id, trip=trip.id, shelf=trip.shelf)
             agv.state = AgvState.TO_STATION
         elif agv.state == AgvState.HANDOVER:
             station = trip.stops[trip.stop_idx]
             for oid in trip.orders:
                 if self.orders[oid].station == station:
-                    self.status[oid] = OrderStatus.COMPLETED
+                    self._set_status(oid, OrderStatus.COMPLETED)
                     self.completed_tick[oid] = self.tick
                     self.log("order_completed", order=oid, agv=agv.id, station=station,
                              latency=self.tick - self.orders[oid].tick)

@@ -36,7 +36,7 @@ class TaskAssignment:
         if not pending or not idle:
             return []
         groups: dict[int, list[Order]] = {}
-        for order in sorted(pending, key=lambda o: o.id):
+        for order in pending:  # by id
             groups.setdefault(order.sku, []).append(order)
         skus = sorted(groups)
         cap = self.spec.max_orders_per_trip
@@ -64,7 +64,7 @@ class TaskAssignment:
             if not orders:
                 continue
             on_shelf = set(world.layout.shelves[shelf].skus)
-            for order in sorted(pending, key=lambda o: o.id):
+            for order in pending:  # by id
                 if len(orders) >= cap:
                     break
                 if order.sku in on_shelf and order.id not in taken_orders \
