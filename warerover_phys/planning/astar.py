@@ -81,7 +81,7 @@ def space_time_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequ
             continue
         closed.add((node, t))
         if node == goal and t >= t_free:
-            return _reconstruct(parent, node, t, me, m), expansions
+            return _reconstruct(parent, node, t, me), expansions
         expansions += 1
         if expansions > max_expansions or t >= t_limit:
             if expansions > max_expansions:
@@ -164,7 +164,9 @@ def _swaps(res: ReservationTable, here: tuple[int, ...], there: tuple[int, ...],
     return False
 
 
-def _reconstruct(parent: dict, node: int, t: int, agv: int, m: int) -> TimedPath:
+def _reconstruct(parent: dict, node: int, t: int, agv: int) -> TimedPath:
+    """The timed path ending at ``(node, t)`` from a search's parent links (shared by the
+    A* of :mod:`cbs`); a move that took several ticks fills them with ``(a, b)`` states."""
     chain: list[tuple[int, int]] = []
     key: tuple[int, int] | None = (node, t)
     while key is not None:

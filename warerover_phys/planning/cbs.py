@@ -67,7 +67,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
-from .astar import AStarPlanner, goal_held, nearest_free_anchor
+from .astar import AStarPlanner, _reconstruct, _swaps, goal_held, nearest_free_anchor
 from .base import (
     AgentRequest,
     PlanRequest,
@@ -271,33 +271,6 @@ def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentReq
                 extra = 0
             push(nxt, t_arr, conf + extra + hits(there, t_arr), hn, key)
     return None, expansions
-
-
-def _swaps(res: ReservationTable, here: tuple[int, ...], there: tuple[int, ...], t: int,
-           me: int) -> bool:
-    """True if a fixed AGV now in ``there`` moves into ``here`` during the same tick."""
-    for c in there:
-        other = res.owner(c, t)
-        if other is not None and other != me:
-            for c2 in here:
-                if res.owner(c2, t + 1) == other:
-                    return True
-    return False
-
-
-def _reconstruct(parent: dict, node: int, t: int, agv: int) -> TimedPath:
-    chain: list[tuple[int, int]] = []
-    key: tuple[int, int] | None = (node, t)
-    while key is not None:
-        chain.append(key)
-        key = parent[key]
-    chain.reverse()
-    states: list[State] = [(chain[0][0], chain[0][0])]
-    for (a, ta), (b, tb) in zip(chain, chain[1:], strict=False):
-        for _ in range(tb - ta - 1):
-            states.append((a, b))
-        states.append((b, b))
-    return TimedPath(agv=agv, start_tick=chain[0][1], states=tuple(states))
 
 
 # ----------------------------------------------------------------------------- conflicts
