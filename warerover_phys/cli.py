@@ -19,13 +19,14 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from .console import err_console
+from .console import fail as _fail
 from .errors import WareroverError
 
 __all__ = ["app", "main"]
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="warerover-phys: closed-loop robotic warehouse simulator.")
-err_console = Console(stderr=True)
 
 SetOpt = Annotated[list[str] | None, typer.Option(
     "--set", help="Override any scenario field: --set orders.pattern=burst (repeatable).")]
@@ -40,11 +41,6 @@ SpeedOpt = Annotated[float | None, typer.Option(
     help="Playback speed, simulated s per video s (default: real time, or faster to keep "
          "the video under a minute).")]
 SizeOpt = Annotated[str, typer.Option(help="Frame size: 720p | 1080p | WxH.")]
-
-
-def _fail(err: Exception) -> None:
-    err_console.print(f"[bold red]error:[/] {err}", highlight=False, soft_wrap=True)
-    raise typer.Exit(2)
 
 
 def _overrides(sets: list[str] | None, seed: int | None, scheduler: str | None,

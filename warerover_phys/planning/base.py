@@ -9,55 +9,16 @@ last state the AGV stays where it is.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import lru_cache
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from .graph import GraphSet
+from .paths import State, TimedPath, footprint_nodes, occupancy
 from .reservation import ReservationTable
 
 __all__ = ["State", "TimedPath", "AgentRequest", "PlanRequest", "PlanResult", "Planner",
            "footprint_nodes", "occupancy"]
-
-State = tuple[int, int]
-
-
-@lru_cache(maxsize=1 << 16)
-def footprint_nodes(anchor: int, k: int, cols: int) -> tuple[int, ...]:
-    """Flat cell indices covered by a ``k x k`` AGV anchored at node ``anchor``."""
-    if k == 1:
-        return (anchor,)
-    return tuple(anchor + i * cols + j for i in range(k) for j in range(k))
-
-
-def occupancy(state: State, k: int, cols: int) -> tuple[int, ...]:
-    """Cells a state covers: the footprint, or both footprints while moving."""
-    a, b = state
-    if a == b:
-        return footprint_nodes(a, k, cols)
-    return tuple(dict.fromkeys(footprint_nodes(a, k, cols) + footprint_nodes(b, k, cols)))
-
-
-@dataclass(frozen=True, slots=True)
-class TimedPath:
-    agv: int
-    start_tick: int
-    states: tuple[State, ...]
-
-    @property
-    def end_tick(self) -> int:
-        return self.start_tick + len(self.states) - 1
-
-    def state_at(self, tick: int) -> State:
-        i = tick - self.start_tick
-        if i < 0:
-            return self.states[0]
-        return self.states[min(i, len(self.states) - 1)]
-
-    @property
-    def goal(self) -> int:
-        return self.states[-1][1]
 
 
 @dataclass(frozen=True, slots=True)

@@ -2,10 +2,7 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from .base import TimedPath
+from .paths import TimedPath, occupancy
 
 __all__ = ["ReservationTable", "FOREVER"]
 
@@ -34,8 +31,6 @@ class ReservationTable:
         Returns how many (cell, tick) entries already belonged to another AGV: 0 for a
         conflict-free plan.
         """
-        from .base import occupancy
-
         self.release(path.agv)
         agv, occ, clashes = path.agv, self._occ, 0
         keys: list[tuple[int, int]] = []
@@ -61,6 +56,19 @@ class ReservationTable:
         self.paths[agv] = path
         self.sizes[agv] = k
         return clashes
+
+    def copy(self) -> ReservationTable:
+        """An independent copy: what a planner gets to work in (the loop commits the paths
+        the planner returns into the world's own table)."""
+        new = ReservationTable.__new__(ReservationTable)
+        new.cols = self.cols
+        new._occ = {cell: dict(slot) for cell, slot in self._occ.items()}
+        new._rest = dict(self._rest)
+        new._keys = {agv: list(keys) for agv, keys in self._keys.items()}
+        new._rest_keys = dict(self._rest_keys)
+        new.paths = dict(self.paths)
+        new.sizes = dict(self.sizes)
+        return new
 
     def release(self, agv: int) -> None:
         """Forget the committed path of ``agv`` (if any)."""

@@ -92,8 +92,9 @@ def sweep(sweep_file: Annotated[Path, typer.Argument(metavar="SWEEP.yaml",
     """Run every episode of a sweep once, in parallel; resumable (results in OUT/results.jsonl)."""
     import os
 
-    from ..cli import _fail, err_console
     from ..config import parse_override
+    from ..console import err_console
+    from ..console import fail as _fail
     from ..errors import WareroverError
     from .runner import run_sweep
     from .spec import load_sweep, narrow
@@ -140,7 +141,8 @@ def report(out_dir: Annotated[Path, typer.Argument(metavar="DIR",
 
     Rows are environment x method (scheduler + planner), pooled over order patterns and per
     pattern."""
-    from ..cli import _fail, err_console
+    from ..console import err_console
+    from ..console import fail as _fail
     from ..errors import WareroverError
     from .report import write_report
 
