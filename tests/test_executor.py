@@ -5,6 +5,7 @@ from __future__ import annotations
 from warerover_phys import scenario_from_dict
 from warerover_phys.executors import GridExecutor
 from warerover_phys.planning import TimedPath
+from warerover_phys.sim import executor_setup, step_executor
 from warerover_phys.validate import validate_states
 from warerover_phys.world import World
 
@@ -26,10 +27,11 @@ def force(w: World, agv: int, cells: list[tuple[int, int]]) -> None:
 
 def run(w: World, ticks: int) -> tuple[int, int, dict]:
     ex = GridExecutor()
+    ex.bind(executor_setup(w))
     blocked = collisions = 0
     actual = {a.id: [a.pos] for a in w.agvs}
     for _ in range(ticks):
-        report = ex.step(w)
+        report = step_executor(w, ex)
         w.tick += 1
         blocked += len(report.blocked)
         collisions += report.collisions

@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from warerover_phys import load_scenario, scenario_from_dict
 from warerover_phys.errors import ScenarioError
 from warerover_phys.planning.base import TimedPath, occupancy
-from warerover_phys.sim import Simulation, run_episode
+from warerover_phys.sim import Simulation, run_episode, step_executor
 from warerover_phys.world import AgvState, OrderStatus
 
 FAULT = "layouts/paper_fault.yaml"
@@ -131,7 +131,7 @@ def test_driving_into_an_open_corridor_is_reported(executor):
     w.reservations.commit(TimedPath(1, w.tick, tuple((n, n) for n in route)), 1)
     w.agvs[1].retry_at = 10**9  # keep the planner away from it
     for _ in range(len(route) + 3):
-        sim.executor.step(w)
+        step_executor(w, sim.executor)
         w.tick += 1
         if executor == "grid":
             sim._grid_intrusions()

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from warerover_phys import load_scenario, scenario_from_dict
 from warerover_phys.executors.physics import PhysicsExecutor
 from warerover_phys.planning import TimedPath
-from warerover_phys.sim import run_episode
+from warerover_phys.sim import executor_setup, run_episode, step_executor
 from warerover_phys.world import World
 
 CORRIDOR = ["P...........R",
@@ -39,7 +39,7 @@ def drive_until_done(w: World, ex: PhysicsExecutor, agv: int, max_ticks: int = 6
     """Step until the AGV has no action left and stands still; return the simulated time at
     which its last action finished."""
     for _ in range(max_ticks):
-        ex.step(w)
+        step_executor(w, ex)
         w.tick += 1
         if ex.adg.done(agv) and ex.mode[agv] == 0:
             return ex.last_finish[agv]
@@ -60,6 +60,7 @@ def test_straight_ten_cells_matches_the_trapezoidal_profile(v, a):
     # Down the parking column first would turn; go right along row 0.
     force(w, 0, [(0, c) for c in range(0, 11)])
     ex = PhysicsExecutor(w.scenario.executor)
+    ex.bind(executor_setup(w))
     t = drive_until_done(w, ex, 0)
     expected = trapezoid_time(10.0, v, a)
     assert abs(t - expected) / expected < 0.02, (t, expected)
@@ -74,6 +75,7 @@ def test_a_ninety_degree_turn_takes_angle_over_turn_rate():
     w = world(max_turn_rate_radps=1.2)
     force(w, 0, [(0, 0), (1, 0)])  # heading 0 (+x) -> moving down (+y): a 90 degree turn
     ex = PhysicsExecutor(w.scenario.executor)
+    ex.bind(executor_setup(w))
     drive_until_done(w, ex, 0)
     expected = (math.pi / 2) / 1.2
     turn = ex.summary()["delay_turns_s"]
@@ -85,6 +87,7 @@ def test_omnidirectional_agvs_do_not_turn():
     w = world(drive="omni")
     force(w, 0, [(0, 0), (1, 0), (1, 1)])
     ex = PhysicsExecutor(w.scenario.executor)
+    ex.bind(executor_setup(w))
     drive_until_done(w, ex, 0)
     assert ex.summary()["delay_turns_s"] == 0.0
     assert abs(ex.fleet.bodies[0].angle) < 0.02
@@ -98,9 +101,10 @@ def test_speed_and_acceleration_limits_hold():
     w = world(max_speed_mps=1.0, max_accel_mps2=0.5)
     force(w, 0, [(0, c) for c in range(0, 9)])
     ex = PhysicsExecutor(w.scenario.executor)
+    ex.bind(executor_setup(w))
     speeds = []
     for _ in range(30):
-        ex.step(w)
+        step_executor(w, ex)
         w.tick += 1
         speeds.append(ex.fleet.bodies[0].velocity.length)
     assert max(speeds) <= 1.0 * 1.02
@@ -120,11 +124,12 @@ def test_follower_waits_for_the_leader_through_the_adg():
     force(w, 0, [(0, c) for c in range(0, 8)])
     force(w, 1, [(1, 0), (0, 0)] + [(0, c) for c in range(1, 7)], tick=0)
     ex = PhysicsExecutor(w.scenario.executor)
-    ex.step(w)
+    ex.bind(executor_setup(w))
+    step_executor(w, ex)
     w.tick += 1
     ex.delayed_until[0] = ex.sim_s + 5.0  # AGV 0 stops for 5 s
     for _ in range(30):
-        ex.step(w)
+        step_executor(w, ex)
         w.tick += 1
     s = ex.summary()
     assert s["agv_contacts"] == 0

@@ -26,6 +26,7 @@ import yaml
 
 from warerover_phys.config import load_scenario, parse_override, scenario_from_dict
 from warerover_phys.errors import LayoutError, ScenarioError
+from warerover_phys.registry import check_plugins
 from warerover_phys.world import World
 
 REPO = Path(__file__).resolve().parent.parent
@@ -185,7 +186,7 @@ CASES = [
          ("greater than 0", "(got -1.0)"), cli=True),
     Case("seed-not-an-int", tiny(set_(["seed"], "abc")), "seed", ("integer", "'abc'"), cli=True),
     Case("unknown-scheduler", tiny(set_(["scheduler"], "fifo")), "scheduler.name",
-         ("'rd' or 'ta'", "'fifo'"), cli=True),
+         ("unknown scheduler", "['rd', 'ta']", "'fifo'"), cli=True),
     Case("unknown-order-pattern", tiny(set_(["orders", "pattern"], "zigzag")), "orders.pattern",
          ("'zigzag'",), cli=True),
     Case("unknown-agv-type", tiny(set_(["fleet", "agvs", 0, "type"], "big")), "fleet",
@@ -341,10 +342,13 @@ def assert_error_line(line: str, case: Case, path: Path) -> None:
 
 @pytest.mark.parametrize("case", _params([c for c in CASES if c.in_process]))
 def test_bad_scenario_error_in_process(case: Case, tmp_path: Path) -> None:
-    """load_scenario + World.build raise a ScenarioError naming the file and exact field."""
+    """load_scenario + World.build + check_plugins raise a ScenarioError naming the file and
+    exact field."""
     path = case.build(tmp_path, case.id)
     with pytest.raises(ScenarioError) as info:
-        World.build(load_scenario(path, _overrides(case.args)))
+        sc = load_scenario(path, _overrides(case.args))
+        World.build(sc)
+        check_plugins(sc)
     err = info.value
     assert str(err) == err.oneline()
     assert_error_line(str(err), case, path)

@@ -27,6 +27,7 @@ from warerover_phys.cli import app
 from warerover_phys.config import load_scenario
 from warerover_phys.errors import ScenarioError, WareroverError
 from warerover_phys.metrics import TIMING_KEYS
+from warerover_phys.registry import check_plugins
 from warerover_phys.sim import run_episode
 from warerover_phys.sweep import (
     ResultsFile,
@@ -56,6 +57,7 @@ class ReversedAStar:
     """Prioritized A*, planning the AGVs in reverse request order."""
 
     name = "reversed-astar"
+    replans_all = False
 
     def __init__(self, spec):
         self.inner = AStarPlanner(max_expansions=spec.max_expansions)
@@ -69,6 +71,7 @@ class Boom:
     """A planner that raises: its episodes must be recorded as failed."""
 
     name = "boom"
+    replans_all = False
 
     def __init__(self, spec):
         pass
@@ -81,6 +84,7 @@ class Crash:
     """A planner that kills its worker process outright."""
 
     name = "crash"
+    replans_all = False
 
     def __init__(self, spec):
         pass
@@ -172,7 +176,7 @@ BAD = [
     ("plugin-missing-class", {"grid": {"planner.name": ["json:NoSuchPlanner"]}},
      "grid.planner.name", "has no attribute"),
     ("plugin-not-a-planner", {"grid": {"planner.name": ["json:JSONDecoder"]}},
-     "grid.planner.name", "plan() method"),
+     "grid.planner.name", "missing plan()"),
 ]
 
 
@@ -371,8 +375,8 @@ def test_plugin_names_in_scenarios(tmp_path, monkeypatch):
                                      *SMALL_SET.items()])
     m = run_episode(sc, seed=1).metrics
     assert m["planner"] == f"{mod}:ReversedAStar" and m["orders_completed"] > 0
-    with pytest.raises(ScenarioError, match=r"'rd' or 'ta', or a plugin class"):
-        load_scenario(HOMOGENEOUS, [("scheduler.name", "fifo")])
+    with pytest.raises(ScenarioError, match=r"unknown scheduler \(choose from \['rd', 'ta'\]"):
+        check_plugins(load_scenario(HOMOGENEOUS, [("scheduler.name", "fifo")]))
     with pytest.raises(ScenarioError, match="cannot import plugin module"):
         run_episode(load_scenario(HOMOGENEOUS, [("scheduler.name", "nope_mod:Sched")]))
 

@@ -64,15 +64,23 @@ def _scenario(path: Path, sets: list[str] | None, seed: int | None, scheduler: s
         overrides = _overrides(sets, seed, scheduler, planner, executor, orders)
     except WareroverError as err:
         raise (err.with_file(str(path)) if hasattr(err, "with_file") else err) from None
-    return load_scenario(path, overrides)
+    from .registry import check_plugins
+
+    scenario = load_scenario(path, overrides)
+    check_plugins(scenario)
+    return scenario
 
 
 def _load(scenario: Path, overrides: list[tuple[str, Any]]):
     from .config import load_scenario
     from .world import World
 
+    from .registry import check_plugins
+
     sc = load_scenario(scenario, overrides)
-    return sc, World.build(sc)
+    world = World.build(sc)
+    check_plugins(sc)
+    return sc, world
 
 
 @app.command()

@@ -45,8 +45,10 @@ PosFloat = Annotated[float, Field(gt=0)]
 Prob = Annotated[float, Field(ge=0.0, le=1.0)]
 
 
-PLUGIN_PATH = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*:[A-Za-z_]\w*")
+PLUGIN_PATH = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*[:.][A-Za-z_]\w*")
 """A user class named by import path, ``package.module:ClassName`` (a plugin)."""
+ENTRY_POINT_NAME = re.compile(r"[A-Za-z_][\w-]*")
+"""The name of an installed entry point (resolved when the scenario is loaded)."""
 
 
 def _builtin_or_plugin(*builtins: str) -> AfterValidator:
@@ -55,16 +57,20 @@ def _builtin_or_plugin(*builtins: str) -> AfterValidator:
     choices = ", ".join(repr(n) for n in builtins[:-1]) + f" or {builtins[-1]!r}"
 
     def check(value: str) -> str:
-        if value in builtins or PLUGIN_PATH.fullmatch(value):
-            return value
-        raise ValueError(f"Input should be {choices}, or a plugin class as "
-                         "'package.module:ClassName'")
+        if value in builtins or PLUGIN_PATH.fullmatch(value) or \
+                ENTRY_POINT_NAME.fullmatch(value):
+            return value  # entry points and plug-ins are resolved by check_plugins
+        raise ValueError(f"Input should be {choices}, an entry point name, or a plugin "
+                         "class as 'package.module:ClassName'")
 
     return AfterValidator(check)
 
 
 SchedulerName = Annotated[str, _builtin_or_plugin("rd", "ta")]
 PlannerName = Annotated[str, _builtin_or_plugin("astar", "cbs", "pibt", "lacam")]
+ExecutorName = Annotated[str, _builtin_or_plugin("grid", "physics")]
+Params = dict[str, Any]
+"""A plug-in's own parameters, validated against its ``Params`` model when loaded."""
 
 
 class _Model(BaseModel):
@@ -296,7 +302,9 @@ class TasksSpec(_Model):
 
 class SchedulerSpec(_Model):
     name: SchedulerName = "ta"
-    """``rd``, ``ta``, or a plugin class ``package.module:ClassName``."""
+    """``rd``, ``ta``, an entry point, or a plugin class ``package.module:ClassName``."""
+    params: Params = {}
+    """Parameters of a plug-in scheduler (its ``Params`` model)."""
     max_orders_per_trip: PosInt = 4
     """Orders one shelf trip may serve (TA batches orders of the shelf's SKUs)."""
     candidate_shelves: PosInt = 3
@@ -305,7 +313,10 @@ class SchedulerSpec(_Model):
 
 class PlannerSpec(_Model):
     name: PlannerName = "astar"
-    """``astar``, ``cbs``, ``pibt``, ``lacam``, or a plugin class ``package.module:ClassName``."""
+    """``astar``, ``cbs``, ``pibt``, ``lacam``, an entry point, or a plugin class
+    ``package.module:ClassName``."""
+    params: Params = {}
+    """Parameters of a plug-in planner (its ``Params`` model)."""
     replan_blocked_ticks: PosInt = 3
     """Replan an AGV that could not follow its plan for this many ticks."""
     max_expansions: PosInt = 50_000
@@ -344,7 +355,10 @@ class ExecutorSpec(_Model):
     """How plans are carried out: ``grid`` (ideal discrete moves) or ``physics`` (pymunk
     rigid bodies with kinematic limits, following an action dependency graph)."""
 
-    name: Literal["grid", "physics"] = "grid"
+    name: ExecutorName = "grid"
+    """``grid``, ``physics``, an entry point, or a plugin class ``package.module:ClassName``."""
+    params: Params = {}
+    """Parameters of a plug-in executor (its ``Params`` model)."""
     dt_s: PosFloat = 0.02
     """Physics step (seconds); the planning tick is ``tick_s``."""
     adg: bool = True
@@ -581,9 +595,10 @@ def scenario_from_dict(data: dict[str, Any], *, source: str | None = None,
     elif isinstance(data.get("layout"), dict) and isinstance(data["layout"].get("map"), str):
         data["layout"] = {**data["layout"], "map": str((base / data["layout"]["map"]).resolve())}
     try:
-        return Scenario.model_validate({**data, "source": source})
+        scenario = Scenario.model_validate({**data, "source": source})
     except ValidationError as err:
         raise _from_validation_error(err, source) from None
+    return scenario
 
 
 def load_scenario(path: str | Path, overrides: list[tuple[str, Any]] | None = None) -> Scenario:

@@ -1,24 +1,113 @@
-"""Name -> class lookups for the pluggable parts (schedulers, planners, executors).
+"""One registry for the three pluggable boxes: schedulers, planners and executors.
 
-A name is either a built-in (a key of the registry) or a *plugin*: a user class given by
-import path, ``package.module:ClassName``. A plugin class is built with the scenario's spec
-(``SchedulerSpec`` / ``PlannerSpec``) as its only argument and must have the method of its
-Protocol (``assign`` for a scheduler, ``plan`` for a planner).
+A scenario names each box in its section (``scheduler.name``, ``planner.name``,
+``executor.name``) in one of three ways, looked up in this order:
+
+1. a **built-in** (``ta``, ``rd``; ``astar``, ``cbs``, ``pibt``, ``lacam``; ``grid``,
+   ``physics``);
+2. an **entry point** of an installed package, in the group ``warerover_phys.schedulers``,
+   ``warerover_phys.planners`` or ``warerover_phys.executors`` (``pyproject.toml``:
+   ``[project.entry-points."warerover_phys.planners"] myplanner = "mypkg.mod:MyPlanner"``);
+3. a **dotted path** to a class: ``package.module:ClassName`` (or ``package.module.ClassName``).
+
+A plug-in class is built as ``cls(spec)`` with the scenario's section (``SchedulerSpec``,
+``PlannerSpec`` or ``ExecutorSpec``), or as ``cls(spec, params)`` if it declares a pydantic
+model ``Params``: the section's ``params`` mapping is validated against it when the scenario
+is loaded (closed: unknown keys are errors naming the file and ``planner.params.KEY``). A
+plug-in must have the members of its box's Protocol (``assign``; ``plan``; ``bind``,
+``step``, ``remaining``, ``stop_short``, ``summary``, ``trajectory``) — see
+:mod:`warerover_phys.testing` for the checkers that run it through small cases.
 """
 
 from __future__ import annotations
 
 import importlib
-from typing import Any, TypeVar
+import re
+from collections.abc import Callable
+from importlib.metadata import entry_points
+from typing import Any
+
+from pydantic import BaseModel, ValidationError
 
 from .errors import ScenarioError
 
-__all__ = ["lookup", "is_plugin", "load_plugin"]
+__all__ = ["check_plugins", "KINDS", "BUILTINS", "is_plugin", "load_plugin", "resolve", "build", "params_of",
+           "validate_params", "builtin_names"]
 
-T = TypeVar("T")
+KINDS = ("scheduler", "planner", "executor")
 
-_METHOD = {"scheduler": "assign", "planner": "plan"}
-"""The method a plugin of each kind must have."""
+MEMBERS: dict[str, tuple[str, ...]] = {
+    "scheduler": ("assign",),
+    "planner": ("plan",),
+    "executor": ("bind", "step", "remaining", "stop_short", "summary", "trajectory"),
+}
+"""The methods a class of each kind must have (its Protocol's)."""
+
+GROUPS = {kind: f"warerover_phys.{kind}s" for kind in KINDS}
+"""Entry-point group of each kind."""
+
+
+def _astar(spec):
+    from .planning.astar import AStarPlanner
+
+    return AStarPlanner(max_expansions=spec.max_expansions)
+
+
+def _pibt(spec):
+    from .planning.pibt_planner import PIBTPlanner
+
+    return PIBTPlanner(max_expansions=spec.max_expansions)
+
+
+def _cbs(spec):
+    from .planning.cbs import CBSPlanner
+
+    return CBSPlanner(max_expansions=spec.max_expansions, horizon=spec.horizon_ticks,
+                      max_nodes=spec.max_nodes, time_budget_s=spec.time_budget_s)
+
+
+def _lacam(spec):
+    from .planning.lacam_planner import LaCAMPlanner
+
+    return LaCAMPlanner(time_budget_s=spec.time_budget_s)
+
+
+def _ta(spec):
+    from .schedulers.ta import TaskAssignment
+
+    return TaskAssignment(spec)
+
+
+def _rd(spec):
+    from .schedulers.rd import RandomDispatch
+
+    return RandomDispatch(spec)
+
+
+def _grid(spec):
+    from .executors.grid import GridExecutor
+
+    return GridExecutor(spec)
+
+
+def _physics(spec):  # pymunk is imported only when the physics executor is asked for
+    from .executors.physics import PhysicsExecutor
+
+    return PhysicsExecutor(spec)
+
+
+BUILTINS: dict[str, dict[str, Callable[[Any], Any]]] = {
+    "scheduler": {"ta": _ta, "rd": _rd},
+    "planner": {"astar": _astar, "cbs": _cbs, "pibt": _pibt, "lacam": _lacam},
+    "executor": {"grid": _grid, "physics": _physics},
+}
+"""Built-in factories: ``spec -> instance`` (their parameters are the spec's own fields)."""
+
+_DOTTED = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*([:.][A-Za-z_]\w*)")
+
+
+def builtin_names(kind: str) -> list[str]:
+    return sorted(BUILTINS[kind])
 
 
 def is_plugin(name: str) -> bool:
@@ -26,10 +115,21 @@ def is_plugin(name: str) -> bool:
     return ":" in name
 
 
-def load_plugin(path: str, field: str) -> Any:
-    """Import ``package.module:ClassName`` and return the class; a :class:`ScenarioError`
-    naming ``field`` and ``path`` if it cannot be imported or is not a usable class."""
-    module_name, _, attr = path.partition(":")
+def _kind_of(field: str) -> str:
+    kind = field.split(".")[0]
+    if kind not in KINDS:
+        raise ValueError(f"field {field!r} names no pluggable box")
+    return kind
+
+
+def load_plugin(path: str, field: str) -> type:
+    """Import ``package.module:ClassName`` (or ``package.module.ClassName``) and return the
+    class; a :class:`ScenarioError` naming ``field`` and ``path`` if it cannot be imported
+    or lacks its Protocol's methods."""
+    if ":" in path:
+        module_name, _, attr = path.partition(":")
+    else:
+        module_name, _, attr = path.rpartition(".")
     try:
         module = importlib.import_module(module_name)
     except Exception as err:  # noqa: BLE001 - any import failure is the user's to fix
@@ -39,21 +139,102 @@ def load_plugin(path: str, field: str) -> Any:
     if cls is None:
         raise ScenarioError(f"module {module_name!r} has no attribute {attr!r}", field=field,
                             value=path)
-    method = _METHOD.get(field.split(".")[0])
-    if not isinstance(cls, type) or (method and not callable(getattr(cls, method, None))):
-        what = f"a class with a {method}() method" if method else "a class"
-        raise ScenarioError(f"plugin is not {what}", field=field, value=path)
+    return _checked_class(cls, field, path)
+
+
+def _checked_class(cls: Any, field: str, name: str) -> type:
+    kind = _kind_of(field)
+    missing = [m for m in MEMBERS[kind] if not callable(getattr(cls, m, None))]
+    if not isinstance(cls, type) or missing:
+        what = "a class" if not isinstance(cls, type) else \
+            f"a {kind} class (missing {', '.join(m + '()' for m in missing)})"
+        raise ScenarioError(f"plugin is not {what}", field=field, value=name)
+    params = getattr(cls, "Params", None)
+    if params is not None and not (isinstance(params, type) and issubclass(params, BaseModel)):
+        raise ScenarioError("plugin's Params must be a pydantic BaseModel", field=field,
+                            value=name)
     return cls
 
 
-def lookup(registry: dict[str, T], name: str, field: str) -> T:
-    """``registry[name]``, the plugin class ``name`` imports, or a :class:`ScenarioError`
-    naming ``field`` and the choices."""
-    if is_plugin(name):
-        return load_plugin(name, field)
+def _entry_point(kind: str, name: str) -> Any | None:
     try:
-        return registry[name]
-    except KeyError:
-        kind = field.split(".")[0]
-        raise ScenarioError(f"unknown {kind} (choose from {sorted(registry)} or a plugin "
-                            "'package.module:ClassName')", field=field, value=name) from None
+        found = entry_points(group=GROUPS[kind], name=name)
+    except Exception:  # noqa: BLE001 - a broken installed distribution must not stop us
+        return None
+    return next(iter(found), None)
+
+
+def resolve(kind: str, name: str, field: str | None = None) -> Callable[..., Any] | type:
+    """The built-in factory or the plug-in class ``name`` stands for."""
+    field = field or f"{kind}.name"
+    if name in BUILTINS[kind]:
+        return BUILTINS[kind][name]
+    ep = _entry_point(kind, name)
+    if ep is not None:
+        try:
+            cls = ep.load()
+        except Exception as err:  # noqa: BLE001
+            raise ScenarioError(f"cannot load entry point {ep.value!r} ({type(err).__name__}: "
+                                f"{err})", field=field, value=name) from None
+        return _checked_class(cls, field, name)
+    if _DOTTED.fullmatch(name) and ("." in name or ":" in name):
+        return load_plugin(name, field)
+    raise ScenarioError(f"unknown {kind} (choose from {builtin_names(kind)}, an installed "
+                        f"entry point of {GROUPS[kind]!r}, or a class as "
+                        "'package.module:ClassName')", field=field, value=name)
+
+
+def params_of(target: Any) -> type[BaseModel] | None:
+    """The pydantic parameter model a plug-in class declares (None for built-ins)."""
+    params = getattr(target, "Params", None) if isinstance(target, type) else None
+    return params
+
+
+def validate_params(kind: str, name: str, params: dict[str, Any]) -> BaseModel | None:
+    """Validate a section's ``params`` against its plug-in's ``Params`` model; a
+    :class:`ScenarioError` naming ``KIND.params.KEY`` and the value otherwise."""
+    target = resolve(kind, name)
+    model = params_of(target)
+    if model is None:
+        if params:
+            key = next(iter(params))
+            raise ScenarioError(f"{kind} {name!r} takes no params (it declares no Params "
+                                "model)", field=f"{kind}.params.{key}", value=params[key])
+        return None
+    try:
+        return model.model_validate(params)
+    except ValidationError as err:
+        e = err.errors()[0]
+        loc = ".".join(str(p) for p in e["loc"])
+        where = f"{kind}.params" + (f".{loc}" if loc else "")
+        value = e.get("input")
+        msg = e["msg"] if e["type"] != "extra_forbidden" else "unknown parameter"
+        raise ScenarioError(msg, field=where, value=value) from None
+
+
+def build(kind: str, spec: Any) -> Any:
+    """An instance of the box ``spec.name`` names, built with ``spec`` (and its validated
+    ``params`` for plug-ins that declare a ``Params`` model)."""
+    target = resolve(kind, spec.name)
+    params = validate_params(kind, spec.name, dict(getattr(spec, "params", {}) or {}))
+    try:
+        if params is not None:
+            return target(spec, params)
+        return target(spec)
+    except ScenarioError:
+        raise
+    except Exception as err:  # noqa: BLE001 - a plug-in's constructor is user code
+        raise ScenarioError(f"{kind} constructor failed ({type(err).__name__}: {err})",
+                            field=f"{kind}.name", value=spec.name) from None
+
+
+def check_plugins(scenario: Any) -> None:
+    """Resolve the scenario's scheduler, planner and executor names (built-in, entry point
+    or plug-in class) and validate each section's ``params`` against its plug-in's
+    ``Params`` model; errors name the scenario's file."""
+    for kind in KINDS:
+        section = getattr(scenario, kind)
+        try:
+            validate_params(kind, section.name, section.params)
+        except ScenarioError as err:
+            raise err.with_file(scenario.source) if scenario.source else err from None

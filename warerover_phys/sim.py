@@ -2,6 +2,14 @@
 moves, tasks advance, metrics record — once per tick, until every order is done or
 ``max_ticks``.
 
+Data flows one way: the loop owns the :class:`~warerover_phys.world.World` and is its only
+writer. The scheduler reads a :class:`~warerover_phys.schedulers.base.SchedulerView` and
+returns assignments; the planner gets a request with a private copy of the reservations and
+returns timed paths, which the loop commits; the executor gets a read-only
+:class:`~warerover_phys.executors.base.TickView` and returns a
+:class:`~warerover_phys.executors.base.StepReport`, which the loop applies; failures are
+events the fault model draws and the loop applies.
+
 >>> from warerover_phys import load_scenario, run_episode
 >>> result = run_episode(load_scenario("layouts/paper_homogeneous.yaml"), seed=1)
 >>> result.metrics["success_rate"]
@@ -13,17 +21,25 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from types import MappingProxyType
 
 from .config import Scenario
+from .errors import ScenarioError
 from .executors import make_executor
+from .executors.base import AgvBody, ExecutorSetup, StepReport, TickView
+from .faults.model import FaultModel, close_failure, open_failure
 from .metrics import MetricsRecorder
 from .planning import make_planner
 from .planning.astar import nearest_free_anchor
-from .planning.base import AgentRequest, PlanRequest, TimedPath, footprint_nodes, occupancy
+from .planning.base import AgentRequest, PlanRequest, PlanResult
+from .planning.paths import TimedPath, footprint_nodes, occupancy
+from .registry import check_plugins
 from .schedulers import make_scheduler
+from .schedulers.base import SchedulerView
 from .world import MOVING_STATES, Agv, AgvState, World
 
-__all__ = ["EpisodeResult", "run_episode", "Simulation"]
+__all__ = ["EpisodeResult", "run_episode", "Simulation", "executor_setup", "tick_view", "step_executor",
+           "apply_report"]
 
 STUCK_FAILURES = 3
 """Failed plans in a row after which AGVs waiting on the AGV's route are asked to make way."""
@@ -52,15 +68,16 @@ class Simulation:
             scenario = scenario.with_seed(seed)
         self.scenario = scenario
         self.world = World.build(scenario)
-        self.scheduler = make_scheduler(scenario.scheduler)
-        self.planner = make_planner(scenario.planner)
-        self.executor = make_executor(scenario.executor)
+        try:
+            check_plugins(scenario)
+            self.scheduler = make_scheduler(scenario.scheduler)
+            self.planner = make_planner(scenario.planner)
+            self.executor = make_executor(scenario.executor)
+        except ScenarioError as err:
+            raise err.with_file(scenario.source) if scenario.source else err from None
+        self.executor.bind(executor_setup(self.world))
         self.metrics = MetricsRecorder(scenario)
-        self.faults = None
-        if scenario.faults.enabled:
-            from .faults.model import FaultProcess
-
-            self.faults = FaultProcess(self.world, self.executor)
+        self.faults = FaultModel(scenario.faults, self.world.rngs["faults"])
         self.planned: list[dict] = []
         self.actual: dict[int, list[tuple[int, int]]] = {a.id: [a.pos] for a in self.world.agvs}
 
@@ -76,40 +93,33 @@ class Simulation:
         stays down for ``repair_ticks`` ticks, or until :meth:`repair` if None."""
         if repair_ticks is not None and repair_ticks < 1:
             raise ValueError(f"repair_ticks must be >= 1 (got {repair_ticks})")
-        self._fault_process().fail(agv_id, repair_ticks)
+        open_failure(self.world, agv_id, repair_ticks, self.executor, self._view())
 
     def repair(self, agv_id: int) -> None:
         """Repair a failed AGV now; its corridor closes."""
-        self._fault_process().repair(agv_id)
-
-    def _fault_process(self):
-        if self.faults is None:
-            from .faults.model import FaultProcess
-
-            self.faults = FaultProcess(self.world, self.executor)
-        return self.faults
+        close_failure(self.world, agv_id)
 
     def step(self) -> None:
         """Run one tick of the loop."""
         w = self.world
-        if self.faults is not None:
-            self.faults.step()
+        self._apply_faults()
         w.add_orders(w.stream.arrivals(w.tick))
         t0 = time.perf_counter()
-        for a in self.scheduler.assign(w, w.rngs["scheduler"]):
+        for a in self.scheduler.assign(SchedulerView(w), w.rngs["scheduler"]):
             w.start_trip(a.agv, a.shelf, list(a.orders))
         t1 = time.perf_counter()
         self._plan()
         t2 = time.perf_counter()
-        report = self.executor.step(w)
+        report = self.executor.step(self._view())
+        self._apply_report(report)
         w.tick += 1
         self._follow_up(report.blocked)
         self._replan_now(report.replan)
         if w.corridors:
             from .faults.intrusion_log import update_exemptions
 
-            update_exemptions(w, getattr(self.executor, "route_states", None))
-            if self.executor.name == "grid":
+            update_exemptions(w, self.executor.remaining)
+            if report.intrusion_unit == "cells":
                 self._grid_intrusions()
         w.advance_tasks()
         self.metrics.record_tick(sched_s=t1 - t0, plan_s=t2 - t1, blocked=len(report.blocked),
@@ -122,31 +132,53 @@ class Simulation:
                 progress(self.world.tick, len(self.world.completed_tick),
                          len(self.world.status))
         metrics = self.metrics.summary(self.world)
-        summary = getattr(self.executor, "summary", None)
-        if summary is not None:
-            metrics.update(summary())
-        trajectory = getattr(self.executor, "trajectory", None)
+        metrics.update(self.executor.summary())
+        trajectory = self.executor.trajectory()
+        if trajectory is not None:
+            import json
+
+            import numpy as np
+
+            trajectory["corridors_json"] = np.array(json.dumps(self.world.corridor_log))
         return EpisodeResult(metrics=metrics, events=self.world.events, planned=self.planned,
-                             actual=self.actual, world=self.world,
-                             trajectory=trajectory() if trajectory is not None else None)
+                             actual=self.actual, world=self.world, trajectory=trajectory)
 
     # ------------------------------------------------------------------------- helpers
 
+    def _view(self) -> TickView:
+        return tick_view(self.world)
+
+    def _apply_report(self, report: StepReport) -> None:
+        apply_report(self.world, report)
+
+    def _apply_faults(self) -> None:
+        """Repairs due, then scheduled failures, then random ones: each stage drawn by the
+        fault model from the world as the stage before left it, and applied here."""
+        w, model = self.world, self.faults
+        w.fault_stats["down_ticks"] += sum(1 for a in w.agvs if a.state == AgvState.FAILED)
+        for ev in model.repairs(w.tick, w.agvs):
+            close_failure(w, ev.agv)
+        for stage in (model.scheduled, lambda tick, agvs: model.random(agvs)):
+            for ev in stage(w.tick, w.agvs):
+                open_failure(w, ev.agv, ev.repair_ticks, self.executor, self._view())
+
     def _plan(self) -> None:
         """Plan the AGVs that need it: a new goal, a path that ran out short of its goal,
-        or blocked for ``replan_blocked_ticks``."""
+        or blocked for ``replan_blocked_ticks``. The planner works on a copy of the
+        reservations; the paths it returns are committed here."""
         w = self.world
-        res = w.reservations
-        if getattr(self.planner, "replans_all", False):
+        if self._lifelong:
             agents = self._step_requests()
         else:
             agents = self._replan_requests()
         if not agents:
             self.metrics.replans_this_tick(0, 0, 0)
             return
-        request = PlanRequest(tick=w.tick, agents=agents, graphs=w.graphs, reservations=res,
-                              rng=w.rngs["planner"], keep_clear=w.keep_clear())
+        request = PlanRequest(tick=w.tick, agents=agents, graphs=w.graphs,
+                              reservations=w.reservations.copy(), rng=w.rngs["planner"],
+                              keep_clear=w.keep_clear())
         result = self.planner.plan(request)
+        self._commit(result, agents)
         for aid, path in result.paths.items():
             agv = w.agvs[aid]
             agv.delay = agv.blocked_ticks = agv.plan_failures = 0
@@ -162,9 +194,29 @@ class Simulation:
         self.metrics.replans_this_tick(len(result.paths), len(result.failed),
                                        len(result.detours), result.budget_hits)
 
+    def _commit(self, result: PlanResult, agents: list[AgentRequest]) -> None:
+        """Commit the returned paths (the loop is the only writer of the reservations), in
+        the request's order. An AGV the planner could not plan keeps its path, committed
+        again in its turn so that it holds its cells as a fresh commit would."""
+        if not isinstance(result, PlanResult):
+            raise TypeError(f"planner {self.planner.name!r} returned "
+                            f"{type(result).__name__}, not PlanResult")
+        res, asked = self.world.reservations, {a.agv for a in agents}
+        stray = set(result.paths) - asked
+        if stray:
+            raise ValueError(f"planner {self.planner.name!r} returned paths for AGVs "
+                             f"{sorted(stray)}, which it was not asked to plan")
+        failed = set(result.failed)
+        for a in agents:
+            path = result.paths.get(a.agv)
+            if path is None and a.agv in failed:
+                path = res.paths.get(a.agv)
+            if path is not None:
+                res.commit(path, a.k)
+
     @property
     def _lifelong(self) -> bool:
-        return bool(getattr(self.planner, "replans_all", False))
+        return self.planner.replans_all
 
     def _step_requests(self) -> list[AgentRequest]:
         """Every AGV, for planners that move all of them each tick."""
@@ -289,3 +341,47 @@ def run_episode(scenario: Scenario, seed: int | None = None,
                 progress: Callable[[int, int, int], None] | None = None) -> EpisodeResult:
     """Run one episode of ``scenario`` (with ``seed`` if given) to the end."""
     return Simulation(scenario, seed).run(progress)
+
+
+def executor_setup(world: World) -> ExecutorSetup:
+    """What an executor is bound to for ``world``'s episode."""
+    return ExecutorSetup(
+        layout=world.layout, tick_s=world.scenario.tick_s, rng=world.rngs["delays"],
+        agvs=tuple(AgvBody(a.id, a.k, a.spec, a.pos) for a in world.agvs))
+
+
+def tick_view(world: World) -> TickView:
+    """What the executor may know of the world's current tick (read-only)."""
+    agvs = world.agvs
+    return TickView(
+        tick=world.tick, plans=MappingProxyType(world.reservations.paths),
+        behind=tuple(a.delay for a in agvs),
+        failed=frozenset(a.id for a in agvs if a.state == AgvState.FAILED),
+        loaded=tuple(a.loaded for a in agvs),
+        carried=tuple(a.trip.shelf if a.loaded and a.trip is not None else None
+                      for a in agvs),
+        task_state=tuple(int(a.state) for a in agvs),
+        corridors=MappingProxyType(world.corridors))
+
+
+def apply_report(world: World, report: StepReport) -> None:
+    """Write what the executor reports into the world (before the tick advances)."""
+    from .faults.intrusion_log import record_intrusions
+
+    for i, state in report.states.items():
+        world.agvs[i].pos = state
+    for i, behind in report.behind.items():
+        world.agvs[i].delay = behind
+    for name, fields in report.events:
+        world.log(name, **fields)
+    for hits in report.intrusion_checks:
+        record_intrusions(world, hits, unit=report.intrusion_unit)
+
+
+def step_executor(world: World, executor) -> StepReport:
+    """One executor tick against ``world``, as the loop runs it (view in, report applied;
+    the caller advances ``world.tick``). The executor must be bound
+    (``executor.bind(executor_setup(world))``)."""
+    report = executor.step(tick_view(world))
+    apply_report(world, report)
+    return report

@@ -1,20 +1,16 @@
-"""Executors: move the AGVs one tick along their committed paths."""
+"""Executors: carry out the committed plans, one tick at a time, and report what happened."""
 
 from __future__ import annotations
 
-from ..registry import lookup
-from .base import Executor, StepReport
+from ..registry import build
+from .base import AgvBody, Executor, ExecutorSetup, StepReport, TickView
 from .grid import GridExecutor
 
-__all__ = ["Executor", "StepReport", "GridExecutor", "make_executor", "EXECUTORS"]
-
-EXECUTORS = {"grid": GridExecutor, "physics": "physics"}
+__all__ = ["AgvBody", "Executor", "ExecutorSetup", "StepReport", "TickView", "GridExecutor",
+           "make_executor"]
 
 
 def make_executor(spec) -> Executor:
-    cls = lookup(EXECUTORS, spec.name, "executor.name")
-    if cls == "physics":  # imported only when asked for: pymunk is not needed on the grid
-        from .physics import PhysicsExecutor
-
-        return PhysicsExecutor(spec)
-    return cls()
+    """Build the executor an :class:`~warerover_phys.config.ExecutorSpec` names (a built-in,
+    an entry point or a plug-in class; see :mod:`warerover_phys.registry`)."""
+    return build("executor", spec)

@@ -8,35 +8,53 @@ through each other) are carried out and counted as *collisions*; a valid plan ha
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Any
 
-from ..planning.base import occupancy
-from .base import StepReport
-
-if TYPE_CHECKING:
-    from ..world import World
+from ..planning.paths import State, occupancy
+from .base import ExecutorSetup, StepReport, TickView
 
 __all__ = ["GridExecutor"]
 
 
 class GridExecutor:
+    """Ideal discrete execution (see the module docstring). Keeps only where each AGV is."""
+
     name = "grid"
 
-    def step(self, world: World) -> StepReport:
-        cols, t = world.layout.cols, world.tick
-        agvs = world.agvs
-        paths = world.reservations.paths
-        now = {a.id: occupancy(a.pos, a.k, cols) for a in agvs}
+    def __init__(self, spec: Any = None) -> None:
+        self.spec = spec
+
+    def bind(self, setup: ExecutorSetup) -> None:
+        self.cols = setup.layout.cols
+        self.k = {a.id: a.k for a in setup.agvs}
+        self.pos: dict[int, State] = {a.id: a.start for a in setup.agvs}
+
+    def remaining(self, agv: int) -> list[State]:
+        return []  # it follows the committed path exactly
+
+    def stop_short(self, agv: int, cells: frozenset[int], view: TickView) -> tuple[bool, bool]:
+        return False, False  # the loop cuts the committed path after the move under way
+
+    def summary(self) -> dict[str, Any]:
+        return {}
+
+    def trajectory(self) -> None:
+        return None
+
+    def step(self, view: TickView) -> StepReport:
+        cols, t = self.cols, view.tick
+        pos, ks, paths = self.pos, self.k, view.plans
+        now = {i: occupancy(p, ks[i], cols) for i, p in pos.items()}
         want = {}
-        for a in agvs:
-            path = paths.get(a.id)
-            want[a.id] = a.pos if path is None else path.state_at(t + 1 - a.delay)
+        for i, p in pos.items():
+            path = paths.get(i)
+            want[i] = p if path is None else path.state_at(t + 1 - view.behind[i])
         holder: dict[int, int] = {}
         for aid, cells in now.items():
             for c in cells:
                 holder[c] = aid
-        moving = {aid for aid, s in want.items() if s != agvs[aid].pos}
-        nxt = {aid: occupancy(want[aid], agvs[aid].k, cols) for aid in moving}
+        moving = {aid for aid, s in want.items() if s != pos[aid]}
+        nxt = {aid: occupancy(want[aid], ks[aid], cols) for aid in moving}
         blocked: set[int] = set()
         changed = True
         while changed:  # a blocked AGV stays, which may block the AGV behind it
@@ -52,13 +70,14 @@ class GridExecutor:
                         break
         report = StepReport(blocked=sorted(blocked))
         after: dict[int, set[int]] = {}
-        for a in agvs:
-            if a.id in moving and a.id not in blocked:
-                a.pos = want[a.id]
-            elif a.id in blocked:
-                a.delay += 1
-        for a in agvs:
-            after[a.id] = set(occupancy(a.pos, a.k, cols))
+        for i in pos:
+            if i in moving and i not in blocked:
+                pos[i] = want[i]
+            elif i in blocked:
+                report.behind[i] = view.behind[i] + 1
+        for i, p in pos.items():
+            after[i] = set(occupancy(p, ks[i], cols))
+        report.states = dict(pos)
         owner: dict[int, int] = {}
         for aid, cells in after.items():
             for c in cells:

@@ -14,9 +14,9 @@ Each tick (``tick_s`` seconds) the executor
    move's dependencies); omnidirectional AGVs never turn. An action starts only when the ADG
    says its cells are free (or, with ``adg: false``, at its planned tick: naive
    time-indexed following, for comparison);
-4. writes back each AGV's discrete state (``agv.pos``: standing at a cell, or moving between
-   two) for the scheduler and planner, and reports blocked AGVs (waiting on a dependency)
-   and AGVs to replan (dependency deadlock, deviation from the path).
+4. reports each AGV's discrete state (standing at a cell, or moving between two) for the
+   loop to write into the world, blocked AGVs (waiting on a dependency) and AGVs to replan
+   (dependency deadlock, deviation from the path). It never touches the world itself.
 
 Contacts come from pymunk collision handlers (AGV-AGV, AGV-obstacle, a loaded AGV against
 another shelf), the minimum centre-to-edge separation between AGVs is sampled every tick,
@@ -27,7 +27,6 @@ step (tunnelling). :meth:`summary` gives the figures that go into ``metrics.json
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from typing import TYPE_CHECKING
@@ -36,12 +35,11 @@ import numpy as np
 
 from ..planning.base import TimedPath
 from .adg import Action, ActionGraph
-from .base import StepReport
+from .base import ExecutorSetup, StepReport, TickView
 from .bodies import AGV, OBSTACLE, SHELF, BodyIO, PhysicalFleet, build_space, cell_centre
 
 if TYPE_CHECKING:
     from ..config import ExecutorSpec
-    from ..world import World
 
 __all__ = ["PhysicsExecutor"]
 
@@ -85,36 +83,37 @@ def _wrap(a: np.ndarray | float) -> np.ndarray | float:
 class PhysicsExecutor:
     name = "physics"
 
-    def __init__(self, spec: ExecutorSpec | None = None) -> None:
-        from ..config import ExecutorSpec
-
-        self.spec = spec or ExecutorSpec(name="physics")
+    def __init__(self, spec: ExecutorSpec) -> None:
+        self.spec = spec
         self._bound = False
 
     # ------------------------------------------------------------------------- set-up
 
-    def _bind(self, world: World) -> None:
-        spec, layout = self.spec, world.layout
-        self.world = world
+    def bind(self, setup: ExecutorSetup) -> None:
+        spec, layout = self.spec, setup.layout
+        self.layout = layout
         self.cols, self.cell_m = layout.cols, layout.cell_m
-        self.tick_s = world.scenario.tick_s
+        self.tick_s = setup.tick_s
         self.steps_per_tick = max(1, round(self.tick_s / spec.dt_s))
         self.dt = self.tick_s / self.steps_per_tick
-        self.space, self._shelf_of = build_space(layout, len(world.agvs))
-        agvs = world.agvs
+        self.space, self._shelf_of = build_space(layout, len(setup.agvs))
+        agvs = setup.agvs
         n = len(agvs)
         self.n = n
         self.k = np.array([a.k for a in agvs])
+        self._events: list[tuple[str, dict]] = []
+        self._intrusion_checks: list[list[tuple[int, int, float]]] = []
+        self._view: TickView | None = None
         poses = []
         for a in agvs:
-            x, y = cell_centre(a.node, a.k, self.cols, self.cell_m)
+            x, y = cell_centre(a.start[1], a.k, self.cols, self.cell_m)
             poses.append((x, y, 0.0))
         self.fleet = PhysicalFleet.add_to(
             self.space, poses, [tuple(a.spec.body_m) for a in agvs],
             [a.spec.mass_kg for a in agvs], [a.spec.max_accel_mps2 for a in agvs])
         self.io = BodyIO(self.space, self.fleet)
         self._agv_of_shape = {id(s): i for i, s in enumerate(self.fleet.shapes)}
-        rng = world.rngs["delays"]
+        self.rng = rng = setup.rng
         lo, hi = spec.speed_scale
         self.scale = rng.uniform(lo, hi, n) if hi > lo else np.full(n, lo)
         self.vmax = np.array([a.spec.max_speed_mps for a in agvs]) * self.scale
@@ -183,21 +182,23 @@ class PhysicsExecutor:
             self.agv_contacts += 1
             self._tick_agv_contacts += 1
             a, b = (self._agv_of_shape[id(s)] for s in arbiter.shapes)
-            self.world.log("contact", agvs=sorted((a, b)), t_s=round(self.sim_s, 3),
-                           states=[list(self.adg.state(a)), list(self.adg.state(b))])
+            self._events.append(("contact", {
+                "agvs": sorted((a, b)), "t_s": round(self.sim_s, 3),
+                "states": [list(self.adg.state(a)), list(self.adg.state(b))]}))
 
         def agv_static(arbiter, space, data) -> None:
             self.static_contacts += 1
             shape = next(s for s in arbiter.shapes if s.collision_type == AGV)
-            self.world.log("static_contact", agv=self._agv_of_shape[id(shape)],
-                           t_s=round(self.sim_s, 3))
+            self._events.append(("static_contact", {
+                "agv": self._agv_of_shape[id(shape)], "t_s": round(self.sim_s, 3)}))
 
         def agv_shelf(arbiter, space, data) -> None:
             a, b = arbiter.shapes
             agv_shape, shelf_shape = (a, b) if a.collision_type == AGV else (b, a)
-            agv = self.world.agvs[self._agv_of_shape[id(agv_shape)]]
+            i = self._agv_of_shape[id(agv_shape)]
             shelf = self._shelf_of.get(id(shelf_shape))
-            if agv.loaded and agv.trip is not None and shelf != agv.trip.shelf:
+            carried = self._view.carried[i] if self._view is not None else None
+            if carried is not None and shelf != carried:
                 self.static_contacts += 1
 
         self.space.on_collision(AGV, AGV, begin=agv_agv)
@@ -206,26 +207,30 @@ class PhysicsExecutor:
 
     # ------------------------------------------------------------------------- the tick
 
-    def step(self, world: World) -> StepReport:
+    def step(self, view: TickView) -> StepReport:
         if not self._bound:
-            self._bind(world)
+            raise RuntimeError("PhysicsExecutor.step before bind()")
         wall0 = time.perf_counter()
-        self._sync_plans(world)
-        self._draw_delays(world)
-        self._sync_faults(world)
+        self._view = view
+        self._events, self._intrusion_checks = [], []
+        self._sync_plans(view)
+        self._draw_delays()
+        self._sync_faults(view)
         self._tick_agv_contacts = 0
         for s in range(self.steps_per_tick):
             self._physics_step(decide=(s % DECIDE_EVERY == 0))
-        report = self._write_back(world)
+        report = self._write_back(view)
+        report.events = self._events + report.events
+        report.intrusion_checks = self._intrusion_checks
         self._wall += time.perf_counter() - wall0
         return report
 
-    def _sync_faults(self, world: World) -> None:
+    def _sync_faults(self, view: TickView) -> None:
         """Failed AGVs brake and start nothing; open corridors go to the fcl checker."""
-        from ..world import AgvState
-
-        self.failed = np.array([a.state == AgvState.FAILED for a in world.agvs])
-        keys = tuple(sorted(world.corridors))
+        self.failed = np.zeros(self.n, dtype=bool)
+        self.failed[list(view.failed)] = True
+        corridors = view.corridors
+        keys = tuple(sorted(corridors))
         if keys != self._corridor_keys:
             self._corridor_keys = keys
             if keys:
@@ -233,10 +238,12 @@ class PhysicsExecutor:
                     from ..faults.intrusion import IntrusionChecker
 
                     self._checker = IntrusionChecker(self.fleet.half_size)
-                self._checker.set_corridors([world.corridors[k] for k in keys])
+                self._checker.set_corridors([corridors[k] for k in keys])
 
-    def route_states(self, i: int) -> list[tuple[int, int]]:
+    def remaining(self, i: int) -> list[tuple[int, int]]:
         """What AGV ``i`` still has to drive, as states (running action, then the rest)."""
+        if not self._synced_once(i):
+            return []
         out = []
         cur = self.adg.current(i)
         if cur is not None:
@@ -244,10 +251,13 @@ class PhysicsExecutor:
         out += [(a.src, a.dst) for a in self.adg.upcoming(i)]
         return out
 
-    def stop_short(self, i: int, cells: frozenset[int]) -> bool:
+    def stop_short(self, i: int, cells: frozenset[int], view: TickView) -> tuple[bool, bool]:
         """A corridor opened over ``cells``: stop AGV ``i`` as soon as its braking distance
-        allows (its later claims are given back). Returns True if the part it can no longer
-        drop (running and still claimed actions) enters ``cells``."""
+        allows (its later claims are given back). Returns ``(True, enters)``: enters is True
+        if the part it can no longer drop (running and still claimed actions) enters
+        ``cells``. Before its first plan reaches it, the loop cuts the path instead."""
+        if not self._synced_once(i):
+            return False, False
         committed = []
         cur = self.adg.current(i)
         if cur is not None:
@@ -264,34 +274,31 @@ class PhysicsExecutor:
             self.stop_s[i] = min(self.stop_s[i], self.cur_end[i] + len(kept) * self.cell_m)
         # Drop everything after the stop (a new plan comes once it stands there).
         node = self.adg.cut_node(i)
-        self.adg.set_plan(i, TimedPath(i, self.world.tick, ((node, node),)))
+        self.adg.set_plan(i, TimedPath(i, view.tick, ((node, node),)))
         self.has_next[i] = self.adg.next_action(i) is not None
-        return any(cells.intersection(a.enters) for a in committed)
+        return True, any(cells.intersection(a.enters) for a in committed)
 
     def _check_corridors(self, pos: np.ndarray, ang: np.ndarray) -> None:
         """fcl check of every AGV body against the open corridors' protected zones."""
-        from ..faults.intrusion_log import record_intrusions
-
-        w = self.world
         poses = np.column_stack([pos, ang])
-        skip = {c.agv for c in w.corridors.values()}
-        hits = [(h.agv, h.corridor, h.depth_m) for h in self._checker.check(poses, skip)]
-        record_intrusions(w, hits)
+        skip = {c.agv for c in self._view.corridors.values()}
+        self._intrusion_checks.append(
+            [(h.agv, h.corridor, h.depth_m) for h in self._checker.check(poses, skip)])
 
-    def _sync_plans(self, world: World) -> None:
-        paths = world.reservations.paths
-        for agv in world.agvs:
-            path = paths.get(agv.id)
-            if path is None or path is self._synced[agv.id]:
+    def _sync_plans(self, view: TickView) -> None:
+        paths = view.plans
+        for i in range(self.n):
+            path = paths.get(i)
+            if path is None or path is self._synced[i]:
                 continue
-            self._synced[agv.id] = path
-            cut = self._cut(agv.id, path)
+            self._synced[i] = path
+            cut = self._cut(i, path)
             node = cut.states[0][0]
-            if all(a == b == node for a, b in cut.states) and self._synced_once(agv.id) \
-                    and self.adg.next_action(agv.id) is None:
+            if all(a == b == node for a, b in cut.states) and self._synced_once(i) \
+                    and self.adg.next_action(i) is None:
                 continue  # a plan to stay where it will stop anyway: nothing changes
-            self.adg.set_plan(agv.id, cut)
-            self.has_next[agv.id] = self.adg.next_action(agv.id) is not None
+            self.adg.set_plan(i, cut)
+            self.has_next[i] = self.adg.next_action(i) is not None
 
     def _cut(self, i: int, path: TimedPath) -> TimedPath:
         """The part of ``path`` from where the AGV will stand after its current action."""
@@ -314,11 +321,11 @@ class PhysicsExecutor:
             return False
         return True
 
-    def _draw_delays(self, world: World) -> None:
+    def _draw_delays(self) -> None:
         d = self.spec.delays
         if d.model == "none" or d.prob <= 0:
             return
-        rng = world.rngs["delays"]
+        rng = self.rng
         if d.model == "bernoulli":
             events = rng.random(self.n) < d.prob
         else:
@@ -331,7 +338,7 @@ class PhysicsExecutor:
         start = events & (self.delayed_until <= self.sim_s)
         self.delayed_until[start] = self.sim_s + ticks[start] * self.tick_s
         for i in np.flatnonzero(start):
-            world.log("delay", agv=int(i), ticks=int(ticks[i]))
+            self._events.append(("delay", {"agv": int(i), "ticks": int(ticks[i])}))
 
     def _physics_step(self, decide: bool) -> None:
         raw, raw_ang, v_now, w_now = self.io.read()
@@ -568,28 +575,30 @@ class PhysicsExecutor:
 
     def _record(self) -> None:
         pos, ang, _, _ = self.io.read()
-        w = self.world
-        self._traj.append((self.sim_s, pos.copy(), ang.copy(),
-                           np.array([a.state for a in w.agvs], dtype=np.int8),
-                           np.array([a.loaded for a in w.agvs], dtype=bool)))
+        view = self._view
+        if view is None:
+            state, loaded = np.zeros(self.n, dtype=np.int8), np.zeros(self.n, dtype=bool)
+        else:
+            state = np.array(view.task_state, dtype=np.int8)
+            loaded = np.array(view.loaded, dtype=bool)
+        self._traj.append((self.sim_s, pos.copy(), ang.copy(), state, loaded))
 
     # ------------------------------------------------------------------------- back to the grid
 
-    def _write_back(self, world: World) -> StepReport:
+    def _write_back(self, view: TickView) -> StepReport:
         pos, ang, _, _ = self.io.read()
         self._min_separation(pos, ang)
         report = StepReport(collisions=self._tick_agv_contacts)
-        tick_next = world.tick + 1
+        tick_next = view.tick + 1
         pending = np.zeros(self.n, dtype=bool)
-        for agv in world.agvs:
-            i = agv.id
-            agv.pos = self.adg.state(i)
+        for i in range(self.n):
+            report.states[i] = self.adg.state(i)
             nxt = self.adg.next_action(i)
             cur = self.adg.current(i)
             pending[i] = nxt is not None
             late = (nxt is not None and cur is None and nxt.tick < tick_next) or (
                 cur is not None and cur.tick + cur.ticks < tick_next)
-            agv.delay = 1 if late else 0
+            report.behind[i] = 1 if late else 0
             if self.waiting[i]:
                 report.blocked.append(i)
             if self.mode[i] == DRIVE:
@@ -610,7 +619,7 @@ class PhysicsExecutor:
             seen.add(key)
             if key not in self._cycles_seen:
                 self.deadlocks += 1
-                world.log("deadlock", agvs=sorted(cyc))
+                report.events.append(("deadlock", {"agvs": sorted(cyc)}))
             report.replan.extend(i for i in cyc if i not in report.replan)
         self._cycles_seen = seen
         self.replans_asked += len(report.replan)
@@ -648,9 +657,10 @@ class PhysicsExecutor:
     def trajectory(self) -> dict[str, np.ndarray]:
         """Recorded poses: ``t`` (T,), ``x``, ``y``, ``heading`` (T, N), ``state`` (task
         state, 7 = failed) and ``loaded`` (T, N), and what a renderer needs to draw them:
-        ``footprint``, ``body_m``, ``cell_m``, ``tick_s``, the layout ``grid`` and
-        ``corridors_json`` (the episode's corridors, see ``World.corridor_log``)."""
-        w = self.world
+        ``footprint``, ``body_m``, ``cell_m``, ``tick_s`` and the layout ``grid`` (the loop
+        adds ``corridors_json``: the episode's corridors, see ``World.corridor_log``)."""
+        if not self._bound:
+            return None
         if not self._traj:
             self._record()
         t = np.array([r[0] for r in self._traj])
@@ -664,6 +674,5 @@ class PhysicsExecutor:
             "body_m": self.fleet.half_size * 2,
             "cell_m": np.array(self.cell_m),
             "tick_s": np.array(self.tick_s),
-            "grid": w.layout.grid.copy(),
-            "corridors_json": np.array(json.dumps(w.corridor_log)),
+            "grid": self.layout.grid.copy(),
         }

@@ -185,6 +185,7 @@ class AStarPlanner:
     """Prioritized planning with space-time A* (WareRover's ``A*``)."""
 
     name = "astar"
+    replans_all = False
 
     def __init__(self, max_expansions: int = 50_000, budget_per_move: int | None = 40) -> None:
         self.max_expansions = max_expansions

@@ -45,8 +45,10 @@ class PlanRequest:
     agents: list[AgentRequest]
     graphs: GraphSet
     reservations: ReservationTable
-    """Committed paths of every AGV. The planner leaves it holding the new path of every
-    AGV it planned and the old path of every AGV it could not plan."""
+    """Committed paths of every AGV: the planner's own copy, to read and to use as scratch
+    space (prioritized planners commit each new path into it before planning the next).
+    Nothing written here reaches the world: the loop commits the paths the planner
+    *returns* in :attr:`PlanResult.paths`."""
     rng: np.random.Generator | None = None
     keep_clear: np.ndarray | None = None
     """Flat bool mask of cells where no AGV should wait (e.g. every station's footprint for
@@ -69,6 +71,13 @@ class PlanResult:
 
 @runtime_checkable
 class Planner(Protocol):
+    """Plans timed paths for the AGVs of a request and returns them.
+
+    ``replans_all``: True for step planners (PIBT, LaCAM) that want every AGV every tick;
+    False for planners called only for AGVs that need a new path.
+    """
+
     name: str
+    replans_all: bool
 
     def plan(self, request: PlanRequest) -> PlanResult: ...

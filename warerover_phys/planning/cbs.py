@@ -421,6 +421,7 @@ class CBSPlanner:
     """Windowed Conflict-Based Search with a prioritized A* fallback (see the module doc)."""
 
     name = "cbs"
+    replans_all = False
     classify = 4
     """How many of a node's earliest conflicts are tried when looking for a cardinal one."""
 

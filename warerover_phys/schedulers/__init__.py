@@ -2,18 +2,16 @@
 
 from __future__ import annotations
 
-from ..registry import lookup
-from .base import Assignment, Scheduler
+from ..registry import build
+from .base import Assignment, Scheduler, SchedulerView
 from .rd import RandomDispatch
 from .ta import TaskAssignment
 
-__all__ = ["Assignment", "Scheduler", "RandomDispatch", "TaskAssignment", "make_scheduler",
-           "SCHEDULERS"]
-
-SCHEDULERS = {"rd": RandomDispatch, "ta": TaskAssignment}
+__all__ = ["Assignment", "Scheduler", "SchedulerView", "RandomDispatch", "TaskAssignment",
+           "make_scheduler"]
 
 
 def make_scheduler(spec) -> Scheduler:
-    """Build the scheduler a :class:`~warerover_phys.config.SchedulerSpec` names."""
-    cls = lookup(SCHEDULERS, spec.name, "scheduler.name")
-    return cls(spec)
+    """Build the scheduler a :class:`~warerover_phys.config.SchedulerSpec` names (a built-in,
+    an entry point or a plug-in class; see :mod:`warerover_phys.registry`)."""
+    return build("scheduler", spec)

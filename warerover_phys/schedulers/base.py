@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
 if TYPE_CHECKING:
-    from ..world import World
+    from ..layout import Layout
+    from ..orders import Order
+    from ..world import Agv, World
 
-__all__ = ["Assignment", "Scheduler"]
+__all__ = ["Assignment", "Scheduler", "SchedulerView"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -22,13 +26,70 @@ class Assignment:
     orders: tuple[int, ...]
 
 
+class SchedulerView:
+    """What a scheduler may read of the world: queries only, no way to change it.
+
+    The AGV and order objects it hands out are the world's own (copying them every tick
+    would cost more than the scheduling); they are read-only by contract, and
+    :func:`warerover_phys.testing.check_scheduler` catches a scheduler that writes them.
+    """
+
+    __slots__ = ("_world",)
+
+    def __init__(self, world: World) -> None:
+        object.__setattr__(self, "_world", world)
+
+    def __setattr__(self, name: str, value: object) -> None:
+        raise AttributeError("SchedulerView is read-only: return Assignments instead")
+
+    @property
+    def tick(self) -> int:
+        return self._world.tick
+
+    @property
+    def layout(self) -> Layout:
+        return self._world.layout
+
+    @property
+    def agvs(self) -> tuple[Agv, ...]:
+        return tuple(self._world.agvs)
+
+    @property
+    def orders(self) -> Mapping[int, Order]:
+        return MappingProxyType(self._world.orders)
+
+    def pending_orders(self) -> list[Order]:
+        """Pending orders, by id."""
+        return self._world.pending_orders()
+
+    def idle_agvs(self) -> list[Agv]:
+        return self._world.idle_agvs()
+
+    def free_shelves_for(self, sku: int, agv: Agv) -> list[int]:
+        """Shelves holding ``sku`` that ``agv`` can carry and nobody is using."""
+        return self._world.free_shelves_for(sku, agv)
+
+    def cell(self, node: int) -> tuple[int, int]:
+        return self._world.cell(node)
+
+    def node(self, cell: tuple[int, int]) -> int:
+        return self._world.node(cell)
+
+    def station_anchor(self, station: int, k: int) -> int:
+        return self._world.station_anchor(station, k)
+
+    def trip_distance(self, agv: Agv, shelf: int, stations: list[int]) -> int:
+        """Path length of a trip: to the shelf unloaded, then loaded to each station."""
+        return self._world.trip_distance(agv, shelf, stations)
+
+
 @runtime_checkable
 class Scheduler(Protocol):
-    """Called every tick with the whole world; returns trips for idle AGVs.
+    """Called every tick with a read-only :class:`SchedulerView`; returns trips for idle AGVs.
 
-    The scheduler must not change the world: the loop applies its assignments.
+    The scheduler never changes the world: the loop checks and applies its assignments.
     """
 
     name: str
 
-    def assign(self, world: World, rng: np.random.Generator) -> list[Assignment]: ...
+    def assign(self, world: SchedulerView, rng: np.random.Generator) -> list[Assignment]: ...

@@ -11,7 +11,7 @@ from .base import Assignment
 
 if TYPE_CHECKING:
     from ..config import SchedulerSpec
-    from ..world import World
+    from .base import SchedulerView
 
 __all__ = ["RandomDispatch"]
 
@@ -22,7 +22,7 @@ class RandomDispatch:
     def __init__(self, spec: SchedulerSpec) -> None:
         self.spec = spec
 
-    def assign(self, world: World, rng: np.random.Generator) -> list[Assignment]:
+    def assign(self, world: SchedulerView, rng: np.random.Generator) -> list[Assignment]:
         pending = world.pending_orders()
         idle = world.idle_agvs()
         if not pending or not idle:

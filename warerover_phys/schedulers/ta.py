@@ -17,7 +17,8 @@ from .base import Assignment
 if TYPE_CHECKING:
     from ..config import SchedulerSpec
     from ..orders import Order
-    from ..world import Agv, World
+    from ..world import Agv
+    from .base import SchedulerView
 
 __all__ = ["TaskAssignment"]
 
@@ -30,7 +31,7 @@ class TaskAssignment:
     def __init__(self, spec: SchedulerSpec) -> None:
         self.spec = spec
 
-    def assign(self, world: World, rng: np.random.Generator) -> list[Assignment]:
+    def assign(self, world: SchedulerView, rng: np.random.Generator) -> list[Assignment]:
         pending = world.pending_orders()
         idle = world.idle_agvs()
         if not pending or not idle:
@@ -75,7 +76,7 @@ class TaskAssignment:
             out.append(Assignment(idle[i].id, shelf, tuple(orders)))
         return out
 
-    def _shelf_options(self, world: World, agv: Agv, sku: int,
+    def _shelf_options(self, world: SchedulerView, agv: Agv, sku: int,
                        orders: list[Order]) -> list[tuple[int, int]]:
         """(trip length, shelf) for the nearest free shelves holding ``sku``, best first."""
         shelves = world.free_shelves_for(sku, agv)

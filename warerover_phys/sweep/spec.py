@@ -44,7 +44,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from ..config import Scenario, _from_validation_error, load_scenario, read_yaml
 from ..errors import ScenarioError
-from ..registry import is_plugin, load_plugin
+from ..registry import check_plugins
 
 __all__ = ["SweepSpec", "ScenarioEntry", "Episode", "SweepError", "load_sweep", "expand",
            "episode_key", "compile_scenarios", "narrow"]
@@ -301,10 +301,7 @@ def compile_scenarios(spec: SweepSpec, episodes: list[Episode]) -> dict[tuple, S
         path = spec.scenario_path(label)
         try:
             sc = load_scenario(path, list(overrides))
-            for field in ("scheduler.name", "planner.name"):
-                name = sc.scheduler.name if field.startswith("scheduler") else sc.planner.name
-                if is_plugin(name):
-                    load_plugin(name, field)
+            check_plugins(sc)
             world_key = json.dumps([str(path), sc.layout.model_dump(mode="json"),
                                     sc.fleet.model_dump(mode="json")], sort_keys=True)
             if world_key not in built:
