@@ -83,6 +83,19 @@ def diagnose(body: str, n: int, sep: str) -> tuple[str, str]:
         return f"expected '{sep}' between tuples", body[pos:]
 
 
+_UNWRAP = str.maketrans("()", "  ")
+
+
+def ints_of(body: str, sep: str) -> list[int]:
+    """The integers of a list of tuples that already matched its pattern (fast)."""
+    if sep != ",":
+        body = body.replace(sep, ",")  # the pattern allows no other use of sep
+    parts = body.translate(_UNWRAP).split(",")
+    if not parts[-1].strip():
+        parts.pop()
+    return list(map(int, parts))
+
+
 _INT_TEXT = re.compile(r"[+-]?\d{1,18}")
 _FLOAT_TEXT = re.compile(r"[+-]?(\d+\.\d*|\.\d+|\d+)([eE][+-]?\d{1,3})?")
 

@@ -24,11 +24,10 @@ from __future__ import annotations
 
 import re
 
-from ._common import MAX_CELLS, MAX_TIMESTEP, diagnose, fail, tuple_pattern
+from ._common import MAX_CELLS, MAX_TIMESTEP, diagnose, fail, ints_of, tuple_pattern
 from .model import Plan
 
 _AGENT = re.compile(r"Agent\s*(\d{1,7})\s*:(.*)", re.ASCII)
-_INT = re.compile(r"\d+", re.ASCII)
 
 
 def _body(n: int) -> re.Pattern:
@@ -56,7 +55,7 @@ def _lines(text: str, source: str, n: int):
         if _BODY[n].fullmatch(body) is None:
             message, bad = diagnose(body, n, "->")
             fail(source, f"line {no}", message, bad)
-        ints = list(map(int, _INT.findall(body)))
+        ints = ints_of(body, "->")
         if not ints:
             fail(source, f"line {no}", f"agent {aid} has an empty path", raw)
         yield no, aid, ints

@@ -45,9 +45,11 @@ Agent 0:(1,3)->(1,4)->
 
 from __future__ import annotations
 
+import gc
 import json
 import os
 import re
+from contextlib import contextmanager
 from pathlib import Path
 
 from ..errors import PlanFormatError
@@ -65,6 +67,19 @@ to see reader bugs)."""
 
 _AGENT_LINE = re.compile(r"Agent\s*\d+\s*:\s*\(([^()]*)\)", re.ASCII)
 _LACAM_FIRST = re.compile(r"[A-Za-z_][A-Za-z0-9_.\-]*\s*=|\d+\s*:\s*\(", re.ASCII)
+
+
+@contextmanager
+def _gc_paused():
+    """Pause the cyclic garbage collector while a reader builds millions of tuples that hold
+    no cycles (it would otherwise scan them again and again); restored on exit."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
 
 
 def _check_fmt(fmt: str) -> None:
@@ -144,6 +159,12 @@ def parse_plan(text: str, fmt: str | None = None, *, source: str = "<string>", x
     """
     if fmt is not None:
         _check_fmt(fmt)
+    with _gc_paused():
+        return _parse(text, fmt, source, xy, which, cols)
+
+
+def _parse(text: str, fmt: str | None, source: str, xy: bool, which: str,
+           cols: int | None) -> Plan:
     try:
         data = None
         if fmt is None:

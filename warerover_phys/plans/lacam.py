@@ -23,13 +23,12 @@ from __future__ import annotations
 
 import re
 
-from ._common import MAX_CELLS, diagnose, excerpt, fail, scalar, tuple_pattern
+from ._common import MAX_CELLS, diagnose, excerpt, fail, ints_of, scalar, tuple_pattern
 from .model import Plan
 
 _KEY = re.compile(r"[A-Za-z_][A-Za-z0-9_.\-]*", re.ASCII)
 _PAIR = tuple_pattern(2)
 _BODY = re.compile(r"\s*(?:" + _PAIR + r"\s*,\s*)*(?:" + _PAIR + r"\s*)?", re.ASCII)
-_INT = re.compile(r"\d+", re.ASCII)
 _STEP = re.compile(r"(\d{1,8})\s*:(.*)", re.ASCII)
 _OWNED = ("agents", "map_file", "width", "height", "soc", "makespan", "solution", "starts",
           "goals")
@@ -40,7 +39,7 @@ def _cells(body: str, source: str, where: str) -> list[int]:
     if _BODY.fullmatch(body) is None:
         message, bad = diagnose(body, 2, ",")
         fail(source, where, message, bad)
-    return list(map(int, _INT.findall(body)))
+    return ints_of(body, ",")
 
 
 def parse(text: str, source: str) -> Plan:

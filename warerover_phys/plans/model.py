@@ -64,7 +64,8 @@ class Plan:
     def __post_init__(self) -> None:
         paths = []
         for i, path in enumerate(self.paths):
-            path = tuple(c if type(c) is tuple else tuple(c) for c in path)
+            if type(path) is not tuple or set(map(type, path)) - {tuple}:
+                path = tuple(c if type(c) is tuple else tuple(c) for c in path)
             if not path:
                 raise ValueError(f"Plan: path of agent {i} is empty")
             paths.append(path)
