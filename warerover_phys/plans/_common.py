@@ -12,9 +12,9 @@ MAX_FILE_BYTES = 512 * 1024 * 1024
 """Files larger than this are refused before reading."""
 MAX_COORD = 9_999_999
 """Largest row / column / flat node accepted (numbers have at most 7 digits)."""
-MAX_TIMESTEP = 10_000_000
+MAX_TIMESTEP = 1_000_000
 """Largest timestep a file may name (timed points, paths.json ticks)."""
-MAX_CELLS = 50_000_000
+MAX_CELLS = 20_000_000
 """Largest number of (agent, timestep) entries a file may expand to."""
 EXCERPT = 80
 

@@ -32,8 +32,8 @@ Example lines (more in each format's module)::
     paths_json    "actual": {"0": [[[4, 12], [4, 12]], [[4, 12], [4, 13]], [[4, 13], [4, 13]]]}
 
 Sizes are bounded so that no file can make the reader allocate absurd amounts: files over
-512 MB, numbers over 9,999,999, timesteps over 10,000,000 and plans over 50,000,000 cells
-are refused. Reading is linear in the file size (1,000 agents x 1,000 timesteps: see
+512 MB, numbers over 9,999,999, timesteps over 1,000,000 and plans over 20,000,000 cells
+(agents x timesteps) are refused. Reading is linear in the file size (1,000 agents x 1,000 timesteps: see
 ``tools/bench_plans.py``).
 
 >>> plan = parse_plan("agents=1\\nsolution=\\n0:(3,1),\\n1:(4,1),\\n")
@@ -245,6 +245,9 @@ def format_plan(plan: Plan, fmt: str, *, xy: bool = True) -> str:
     _check_fmt(fmt)
     source = "<plan>"
     _check_cells(plan, source)
+    if fmt in ("lns", "timed") and not plan.num_agents:
+        fail(source, "paths", f"{fmt} cannot hold a plan with no agents (its file would be "
+             "empty)")
     if fmt == "lacam":
         return lacam.format_plan(plan, source)
     if fmt == "lns":

@@ -99,10 +99,10 @@ def _stitch(planned, source: str, cols: int | None) -> dict[int, list]:
         tick = check_int(entry["tick"], source, f"{where}.tick", what="tick",
                          high=MAX_TIMESTEP)
         cells = _cells(entry["states"], source, f"{where}.states", cols)
-        total += len(cells)
+        path = stitched.setdefault(aid, [])
+        total += max(0, tick - len(path)) + len(cells)
         if total > MAX_CELLS:
             fail(source, where, f"plan too large (more than {MAX_CELLS} cells)")
-        path = stitched.setdefault(aid, [])
         if tick > len(path):
             path += [path[-1] if path else cells[0]] * (tick - len(path))
         del path[tick:]
