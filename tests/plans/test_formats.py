@@ -137,6 +137,24 @@ def test_robotrunners_start_kit_heading_quirk():
     assert parse_plan(json.dumps(data)).paths == (((2, 2), (3, 2)),)
 
 
+ROBOTRUNNERS_2026 = {"teamSize": 2, "agentMaxCounter": 3, "outputSegmentSize": 4,
+                     "start": [[2, 2, "E"], [0, 0, "S"]],
+                     "actualPaths": ["[(0,2,2,0,0):(F 3,W 1)][(4,2,2,0,0):(R 3,F 1)]"
+                                     "[(8,2,2,0,0):(F 2,W 1)]", "[(0,0,0,1,0):(W 2,F 1,C 2)]"]}
+
+
+def test_robotrunners_2026_segmented_paths_by_hand():
+    """Three execution ticks per action; segments of four ticks."""
+    plan = parse_plan(json.dumps(ROBOTRUNNERS_2026))
+    # agent 0: moves E on tick 3, waits, turns to S on tick 7, moves S on tick 10
+    assert plan.paths[0] == ((2, 2),) * 3 + ((2, 3),) * 7 + ((3, 3),)
+    assert plan.headings[0] == (0,) * 7 + (1,) * 4
+    # agent 1: waits two ticks, then its counter runs 1, 2, 3 over F, C, C: it turns on tick 5
+    # (the counter is the robot's, whatever the action), having never moved
+    assert plan.paths[1] == ((0, 0),) * 6 and plan.headings[1] == (1,) * 5 + (0,)
+    assert plan.meta["agentMaxCounter"] == 3
+
+
 PATHS_JSON = {
     "agvs": {"0": {"type": "small", "footprint": 1, "ticks_per_move": 2},
              "1": {"type": "small", "footprint": 1, "ticks_per_move": 1}},
@@ -430,7 +448,17 @@ MALFORMED = [
     ("robotrunners", rr(teamSize=3), "teamSize: teamSize=3 but start has 1"),
     ("robotrunners", rr(actualPaths=["F", "F"]), "actualPaths: 2 paths but start has 1"),
     ("robotrunners", rr(start=[[0, 0, "N"]]), "leaves the map"),
-    ("robotrunners", rr(actualPaths=["[(0,0,0,0,0):(F 3)]"]), "segmented"),
+    ("robotrunners", rr(actualPaths=["[(0,0,0,0,0):(F 3)][(2,0,0,0,0):(W 1)]"]),
+     "actualPaths[0]: segment starts at tick 2 but the segments before it cover 3"),
+    ("robotrunners", rr(actualPaths=["[(0,0,0,0,0):(F 3)"]), "actualPaths[0]: expected a "
+                                                             "segment"),
+    ("robotrunners", rr(actualPaths=["[(0,0,0,0,0):(F 3,X 2)]"]), "expected 'A n'"),
+    ("robotrunners", rr(actualPaths=["[(0,1,0,0,0):(F 3)]"]), "not at the agent's start"),
+    ("robotrunners", rr(actualPaths=["[(0,0,0,0,5):(F 3)]"], agentMaxCounter=3),
+     "counter 5 must be below agentMaxCounter=3"),
+    ("robotrunners", rr(agentMaxCounter=0), "agentMaxCounter: ticks per action must be at "
+                                            "least 1"),
+    ("robotrunners", rr(actualPaths=["[(0,0,0,0,0):(F 3)]"]), None),  # valid
     ("robotrunners", rr(), None),  # control: valid
     ("paths_json", "{}", "actual: missing key"),
     ("paths_json", '{"actual": []}', "actual: expected an object"),
@@ -506,7 +534,8 @@ def _valid_texts() -> list[str]:
     rr_plan = Plan(paths=(((1, 1), (1, 2), (1, 2), (2, 2)),), headings=((0, 0, 1, 1),))
     return [format_plan(FIXED, fmt) for fmt in CELL_FORMATS] + [
         format_plan(FIXED, "timed", xy=False), format_plan(rr_plan, "robotrunners"),
-        LACAM, LNS, TIMED, json.dumps(ROBOTRUNNERS), json.dumps(PATHS_JSON)]
+        LACAM, LNS, TIMED, json.dumps(ROBOTRUNNERS), json.dumps(ROBOTRUNNERS_2026),
+        json.dumps(PATHS_JSON)]
 
 
 VALID_TEXTS = _valid_texts()

@@ -15,8 +15,15 @@ A turn takes a timestep and keeps the cell, so the plan has headings. The reader
 ``actualPaths`` (``which="actual"``) or ``plannerPaths`` (``which="planner"``); every other
 key except ``start`` and ``teamSize`` goes to ``Plan.meta``.
 
-The 2026 start-kit writes segmented paths (``"[(t,row,col,heading,counter):(F 3,W 2)]..."``
-with ``agentMaxCounter`` ticks per action); those are refused with a clear error for now.
+The 2026 start-kit writes segmented, run-length encoded paths instead, one string per
+agent made of segments ``[(t0,row,col,heading,counter):(F 3,W 2,...)]`` (``outputSegmentSize``
+ticks each), and an action takes ``agentMaxCounter`` execution ticks: each tick of ``F``,
+``R`` or ``C`` advances the agent's counter, and the move or turn happens on the tick the
+counter reaches ``agentMaxCounter`` (``W`` / ``T`` ticks leave the counter alone). The reader
+expands these to one plan timestep per execution tick, from the first segment's state (the
+start-kit prints the first segment's state in every segment header, so later headers are not
+used; their ``t0`` must follow the ticks before them). The recorded actions are the executed
+ones (after the start-kit's collision resolution), so the cells are where the robots were.
 
 Writer: a plan with headings is written action by action (a step that is not a wait, a
 quarter turn, or one cell forward in the current heading is an error). A plan without
@@ -31,6 +38,7 @@ give the plan headings or waits before its turns. Both ``actualPaths`` and
 from __future__ import annotations
 
 import json
+import re
 
 from ._common import MAX_CELLS, MAX_COORD, check_int, fail
 from .model import HEADING_NAMES, HEADING_STEPS, Plan
@@ -73,6 +81,10 @@ def parse(data: dict, source: str, *, which: str = "actual") -> Plan:
             fail(source, "teamSize", f"teamSize={team} but start has {len(starts)} agents")
     if len(strings) != len(starts):
         fail(source, key, f"{len(strings)} paths but start has {len(starts)} agents")
+    max_counter = 1
+    if "agentMaxCounter" in data:
+        max_counter = check_int(data["agentMaxCounter"], source, "agentMaxCounter", low=1,
+                                high=1000, what="ticks per action")
     paths, headings = [], []
     total = 0
     steps = HEADING_STEPS
@@ -82,8 +94,11 @@ def parse(data: dict, source: str, *, which: str = "actual") -> Plan:
         if not isinstance(text, str):
             fail(source, where, "expected a string of comma-separated actions", text)
         if text.lstrip().startswith("["):
-            fail(source, where, "segmented (2026 start-kit) paths are not supported yet",
-                 text)
+            cells, heads = _segmented(text, (r, c, h), max_counter, total, source, where)
+            total += len(cells)
+            paths.append(cells)
+            headings.append(heads)
+            continue
         actions = text.split(",") if text.strip() else []
         total += len(actions) + 1
         if total > MAX_CELLS:
@@ -113,6 +128,71 @@ def parse(data: dict, source: str, *, which: str = "actual") -> Plan:
         headings.append(tuple(heads))
     meta = {k: v for k, v in data.items() if k not in _OWNED}
     return Plan(paths=tuple(paths), headings=tuple(headings), meta=meta, fmt="robotrunners")
+
+
+_SEGMENT = re.compile(r"\[\((\d{1,9}),(\d{1,7}),(\d{1,7}),([0-3]),(\d{1,4})\):\(([^()\[\]]*)\)\]",
+                      re.ASCII)
+_RUN = re.compile(r"\s*([FRCWT])\s+(\d{1,9})\s*", re.ASCII)
+
+
+def _segmented(text: str, start: tuple[int, int, int], max_counter: int, total: int,
+               source: str, where: str):
+    """Cells and headings per execution tick of a segmented (2026) path string."""
+    text = text.strip()
+    pos = 0
+    cells: list[tuple[int, int]] = []
+    heads: list[int] = []
+    r = c = h = count = 0
+    while pos < len(text):
+        m = _SEGMENT.match(text, pos)
+        if m is None:
+            fail(source, where, "expected a segment '[(t,row,col,heading,counter):(A n,...)]' "
+                 f"at character {pos}", text[pos:])
+        t0 = int(m.group(1))
+        if pos == 0:
+            r, c, h, count = int(m.group(2)), int(m.group(3)), int(m.group(4)), int(m.group(5))
+            if (r, c, h) != start:
+                fail(source, where, f"first segment starts at ({r}, {c}) facing "
+                     f"{HEADING_NAMES[h]}, not at the agent's start", m.group(0))
+            if count >= max_counter:
+                fail(source, where, f"counter {count} must be below agentMaxCounter="
+                     f"{max_counter}", m.group(0))
+            cells.append((r, c))
+            heads.append(h)
+        if t0 != len(cells) - 1:
+            fail(source, where, f"segment starts at tick {t0} but the segments before it "
+                 f"cover {len(cells) - 1} ticks", m.group(0))
+        body = m.group(6)
+        for run in body.split(",") if body.strip() else ():
+            rm = _RUN.fullmatch(run)
+            if rm is None:
+                fail(source, where, "expected 'A n' (action F, R, C, W or T and a tick count)",
+                     run)
+            a, n = rm.group(1), int(rm.group(2))
+            total += n
+            if total > MAX_CELLS:
+                fail(source, where, f"plan too large (more than {MAX_CELLS} cells)")
+            if a in "WT":
+                cells += [(r, c)] * n
+                heads += [h] * n
+                continue
+            for _ in range(n):
+                count += 1
+                if count >= max_counter:
+                    count = 0
+                    if a == "F":
+                        r, c = r + HEADING_STEPS[h][0], c + HEADING_STEPS[h][1]
+                        if r < 0 or c < 0 or r > MAX_COORD or c > MAX_COORD:
+                            fail(source, where, f"F facing {HEADING_NAMES[h]} leaves the map "
+                                 f"at ({r}, {c}) on tick {len(cells)}", m.group(0))
+                    else:
+                        h = (h + 1) % 4 if a == "R" else (h + 3) % 4
+                cells.append((r, c))
+                heads.append(h)
+        pos = m.end()
+    if not cells:
+        fail(source, where, "empty segmented path", text)
+    return tuple(cells), tuple(heads)
 
 
 def _direction(a, b) -> int | None:
