@@ -62,6 +62,13 @@ def test_lacam_example_by_hand():
     assert plan.makespan == 3 and plan.sum_of_costs == 3 + 3
 
 
+def test_line_endings_and_byte_order_mark_do_not_matter():
+    for text in (LACAM, LNS, TIMED):
+        plan = parse_plan(text)
+        assert parse_plan(text.replace("\n", "\r\n")) == plan
+        assert parse_plan("\ufeff" + text) == plan
+
+
 def test_lacam_without_header_and_with_blank_lines():
     plan = parse_plan("0:(3,1),\n\n1:(4,1),\n\n")
     assert plan.paths == (((1, 3), (1, 4)),)
@@ -513,6 +520,8 @@ def test_file_level_errors(tmp_path, monkeypatch):
         read_plan(big)
     with pytest.raises(PlanFormatError, match="unknown plan format"):
         parse_plan("x", "csv")
+    with pytest.raises(PlanFormatError, match="which: must be 'actual' or 'planner'"):
+        parse_plan(LNS, which="executed")
 
 
 def test_huge_expansion_is_refused(monkeypatch):

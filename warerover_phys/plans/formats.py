@@ -18,7 +18,9 @@ timed          SMART                       ``(x, y, t)``,        a gap in t = wa
                                            ``xy=False``:         previous point
                                            ``(row, col, t)``
 robotrunners   League of Robot Runners     ``start`` is          ``W`` / ``T`` actions; ``R``
-               start-kit (output JSON)     ``[row, col, hdg]``   / ``C`` turns take a timestep
+               start-kit (output JSON;     ``[row, col, hdg]``   / ``C`` turns take a timestep
+               2026 segmented paths                              (2026: ``agentMaxCounter``
+               read too)                                         ticks per action)
 paths_json     ``warerover run``           ``[row, col]``        one state per tick
                (``paths.json``)            anchors
 =============  ==========================  ====================  =============================
@@ -159,6 +161,9 @@ def parse_plan(text: str, fmt: str | None = None, *, source: str = "<string>", x
     """
     if fmt is not None:
         _check_fmt(fmt)
+    if which not in ("actual", "planner"):
+        raise PlanFormatError("must be 'actual' or 'planner'", field="which", file="<arguments>",
+                              value=which)
     with _gc_paused():
         return _parse(text, fmt, source, xy, which, cols)
 
