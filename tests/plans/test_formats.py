@@ -413,6 +413,7 @@ MALFORMED = [
     ("lacam", "", "empty file"),
     ("lacam", "agents=2\nmap_file=x.map\n", "no 'solution=' line"),
     ("lacam", "agents=2\nthis is not a header\nsolution=\n", "line 2"),
+    ("lacam", "agents=1\n0:(1,1),\n", "line 2: a timestep line before 'solution='"),
     ("lacam", "agents=two\nsolution=\n", "line 1"),
     ("lacam", "agents=2\nagents=2\nsolution=\n", "duplicate"),
     ("lacam", HEADER + "0:(1,2),(3,4),\n1:(1,2),\n", "line 4: 1 cells on the line but 2"),

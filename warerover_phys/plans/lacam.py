@@ -61,6 +61,8 @@ def parse(text: str, source: str) -> Plan:
             break
         key, sep, value = line.partition("=")
         key, value = key.strip(), value.strip()
+        if not sep and _STEP.match(line):
+            fail(source, f"line {i}", "a timestep line before 'solution='", raw)
         if not sep or _KEY.fullmatch(key) is None:
             fail(source, f"line {i}", "expected a 'key=value' header line or 'solution='", raw)
         if key in key_line:
