@@ -644,3 +644,27 @@ def test_reads_real_lacam3_output(tmp_path):
         assert all(abs(a[0] - b[0]) + abs(a[1] - b[1]) <= 1 for a, b in zip(path, path[1:], strict=False))
     for fmt in CELL_FORMATS:  # and it survives every format without turns
         assert parse_plan(format_plan(plan, fmt), fmt).paths == plan.paths
+
+
+def test_reads_paths_json_of_a_real_episode(tmp_path):
+    """``warerover run``'s own output: executed cells equal the stitched committed plans on
+    the ideal grid executor (slow 2x2 AGVs included), and survive every cell format."""
+    from warerover_phys import load_scenario, run_episode, write_outputs
+
+    root = Path(__file__).resolve().parents[2]
+    scenario = load_scenario(root / "layouts" / "paper_heterogeneous.yaml",
+                             [("max_ticks", 80)])
+    result = run_episode(scenario, seed=1)
+    files = write_outputs(result, tmp_path)
+    actual = read_plan(files["paths"])
+    planned = read_plan(files["paths"], which="planner")
+    lay = result.world.layout
+    assert actual.num_agents == planned.num_agents == len(result.world.agvs)
+    for i, agv in enumerate(sorted(result.world.agvs, key=lambda a: a.id)):
+        states = result.actual[agv.id]
+        assert actual.at(i, len(states) - 1) == divmod(states[-1][0], lay.cols)
+        common = min(len(actual.paths[i]), len(planned.paths[i]))
+        assert actual.paths[i][:common] == planned.paths[i][:common]
+    assert actual.meta["agvs"]["0"]["ticks_per_move"] >= 1
+    for fmt in CELL_FORMATS:
+        assert parse_plan(format_plan(actual, fmt), fmt).paths == actual.paths
