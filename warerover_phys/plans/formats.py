@@ -164,6 +164,8 @@ def parse_plan(text: str, fmt: str | None = None, *, source: str = "<string>", x
     if which not in ("actual", "planner"):
         raise PlanFormatError("must be 'actual' or 'planner'", field="which", file="<arguments>",
                               value=which)
+    if len(text) > MAX_FILE_BYTES:
+        fail(source, None, f"text too large ({len(text)} characters; max {MAX_FILE_BYTES})")
     with _gc_paused():
         return _parse(text, fmt, source, xy, which, cols)
 

@@ -32,7 +32,9 @@ waits: a wait before a move in another direction becomes ``R`` or ``C`` (two wai
 U-turn). A move in a direction the agent does not face yet (a turn with no wait before it)
 cannot be written without changing the plan's timing, so it is a :class:`PlanFormatError`;
 give the plan headings or waits before its turns. Both ``actualPaths`` and
-``plannerPaths`` get the plan's actions.
+``plannerPaths`` get the plan's actions; ``sumOfCost`` and ``makespan`` come from ``meta``
+when the plan was read from such a file (the start-kit counts them its own way), else from the
+plan; the other ``meta`` keys are written back as they are.
 """
 
 from __future__ import annotations
