@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["WareroverError", "ScenarioError", "LayoutError", "PlanningError"]
+__all__ = ["WareroverError", "ScenarioError", "LayoutError", "PlanningError", "PlanFormatError"]
 
 
 class WareroverError(Exception):
@@ -63,3 +63,12 @@ class LayoutError(ScenarioError):
 
 class PlanningError(WareroverError):
     """A planner was asked something it cannot do (e.g. an unknown planner name)."""
+
+
+class PlanFormatError(ScenarioError):
+    """A plan file that cannot be read (or a plan that a format cannot express).
+
+    ``str(err)`` is one line: ``FILE: WHERE: MESSAGE (got TEXT)``, where ``WHERE`` is a line
+    number (``line 12``) or a JSON key path (``actualPaths[3]``) and ``TEXT`` is at most
+    about 80 characters of the offending input.
+    """
