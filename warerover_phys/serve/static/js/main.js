@@ -1,0 +1,74 @@
+// Entry point: the socket, the tabs, and window.wr (state for tests and the benchmark).
+import { Live } from './live.js';
+import { Editor } from './editor.js';
+import { Replay } from './replay.js';
+import { Camera, fitCanvas } from './view.js';
+
+const canvas = document.getElementById('view');
+const wr = window.wr = { rafFrames: 0, frames: 0, tick: 0, mode: 'live', errors: [] };
+
+class Socket {
+  constructor(onMessage, onBinary) {
+    this.onMessage = onMessage; this.onBinary = onBinary; this.nextId = 1; this.pending = new Map();
+    this.connect();
+  }
+  connect() {
+    const ws = this.ws = new WebSocket(`${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/ws`);
+    ws.binaryType = 'arraybuffer';
+    const conn = document.getElementById('conn');
+    ws.onopen = () => { conn.textContent = 'connected'; conn.className = 'conn ok'; wr.connected = true; };
+    ws.onclose = () => { conn.textContent = 'disconnected — retrying'; conn.className = 'conn'; wr.connected = false; setTimeout(() => this.connect(), 1000); };
+    ws.onmessage = (e) => {
+      if (typeof e.data !== 'string') { this.onBinary(e.data); return; }
+      const msg = JSON.parse(e.data);
+      if (msg.type === 'error') { wr.errors.push(msg.error); console.warn('server:', msg.error); }
+      if (msg.id !== undefined && this.pending.has(msg.id)) {
+        const { resolve, keep } = this.pending.get(msg.id);
+        if (!keep) this.pending.delete(msg.id);
+        resolve(msg);
+      }
+      this.onMessage(msg);
+    };
+  }
+  send(msg) { if (this.ws.readyState === 1) this.ws.send(JSON.stringify(msg)); }
+  request(msg) {
+    const id = this.nextId++;
+    return new Promise((resolve) => { this.pending.set(id, { resolve }); this.send({ ...msg, id }); });
+  }
+}
+
+const cam = new Camera(canvas, () => { wr.dirty = true; });
+const views = {};
+const sock = new Socket((msg) => {
+  for (const v of Object.values(views)) v.onMessage(msg);
+}, (buf) => {
+  const magic = new DataView(buf).getUint32(0, true);
+  if (magic === 0x31465257) views.live.onFrame(buf);
+  else if (magic === 0x31525257) views.replay.onData(buf);
+});
+wr.sock = sock; wr.request = (m) => sock.request(m); wr.cam = cam;
+views.live = new Live(canvas, cam, sock);
+views.editor = new Editor(canvas, cam, sock);
+views.replay = new Replay(canvas, cam, sock);
+wr.views = views;
+
+function setTab(name) {
+  wr.mode = name;
+  document.querySelectorAll('#tabs button').forEach((b) => b.classList.toggle('on', b.dataset.tab === name));
+  document.querySelectorAll('aside section').forEach((s) => { s.hidden = s.dataset.panel !== name; });
+  for (const [k, v] of Object.entries(views)) v.active = k === name;
+  views[name].activate();
+}
+document.querySelectorAll('#tabs button').forEach((b) => b.addEventListener('click', () => setTab(b.dataset.tab)));
+wr.setTab = setTab;
+setTab('live');
+
+let fpsT0 = performance.now(), fpsN = 0;
+function loop(now) {
+  wr.rafFrames++; fpsN++;
+  if (now - fpsT0 >= 1000) { wr.fps = fpsN * 1000 / (now - fpsT0); fpsT0 = now; fpsN = 0; }
+  fitCanvas(canvas);
+  views[wr.mode].draw(now);
+  requestAnimationFrame(loop);
+}
+requestAnimationFrame(loop);
