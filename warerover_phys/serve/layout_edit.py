@@ -91,17 +91,17 @@ def doc_from_file(path: Path) -> LayoutDoc:
 
 
 def scenario_for(doc: LayoutDoc, layout: dict | str) -> dict[str, Any]:
-    """A scenario that runs on the layout: 1x1 AGVs (plus 2x2 ones when there are 2x2
-    shelves), one per parking cell up to 20 (or ``doc.agvs``), one-shot orders."""
+    """A scenario that runs on the layout: 1x1 AGVs, one per parking cell up to 10 (or
+    ``doc.agvs``), plus one 2x2 AGV when there are 2x2 shelves; one-shot orders."""
     parking = doc.cells.count("P")
-    n = doc.agvs or max(1, min(20, parking))
+    large = 1 if doc.big_shelves else 0
+    n = doc.agvs or max(1, min(10, parking - 4 * large))
     types: dict[str, Any] = {"small": {"footprint": 1, "body_m": [0.7, 0.7], "cargo_class": 1}}
-    groups = [{"type": "small", "count": n}]
-    if doc.big_shelves:
+    groups: list[dict[str, Any]] = [{"type": "small", "count": n}]
+    if large:
         types["large"] = {"footprint": 2, "body_m": [1.6, 1.6], "cargo_class": 2,
                           "max_speed_mps": 0.75, "max_accel_mps2": 0.5, "drive": "omni"}
-        big = max(1, n // 3)
-        groups = [{"type": "small", "count": max(1, n - big)}, {"type": "large", "count": big}]
+        groups.insert(0, {"type": "large", "count": large})
     return {"name": "edited", "seed": 0, "max_ticks": 1000, "tick_s": 1.0, "layout": layout,
             "fleet": {"types": types, "agvs": groups},
             "orders": {"pattern": "oneshot", "oneshot": {"count": 20}},
