@@ -93,6 +93,11 @@ export class Live {
       $('c-rate').textContent = `${st.sim_ticks_per_s.toFixed(0)} t/s`;
       this.plot(st.tp_points || []);
     }
+    if (st.ticks_per_s !== undefined && document.activeElement !== $('speed')) {
+      let best = 0;
+      SPEEDS.forEach((v, i) => { if (Math.abs(v - st.ticks_per_s) < Math.abs(SPEEDS[best] - st.ticks_per_s)) best = i; });
+      $('speed').value = best; $('speed-v').textContent = SPEEDS[best] ? `${SPEEDS[best]} t/s` : 'max';
+    }
     $('b-pause').textContent = st.paused ? 'Resume' : 'Pause';
     $('b-pause').classList.toggle('on', !!st.paused);
     window.wr.paused = st.paused;
