@@ -6,7 +6,7 @@ validated model or raises :class:`ProtocolError` with a one-line reason (the ser
 ``{"type": "error", ...}`` and keeps the connection). ``docs/serve.md`` lists every message.
 
 >>> parse_message('{"type": "fail", "agv": 3}')
-Fail(type='fail', agv=3, repair_ticks=None, id=None)
+Fail(id=None, type='fail', agv=3, repair_ticks=None)
 >>> parse_message('{"type": "fail", "agv": -1}')
 Traceback (most recent call last):
 ...
