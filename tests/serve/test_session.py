@@ -79,6 +79,17 @@ def test_restart_switches_executor(session):
     assert info["id"] == 0 and "waiting_for" in info and info["speed_mps"] >= 0
 
 
+def test_restart_with_a_bad_planner_keeps_the_episode(session):
+    from warerover_phys.errors import WareroverError
+
+    session.step(4)
+    with pytest.raises((WareroverError, ValueError)):
+        session.restart(planner="nosuchplanner")
+    assert session.sim.world.tick == 4
+    session.restart()
+    assert session.scenario.planner.name == "astar"
+
+
 def test_scenario_file(tmp_path):
     s = LiveSession(REPO / "layouts" / "paper_heterogeneous.yaml", tmp_path)
     scene = s.scene()

@@ -120,8 +120,9 @@ class LiveSession:
     def _build(self) -> None:
         from ..sim import Simulation
 
-        self.scenario = self._load_scenario(self.overrides)
-        self.sim = Simulation(self.scenario, self.seed)
+        scenario = self._load_scenario(self.overrides)
+        sim = Simulation(scenario, self.seed)
+        self.scenario, self.sim = scenario, sim
         w = self.sim.world
         lay = w.layout
         self.cols, self.cell_m = lay.cols, float(lay.cell_m)
@@ -139,13 +140,18 @@ class LiveSession:
                 planner: str | None = None) -> None:
         """Start the episode again (optionally with another executor, planner or seed)."""
         with self.lock:
+            old = (list(self.overrides), self.seed)
             for key, value in (("executor.name", executor), ("planner.name", planner)):
                 if value is not None:
                     self.overrides = [(k, v) for k, v in self.overrides if k != key]
                     self.overrides.append((key, value))
             if seed is not None:
                 self.seed = seed
-            self._build()
+            try:
+                self._build()
+            except Exception:
+                self.overrides, self.seed = old     # keep the episode that runs
+                raise
 
     # ------------------------------------------------------------------------- stepping
 
