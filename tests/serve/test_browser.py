@@ -170,3 +170,17 @@ def test_replay_of_a_recorded_run_reaches_its_last_frame(serve, page, tmp_path):
     page.evaluate("""() => { const r = document.getElementById('r-time'); r.value = r.min;
                               r.dispatchEvent(new Event('input')); }""")
     page.wait_for_function("wr.replay.time === wr.replay.start", timeout=5000)
+
+
+def test_3d_view_draws_the_scene(serve, page):
+    srv = serve(scenario=REPO / "layouts" / "paper_heterogeneous.yaml")
+    _open(page, srv)
+    page.click("button[data-tab='3d']")
+    if not page.evaluate("!!wr.views['3d'].gl"):
+        pytest.skip("this Chromium has no WebGL2")
+    page.wait_for_timeout(500)
+    img = _pixels(page.locator("#view3d").screenshot())
+    shelves = _count(img, (140, 196, 237), tol=40)     # lit shelf faces
+    agvs = sum(_count(img, c, tol=40) for c in (LOADED_ORANGE, MOVING_BLUE, IDLE_GREY))
+    assert shelves > 2000 and agvs > 200, (shelves, agvs)
+    assert page.is_hidden("#view") and page.is_visible("#view3d")

@@ -167,7 +167,6 @@ export class Live {
     const st = this.status || {};
     document.getElementById('hud').textContent =
       `t = ${f.time.toFixed(0)} s  ·  tick ${f.tick}  ·  orders ${st.orders_done ?? 0}/${st.orders_total ?? 0}  ·  ${st.paused ? 'paused' : st.done ? 'done' : 'running'}`;
-    this.$('c-fps').textContent = `${(window.wr.fps || 0).toFixed(0)} fps`;
   }
 
   drawPaths(ctx, f) {

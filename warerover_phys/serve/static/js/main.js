@@ -2,6 +2,7 @@
 import { Live } from './live.js';
 import { Editor } from './editor.js';
 import { Replay } from './replay.js';
+import { View3D } from './view3d.js';
 import { Camera, fitCanvas } from './view.js';
 
 const canvas = document.getElementById('view');
@@ -50,12 +51,16 @@ wr.sock = sock; wr.request = (m) => sock.request(m); wr.cam = cam;
 views.live = new Live(canvas, cam, sock);
 views.editor = new Editor(canvas, cam, sock);
 views.replay = new Replay(canvas, cam, sock);
+const canvas3d = document.getElementById('view3d');
+views['3d'] = new View3D(canvas3d, views.live);
 wr.views = views;
 
 function setTab(name) {
   wr.mode = name;
   document.querySelectorAll('#tabs button').forEach((b) => b.classList.toggle('on', b.dataset.tab === name));
-  document.querySelectorAll('aside section').forEach((s) => { s.hidden = s.dataset.panel !== name; });
+  const panel = name === '3d' ? 'live' : name;
+  document.querySelectorAll('aside section').forEach((s) => { s.hidden = s.dataset.panel !== panel; });
+  canvas.hidden = name === '3d'; canvas3d.hidden = name !== '3d';
   for (const [k, v] of Object.entries(views)) v.active = k === name;
   views[name].activate();
 }
@@ -66,8 +71,11 @@ setTab('live');
 let fpsT0 = performance.now(), fpsN = 0;
 function loop(now) {
   wr.rafFrames++; fpsN++;
-  if (now - fpsT0 >= 1000) { wr.fps = fpsN * 1000 / (now - fpsT0); fpsT0 = now; fpsN = 0; }
-  fitCanvas(canvas);
+  if (now - fpsT0 >= 1000) {
+    wr.fps = fpsN * 1000 / (now - fpsT0); fpsT0 = now; fpsN = 0;
+    document.getElementById('c-fps').textContent = `${wr.fps.toFixed(0)} fps`;
+  }
+  fitCanvas(wr.mode === '3d' ? canvas3d : canvas);
   views[wr.mode].draw(now);
   requestAnimationFrame(loop);
 }
