@@ -64,6 +64,8 @@ def main() -> int:
     ap.add_argument("--speed", type=float, default=0.0,
                     help="ticks per second asked of the server (0: as fast as it runs)")
     ap.add_argument("--size", default="1280x720", help="browser viewport, WxH")
+    ap.add_argument("--tab", choices=("live", "3d"), default="live",
+                    help="which view to measure (the 2D live view or the WebGL 3D view)")
     ap.add_argument("--chromium", default=shutil.which("chromium") or "/usr/bin/chromium")
     ap.add_argument("--out", type=Path, default=REPO / "tools" / "out" / "bench_serve.json")
     args = ap.parse_args()
@@ -87,6 +89,8 @@ def main() -> int:
         page = browser.new_page(viewport={"width": w, "height": h})
         page.goto(srv.url)
         page.wait_for_function("window.wr && window.wr.frames >= 3", timeout=120_000)
+        if args.tab == "3d":
+            page.click("button[data-tab='3d']")
         page.wait_for_timeout(1500)                     # settle (first layout image, JIT)
         r0 = page.evaluate("[wr.rafFrames, wr.frames, performance.now()]")
         tick0, t0 = hub.session.sim.world.tick, time.perf_counter()
@@ -101,7 +105,7 @@ def main() -> int:
     served = (tick1 - tick0) / (t1 - t0)
     result = {
         "agvs": args.agvs, "scenario": str(SCENARIO.relative_to(REPO)), "planner": "pibt",
-        "executor": "grid", "viewport": args.size, "seconds": round(page_s, 2),
+        "executor": "grid", "view": args.tab, "viewport": args.size, "seconds": round(page_s, 2),
         "page_fps": round((r1[0] - r0[0]) / page_s, 1),
         "frames_per_s": round((r1[1] - r0[1]) / page_s, 1),
         "server_ticks_per_s": round(served, 1), "sim_only_ticks_per_s": round(alone, 1),
@@ -114,6 +118,8 @@ def main() -> int:
     for k, v in result.items():
         if k != "machine":
             print(f"{k:>22}: {v}")
+    if args.tab != "live" and args.out.name == "bench_serve.json":
+        args.out = args.out.with_name(f"bench_serve_{args.tab}.json")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(result, indent=2) + "\n")
     print(f"wrote {args.out} (screenshot {shot})")

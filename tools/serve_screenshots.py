@@ -1,7 +1,9 @@
-"""Take the README screenshots of ``warerover serve``: live view, layout editor, replay.
+"""Take the README screenshots of ``warerover serve``: live view, 3D view, layout editor,
+replay.
 
 Headless Chromium (Debian's ``chromium``) through Playwright; writes small palette PNGs to
-``docs/img/serve_live.png``, ``serve_editor.png`` and ``serve_replay.png``.
+``docs/img/serve_live.png``, ``serve_3d.png``, ``serve_editor.png`` and
+``serve_replay.png``.
 
     .venv/bin/python tools/serve_screenshots.py
 """
@@ -54,6 +56,10 @@ def main() -> None:
                                  wr.sock.send({type: 'inspect', agv: 2}); }""")
         page.wait_for_timeout(800)
         save_small(page.screenshot(), OUT / "serve_live.png")
+
+        page.click("button[data-tab='3d']")
+        page.wait_for_timeout(800)
+        save_small(page.screenshot(), OUT / "serve_3d.png")
 
         page.click("button[data-tab=editor]")
         page.fill("#e-path", "layouts/maps/paper_20x15_hetero.yaml")

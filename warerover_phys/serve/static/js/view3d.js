@@ -123,17 +123,27 @@ export class View3D {
     gl.useProgram(this.prog); gl.uniformMatrix4fv(this.uMvp, false, mvp);
     gl.bindVertexArray(this.staticVao); gl.drawArraysInstanced(gl.TRIANGLES, 0, 36, this.staticCount);
     const f = live.cur;
-    if (f) {
-      live.positions(now);
-      const a = new Float32Array(10 * f.n);
-      for (let i = 0; i < f.n; i++) {
-        const c = STATUS[f.status[i]], o = 10 * i;
-        a[o] = live.ix[i]; a[o + 1] = 0; a[o + 2] = live.iy[i];
-        a[o + 3] = live.body[2 * i]; a[o + 4] = 0.45; a[o + 5] = live.body[2 * i + 1]; a[o + 6] = live.ih[i];
-        a[o + 7] = c[0]; a[o + 8] = c[1]; a[o + 9] = c[2];
+    const cors = (live.status && live.status.corridors) || [];
+    const ncells = cors.reduce((n, c) => n + c.cells.length, 0), nagv = f ? f.n : 0;
+    if (nagv + ncells > 0) {
+      const a = new Float32Array(10 * (nagv + ncells));
+      let o = 0;
+      if (f) {
+        live.positions(now);
+        for (let i = 0; i < f.n; i++, o += 10) {
+          const c = STATUS[f.status[i]];
+          a[o] = live.ix[i]; a[o + 1] = 0; a[o + 2] = live.iy[i];
+          a[o + 3] = live.body[2 * i]; a[o + 4] = 0.45; a[o + 5] = live.body[2 * i + 1]; a[o + 6] = live.ih[i];
+          a[o + 7] = c[0]; a[o + 8] = c[1]; a[o + 9] = c[2];
+        }
+      }
+      for (const cor of cors) for (const cellIdx of cor.cells) {     // corridor cells: flat, purple
+        const r = Math.floor(cellIdx / s.cols), c = cellIdx % s.cols;
+        a.set([(c + 0.5) * s.cell_m, 0, (r + 0.5) * s.cell_m, s.cell_m, 0.04, s.cell_m, 0, 0.8, 0.475, 0.655], o);
+        o += 10;
       }
       gl.bindBuffer(gl.ARRAY_BUFFER, this.agvBuf); gl.bufferData(gl.ARRAY_BUFFER, a, gl.DYNAMIC_DRAW);
-      gl.bindVertexArray(this.agvVao); gl.drawArraysInstanced(gl.TRIANGLES, 0, 36, f.n);
+      gl.bindVertexArray(this.agvVao); gl.drawArraysInstanced(gl.TRIANGLES, 0, 36, nagv + ncells);
     }
     gl.bindVertexArray(null);
     document.getElementById('hud').textContent = `3D · tick ${f ? f.tick : 0} · drag: orbit · wheel: zoom`;
