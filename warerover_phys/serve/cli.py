@@ -33,7 +33,7 @@ def serve(scenario: Annotated[Path | None, typer.Argument(
           host: Annotated[str, typer.Option(
               help="Address to bind (default loopback only; 0.0.0.0 exposes it).")
           ] = "127.0.0.1",
-          port: Annotated[int, typer.Option(help="TCP port (0: any free port).")] = 8000,
+          port: Annotated[int, typer.Option(help="TCP port.")] = 8000,
           seed: Annotated[int | None, typer.Option(help="Episode seed.")] = None,
           executor: Annotated[str | None, typer.Option(
               help="Override the executor (grid or physics).")] = None,
