@@ -49,6 +49,7 @@ def serve(scenario: Annotated[Path | None, typer.Argument(
     import uvicorn
 
     from ..errors import WareroverError
+    from .protocol import MAX_MESSAGE_BYTES
     from .server import create_app
 
     root = Path.cwd()
@@ -65,7 +66,8 @@ def serve(scenario: Annotated[Path | None, typer.Argument(
                    err=True)
     typer.echo(f"warerover serve: http://{'127.0.0.1' if host == '0.0.0.0' else host}:{port}/ "
                f"(folder {root})")
-    uvicorn.run(app, host=host, port=port, log_level="warning", ws="auto")
+    uvicorn.run(app, host=host, port=port, log_level="warning", ws="auto",
+                ws_max_size=MAX_MESSAGE_BYTES)
 
 
 def export_glb(out: Annotated[Path, typer.Argument(help="Output .glb file.")],

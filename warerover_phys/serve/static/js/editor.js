@@ -33,7 +33,23 @@ export class Editor {
     this.cells = new Array(rows * cols).fill('.');
     for (let r = 0; r < rows; r++) for (let c = 0; c < cols; c++)
       if (r === 0 || c === 0 || r === rows - 1 || c === cols - 1) this.cells[r * cols + c] = '.';
-    this.big = []; this.errors = []; this.fitted = false; this.showErrors();
+    this.big = []; this.errors = []; this.fitted = false; this.dirty = true; this.showErrors();
+  }
+  rebuild() {     // the cells as an image of one pixel per cell (redrawn only after a change)
+    if (!this.img || this.img.width !== this.cols || this.img.height !== this.rows) {
+      this.img = document.createElement('canvas'); this.img.width = this.cols; this.img.height = this.rows;
+    }
+    const ctx = this.img.getContext('2d'), data = ctx.createImageData(this.cols, this.rows);
+    const rgb = {};
+    for (const [ch, hex] of Object.entries(COLORS)) rgb[ch] = [1, 3, 5].map((i) => parseInt(hex.slice(i, i + 2), 16));
+    this.access = [];
+    this.cells.forEach((ch, i) => {
+      const v = rgb[ch] || [255, 0, 255];
+      data.data.set([v[0], v[1], v[2], 255], 4 * i);
+      if (ch === 'A') this.access.push(i);
+    });
+    ctx.putImageData(data, 0, 0);
+    this.dirty = false;
   }
   doc() {
     return { rows: this.rows, cols: this.cols, cell_m: this.cell, cells: this.cells.join(''), big_shelves: this.big };
@@ -41,7 +57,7 @@ export class Editor {
   load(doc) {
     this.rows = doc.rows; this.cols = doc.cols; this.cell = doc.cell_m;
     this.cells = doc.cells.split(''); this.big = doc.big_shelves.map((b) => [b[0], b[1]]);
-    this.errors = []; this.fitted = false; this.showErrors();
+    this.errors = []; this.fitted = false; this.dirty = true; this.showErrors();
     this.$('e-rows').value = doc.rows; this.$('e-cols').value = doc.cols;
   }
   removeBigAt(r, c) {
@@ -50,11 +66,13 @@ export class Editor {
     const [br, bc] = this.big[i];
     this.big.splice(i, 1);
     for (let dr = 0; dr < 2; dr++) for (let dc = 0; dc < 2; dc++) this.cells[(br + dr) * this.cols + bc + dc] = '.';
+    this.dirty = true;
   }
   set(r, c, ch) {
     if (r < 0 || c < 0 || r >= this.rows || c >= this.cols) return false;
     if (this.cells[r * this.cols + c] === 'B') this.removeBigAt(r, c);
     this.cells[r * this.cols + c] = ch;
+    this.dirty = true;
     return true;
   }
   paintCell(r, c, tool) {
@@ -102,17 +120,9 @@ export class Editor {
     ctx.clearRect(0, 0, this.canvas.width, this.canvas.height);
     if (!this.fitted && this.canvas.clientWidth > 0) { cam.fit(this.cols * cell, this.rows * cell); this.fitted = true; }
     cam.apply(ctx);
-    const byColor = {};
-    for (let i = 0; i < this.cells.length; i++) {
-      const ch = this.cells[i];
-      (byColor[ch] = byColor[ch] || []).push(i);
-    }
-    for (const [ch, idx] of Object.entries(byColor)) {
-      ctx.fillStyle = COLORS[ch] || '#f0f';
-      ctx.beginPath();
-      for (const i of idx) { const r = Math.floor(i / this.cols), c = i % this.cols; ctx.rect(c * cell, r * cell, cell, cell); }
-      ctx.fill();
-    }
+    if (this.dirty !== false || !this.img) this.rebuild();
+    ctx.imageSmoothingEnabled = false;
+    ctx.drawImage(this.img, 0, 0, this.cols * cell, this.rows * cell);
     if (cam.scale * cell >= 6) {
       ctx.beginPath();
       for (let r = 0; r <= this.rows; r++) { ctx.moveTo(0, r * cell); ctx.lineTo(this.cols * cell, r * cell); }
@@ -122,10 +132,10 @@ export class Editor {
     ctx.strokeStyle = '#2f6f9f'; ctx.lineWidth = 2 / cam.scale;
     for (const [r, c] of this.big) ctx.strokeRect(c * cell + 0.06, r * cell + 0.06, 2 * cell - 0.12, 2 * cell - 0.12);
     ctx.fillStyle = '#7a3b69';
-    (byColor.A || []).forEach((i) => {
+    for (const i of this.access) {
       const r = Math.floor(i / this.cols), c = i % this.cols;
       ctx.beginPath(); ctx.arc((c + 0.5) * cell, (r + 0.5) * cell, 0.25 * cell, 0, 2 * Math.PI); ctx.fill();
-    });
+    }
     ctx.strokeStyle = '#e00'; ctx.lineWidth = 3 / cam.scale;
     for (const e of this.errors) for (const [r, c] of e.cells) ctx.strokeRect(c * cell + 0.08, r * cell + 0.08, cell - 0.16, cell - 0.16);
     document.getElementById('hud').textContent = `editor · ${this.rows} x ${this.cols} cells · tool: ${this.tool}`;
