@@ -74,6 +74,10 @@ def test_click_an_agv_and_fail_it_opens_a_corridor(serve, page):
         const v = wr.views.live, [sx, sy] = wr.cam.toScreen(v.cur.x[{agv}], v.cur.y[{agv}]);
         const r = document.getElementById('view').getBoundingClientRect();
         return [r.left + sx, r.top + sy]; }}""")
+    page.mouse.move(x, y)
+    page.wait_for_function(f"document.getElementById('tooltip').textContent.startsWith('AGV {agv} ')"
+                           " && !document.getElementById('tooltip').hidden", timeout=10000)
+    assert "waiting for" in page.inner_text("#tooltip")
     page.mouse.click(x, y)
     page.wait_for_function(f"wr.selected === {agv}", timeout=5000)
     assert page.inner_text("#sel-id") == str(agv)
@@ -184,3 +188,20 @@ def test_3d_view_draws_the_scene(serve, page):
     agvs = sum(_count(img, c, tol=40) for c in (LOADED_ORANGE, MOVING_BLUE, IDLE_GREY))
     assert shelves > 2000 and agvs > 200, (shelves, agvs)
     assert page.is_hidden("#view") and page.is_visible("#view3d")
+
+
+def test_restart_on_the_physics_executor(serve, page):
+    srv = serve(ticks_per_s=10)
+    _open(page, srv)
+    page.select_option("#executor", "physics")
+    page.fill("#seed", "4")
+    page.click("#b-restart")
+    page.wait_for_function("wr.scene.executor === 'physics' && wr.scene.seed === 4",
+                           timeout=20000)
+    hub = srv.app.state.hub
+    assert hub.session.executor_name == "physics"
+    t0 = time.monotonic()
+    while hub.session.sim.world.tick < 3 and time.monotonic() - t0 < 30:
+        time.sleep(0.05)
+    page.wait_for_function("wr.tick >= 3 && wr.frames > 0", timeout=30000)
+    assert page.evaluate("Array.from(wr.views.live.cur.x).every(Number.isFinite)")
