@@ -10,8 +10,7 @@ from pathlib import Path
 
 import pytest
 
-pytest.importorskip("starlette", reason="needs the serve extra: pip install '.[serve]'")
-pytest.importorskip("uvicorn", reason="needs the serve extra: pip install '.[serve]'")
+SERVE_EXTRA = "needs the serve extra: pip install '.[serve]'"
 
 REPO = Path(__file__).resolve().parents[2]
 CHROMIUM = next((p for p in ("/usr/bin/chromium", "/usr/bin/chromium-browser",
@@ -22,6 +21,8 @@ CHROMIUM = next((p for p in ("/usr/bin/chromium", "/usr/bin/chromium-browser",
 def serve(tmp_path):
     """Start a server in ``tmp_path`` (the served folder); yields a function that starts one
     with the given ``create_app`` options and returns the running ``ServerThread``."""
+    for mod in ("starlette", "uvicorn", "websockets"):
+        pytest.importorskip(mod, reason=SERVE_EXTRA)
     from warerover_phys.serve.server import ServerThread, create_app
 
     started = []

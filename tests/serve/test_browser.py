@@ -19,7 +19,7 @@ IDLE_GREY = (153, 153, 153)
 
 
 def _pixels(png: bytes) -> np.ndarray:
-    from PIL import Image
+    Image = pytest.importorskip("PIL.Image", reason="pixel checks need Pillow")
 
     return np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
 

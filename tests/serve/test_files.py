@@ -99,6 +99,7 @@ def test_replay_of_robot_runners_output(tmp_path):
 
 
 def test_glb_export_with_animation(tmp_path):
+    pytest.importorskip("trimesh", reason="glTF export needs trimesh (the serve extra)")
     from warerover_phys.serve.glb import _read_glb, export_episode_glb, export_layout_glb
     from warerover_phys.serve.session import LiveSession
 
@@ -122,6 +123,7 @@ def test_glb_export_with_animation(tmp_path):
 
 
 def test_export_glb_command(tmp_path, monkeypatch):
+    pytest.importorskip("trimesh", reason="glTF export needs trimesh (the serve extra)")
     import typer
 
     from warerover_phys.serve.cli import register

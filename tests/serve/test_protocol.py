@@ -97,6 +97,10 @@ def test_fuzzed_messages_get_error_replies_and_the_server_survives(data, serve_o
 
 @pytest.fixture(scope="module")
 def serve_once(tmp_path_factory):
+    from .conftest import SERVE_EXTRA
+
+    for mod in ("starlette", "uvicorn", "websockets"):
+        pytest.importorskip(mod, reason=SERVE_EXTRA)
     from warerover_phys.serve.server import ServerThread, create_app
 
     from .conftest import Client
