@@ -6,6 +6,17 @@ snapshot of it as arrays, fail / repair AGVs through the simulation's on-demand 
 add orders, and restart with another executor or seed. When the simulation core changes its
 interface, this module is the only one to adapt.
 
+What it reads of the core (the list to check when the core changes): ``Simulation(scenario,
+seed)``, ``.step()``, ``.done``, ``.fail()`` / ``.repair()``, ``.planned``, ``.actual``,
+``.executor`` (``.io.read()`` and ``._bound`` of the physics executor for live poses and
+speeds, ``.trajectory()``); ``world.agvs`` (``id``, ``type_name``, ``spec``, ``k``, ``pos``,
+``state``, ``loaded``, ``trip``, ``standing``, ``node``, ``ticks_per_move``,
+``blocked_ticks``), ``world.layout``, ``world.tick``, ``world.status``,
+``world.completed_tick``, ``world.orders``, ``world.add_orders()``, ``world.corridors``,
+``world.corridor_log``, ``world.fault_stats``, ``world.events``, ``world.goal_of()``,
+``world.cell()``, ``world.reservations.paths``; ``config.load_scenario`` /
+``scenario_from_dict``; ``render.trajectory`` (``recording_from_episode``, ``_centres``).
+
 A snapshot reuses the renderer's conventions (:mod:`warerover_phys.render.trajectory`):
 body centres in metres of a ``k x k`` AGV anchored at a flat node, a state between two cells
 drawn half-way, headings from the last move.
