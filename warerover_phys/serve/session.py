@@ -270,7 +270,7 @@ class LiveSession:
     def _poses(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         w = self.sim.world
         io = getattr(self.sim.executor, "io", None)
-        if io is not None and getattr(self.sim.executor, "_bound", False):
+        if io is not None and getattr(self.sim.executor, "_bound", True):
             pos, ang, _, _ = io.read()
             return pos[:, 0].copy(), pos[:, 1].copy(), np.asarray(ang, dtype=float).copy()
         a = np.array([g.pos[0] for g in w.agvs], dtype=np.int64)
@@ -354,7 +354,7 @@ class LiveSession:
             agv = w.agvs[agv_id]
             ex = self.sim.executor
             speed = 0.0
-            if getattr(ex, "_bound", False) and hasattr(ex, "io"):
+            if hasattr(ex, "io") and getattr(ex, "_bound", True):
                 _, _, vel, _ = ex.io.read()
                 speed = float(math.hypot(*np.asarray(vel)[agv_id][:2]))
             elif not agv.standing:
