@@ -59,8 +59,10 @@ def test_pause_stops_the_tick_counter(serve, page):
     assert srv.app.state.hub.session.sim.world.tick == t0
     page.click("#b-step")
     page.wait_for_function(f"wr.tick === {t0 + 1}", timeout=10000)
-    page.click("#b-pause")                    # resume
-    page.wait_for_function(f"wr.tick > {t0 + 3}", timeout=20000)
+    page.keyboard.press("n")
+    page.wait_for_function(f"wr.tick === {t0 + 2}", timeout=10000)
+    page.keyboard.press(" ")                  # resume
+    page.wait_for_function(f"wr.tick > {t0 + 4}", timeout=20000)
 
 
 def test_click_an_agv_and_fail_it_opens_a_corridor(serve, page):

@@ -68,6 +68,17 @@ document.querySelectorAll('#tabs button').forEach((b) => b.addEventListener('cli
 wr.setTab = setTab;
 setTab('live');
 
+// Keys in the live and 3D views: space pauses / resumes, n steps one tick, f fails and
+// r repairs the selected AGV.
+window.addEventListener('keydown', (e) => {
+  if (e.target.closest('input, select, textarea') || (wr.mode !== 'live' && wr.mode !== '3d')) return;
+  const live = views.live, sel = live.selected;
+  if (e.key === ' ') { e.preventDefault(); sock.send({ type: live.status && live.status.paused ? 'resume' : 'pause' }); }
+  else if (e.key === 'n') sock.send({ type: 'step', count: 1 });
+  else if (e.key === 'f' && sel !== null) sock.send({ type: 'fail', agv: sel });
+  else if (e.key === 'r' && sel !== null) sock.send({ type: 'repair', agv: sel });
+});
+
 let fpsT0 = performance.now(), fpsN = 0;
 function loop(now) {
   wr.rafFrames++; fpsN++;
