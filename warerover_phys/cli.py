@@ -407,3 +407,8 @@ def main() -> None:
 from .sweep.cli import register as _register_sweep  # noqa: E402
 
 _register_sweep(app)
+
+# `warerover serve` and `warerover export-glb` live in warerover_phys/serve/cli.py.
+from .serve.cli import register as _register_serve  # noqa: E402
+
+_register_serve(app)

@@ -13,9 +13,7 @@ import typer
 __all__ = ["register", "serve", "export_glb"]
 
 
-def _fail(err: Exception) -> None:
-    typer.echo(f"error: {err}", err=True)
-    raise typer.Exit(2)
+from ..console import fail as _fail
 
 
 def _need_extra() -> None:
