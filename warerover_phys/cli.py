@@ -73,9 +73,8 @@ def _scenario(path: Path, sets: list[str] | None, seed: int | None, scheduler: s
 
 def _load(scenario: Path, overrides: list[tuple[str, Any]]):
     from .config import load_scenario
-    from .world import World
-
     from .registry import check_plugins
+    from .world import World
 
     sc = load_scenario(scenario, overrides)
     world = World.build(sc)
@@ -401,6 +400,137 @@ def main() -> None:
     except KeyboardInterrupt:
         err_console.print("interrupted")
         sys.exit(130)
+
+
+@app.command()
+def execute(floor: Annotated[Path, typer.Argument(
+                help="Floor: a MovingAI .map, a layout YAML or a scenario YAML.")],
+            plan: Annotated[Path, typer.Option(
+                "--plan", help="Plan file: lacam / MAPF visualizer, MAPF-LNS2 / EECBS "
+                               "(Agent i:(r,c)->...), timed points, Robot Runners JSON or "
+                               "paths.json (format detected from the content).")],
+            fmt: Annotated[str | None, typer.Option(
+                "--format", help="Force the plan format: lacam | lns | timed | robotrunners | "
+                                 "paths_json.")] = None,
+            yx: Annotated[bool, typer.Option(
+                "--yx/--xy", help="Timed points: (row,col,t) instead of (x,y,t).")] = False,
+            fleet: Annotated[Path | None, typer.Option(
+                help="AGV types (YAML); default 1x1, 0.7 m bodies, 1 m/s.")] = None,
+            executor: Annotated[str, typer.Option(
+                help="Executor: physics | grid | an entry point | package.module:Class.")
+                                ] = "physics",
+            seed: Annotated[int, typer.Option(help="Seed of the random delays.")] = 0,
+            delays: Annotated[str | None, typer.Option(
+                help="Random delays MODEL:PROB[:MIN:MAX] ticks, e.g. bernoulli:0.05:1:10.")
+                              ] = None,
+            strict: Annotated[bool, typer.Option(
+                help="Refuse a plan with rotations (dependency cycles) instead of "
+                     "repairing them.")] = False,
+            tick_s: Annotated[float, typer.Option(help="Seconds per plan timestep.")] = 1.0,
+            dt_s: Annotated[float, typer.Option(help="Physics step (seconds).")] = 0.02,
+            out: Annotated[Path | None, typer.Option(
+                help="Output folder (default: runs/execute-PLAN).")] = None,
+            video: Annotated[Path | None, typer.Option(
+                help="Also render the execution to this MP4 (H.264).")] = None,
+            json_out: Annotated[bool, typer.Option(
+                "--json", help="Print metrics as JSON instead of a table.")] = False,
+            export: Annotated[Path | None, typer.Option(
+                help="Write the executed paths to this file.")] = None,
+            export_format: Annotated[str, typer.Option(
+                help="Format of --export (as --format).")] = "lacam",
+            quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")
+                             ] = False,
+            ) -> None:
+    """Execute a plan made elsewhere exactly as written (no scheduler, no replanning) on
+    the physics or grid executor; write metrics, events, paths and trajectories."""
+    import math
+
+    from .execute import (
+        execute_plan,
+        executed_plan,
+        load_fleet,
+        load_floor,
+        parse_delays,
+        repair_cycles,
+        validate_plan,
+        write_execution,
+    )
+    from .plans import read_plan, write_plan
+
+    try:
+        if not (math.isfinite(tick_s) and tick_s > 0):
+            raise WareroverError(f"--tick-s must be a positive number (got {tick_s})")
+        if not (math.isfinite(dt_s) and 0 < dt_s <= tick_s):
+            raise WareroverError(f"--dt-s must be in (0, tick_s] (got {dt_s})")
+        delay_spec = parse_delays(delays)
+        layout, types_by_name, kinds = load_floor(floor)
+        the_plan = read_plan(plan, fmt, xy=not yx)
+        types = load_fleet(fleet, the_plan.num_agents, types_by_name, kinds)
+        sizes = [t.footprint for t in types]
+        validate_plan(the_plan, layout, sizes, source=str(plan))
+        the_plan, repairs = repair_cycles(the_plan, layout, sizes, strict=strict,
+                                          source=str(plan))
+        if repairs:
+            validate_plan(the_plan, layout, sizes, source=str(plan))
+            for r in repairs:
+                err_console.print(f"repaired a rotation at timestep {r.timestep}: agents "
+                                  f"{list(r.agents)} re-planned (+{r.added_ticks} ticks)",
+                                  highlight=False)
+        show = not quiet and not json_out and err_console.is_terminal
+        if show:
+            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+            with Progress(TextColumn("execute"), BarColumn(),
+                          TextColumn("tick {task.completed:.0f} (plan {task.total:.0f})"),
+                          TimeElapsedColumn(), console=err_console, transient=True) as bar:
+                task = bar.add_task("execute", total=the_plan.makespan)
+                result = execute_plan(the_plan, layout, types, executor=executor, seed=seed,
+                                      delays=delay_spec, tick_s=tick_s, dt_s=dt_s,
+                                      repairs=repairs,
+                                      progress=lambda t, h: bar.update(task, completed=t))
+        else:
+            result = execute_plan(the_plan, layout, types, executor=executor, seed=seed,
+                                  delays=delay_spec, tick_s=tick_s, dt_s=dt_s, repairs=repairs)
+        out_dir = out or Path("runs") / f"execute-{plan.stem}"
+        files = write_execution(result, the_plan, layout, types, out_dir, tick_s)
+        if export is not None:
+            write_plan(executed_plan(result, layout.cols), export, export_format)
+            files["export"] = export
+        if video is not None:
+            from .render import Style, load_trajectory, render_video
+
+            try:
+                render_video(load_trajectory(files["trajectory"]), video,
+                             style=Style(title=f"{plan.name} on {executor}"))
+            except ValueError as err:
+                raise WareroverError(f"--video: {err}") from None
+            files["video"] = video
+    except WareroverError as err:
+        _fail(err)
+    except OSError as err:
+        _fail(WareroverError(f"{getattr(err, 'filename', '') or ''}: {err.strerror or err}"))
+    m = result.metrics
+    if json_out:
+        typer.echo(json.dumps(m, indent=2, sort_keys=True, default=float))
+        return
+    table = Table(title=f"{plan.name} on {floor.name}: {m['agents']} agents, {executor}")
+    table.add_column("metric")
+    table.add_column("planned", justify="right")
+    table.add_column("executed", justify="right")
+    table.add_row("makespan (ticks)", str(m["planned_makespan_ticks"]),
+                  str(m["executed_makespan_ticks"]))
+    table.add_row("sum of costs (ticks)", str(m["planned_sum_of_costs_ticks"]),
+                  str(m["executed_sum_of_costs_ticks"]))
+    table.add_row("ratio executed / planned", "",
+                  f"{m['makespan_ratio']:.3f} / {m['sum_of_costs_ratio']:.3f}")
+    for key in ("agv_contacts", "static_contacts", "min_separation_m", "deadlocks",
+                "cycle_repairs", "real_time_factor"):
+        if key in m:
+            v = m[key]
+            table.add_row(key, "", f"{v:.3f}" if isinstance(v, float) else str(v))
+    Console().print(table)
+    for f in files.values():
+        typer.echo(f"wrote {f}")
 
 
 # `warerover sweep` and `warerover report` live in warerover_phys/sweep/cli.py.

@@ -1,0 +1,578 @@
+"""One fixed plan, executed as written: no scheduler, no planner, no replanning.
+
+``warerover execute FLOOR --plan FILE`` is built from the pieces here:
+
+1. :func:`load_floor`: a MovingAI ``.map`` (free cells and obstacles are all that matter), a
+   layout YAML or a scenario YAML becomes a :class:`~warerover_phys.layout.Layout`;
+   :func:`load_fleet` gives every agent an AGV type (default: 1x1, 0.7 m bodies, 1 m/s).
+2. :func:`validate_plan`: the plan against the floor and the fleet, vectorised over
+   timesteps (bounds, obstacles, jumps of more than one cell, vertex / footprint and swap
+   conflicts). The first problem is raised as one line naming the agent, the timestep and
+   the cells (:class:`PlanError`).
+3. :func:`find_cycles`: groups of agents that move round a cycle in one timestep (a
+   *rotation*: each enters the cell the next one leaves). The action dependency graph has no
+   order for them and bodies turning a block in lockstep overlap. :func:`repair_cycles`
+   re-plans only the agents of each cycle, from the timestep before it to their own goals,
+   around every other agent's fixed path (prioritized space-time A*), and reports each
+   repair; ``strict=True`` raises instead.
+4. :func:`execute_plan`: the executor (``grid``, ``physics`` or a plug-in) follows exactly
+   that plan. The result has planned and executed makespan and sum of costs, per-agent
+   finish times, the executor's figures and the executed states per tick.
+
+Times: the plan's timestep is one tick of ``tick_s`` seconds (default 1 s). Executed finish
+times are in ticks (an agent has finished at the first tick from which it stands at its final
+cell for good).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+
+from .config import AgvTypeSpec, DelaySpec, ExecutorSpec
+from .errors import ScenarioError, WareroverError
+from .executors.base import AgvBody, ExecutorSetup, StepReport, TickView
+from .layout import CellType, Layout
+from .planning.paths import State, TimedPath
+from .plans.model import Plan
+
+__all__ = ["PlanError", "Repair", "ExecutionResult", "load_floor", "load_fleet",
+           "validate_plan", "find_cycles", "repair_cycles", "plan_to_paths", "execute_plan"]
+
+DEFAULT_TYPE = AgvTypeSpec(body_m=(0.7, 0.7), max_speed_mps=1.0)
+"""The AGV of ``execute`` when no fleet is given: 1x1, 0.7 m body, 1 m/s."""
+
+
+class PlanError(WareroverError):
+    """A plan that cannot be executed on this floor with this fleet."""
+
+    def __init__(self, message: str, *, file: str | None = None, agent: int | None = None,
+                 timestep: int | None = None, cells: tuple = ()) -> None:
+        self.file, self.agent, self.timestep, self.cells = file, agent, timestep, cells
+        where = f"{file}: " if file else ""
+        parts = [f"agent {agent}" if agent is not None else "",
+                 f"timestep {timestep}" if timestep is not None else ""]
+        at = ", ".join(p for p in parts if p)
+        super().__init__(f"{where}{at + ': ' if at else ''}{message}")
+
+
+# ----------------------------------------------------------------------------- floor, fleet
+
+def load_floor(path: str | Path) -> tuple[Layout, dict[str, AgvTypeSpec] | None, list[str]]:
+    """The floor in ``path`` (``.map``, layout YAML or scenario YAML), the AGV types it
+    names (scenarios only) and the type of each of its AGVs (scenarios only)."""
+    path = Path(path)
+    if not path.exists():
+        raise ScenarioError("floor file not found", file=str(path), value=str(path))
+    if path.suffix == ".map":
+        from .movingai import read_map
+
+        m = read_map(path)
+        grid = np.where(m.obstacles, CellType.OBSTACLE, CellType.FLOOR).astype(np.int8)
+        layout = Layout(grid=grid, cell_m=1.0, shelves=(), stations=(), parking=(),
+                        access_points=(), num_skus=0, name=path.stem)
+        return layout, None, []
+    from .config import LayoutSpec, load_scenario, read_yaml
+    from .layout import build_layout
+
+    data = read_yaml(path)
+    if isinstance(data, dict) and ("fleet" in data or "layout" in data):
+        sc = load_scenario(path)
+        layout = build_layout(sc.layout, fleet_size=sc.fleet.size, file=str(path), name=sc.name)
+        kinds = [g.type for g in sc.fleet.agvs for _ in range(g.count)]
+        return layout, dict(sc.fleet.types), kinds
+    try:
+        spec = LayoutSpec.model_validate({k: v for k, v in data.items() if k != "name"})
+    except Exception as err:  # noqa: BLE001 - pydantic's error, named below
+        raise ScenarioError(f"not a layout or scenario ({str(err).splitlines()[0]})",
+                            file=str(path)) from None
+    if isinstance(spec.map, str):
+        spec = spec.model_copy(update={"map": str((path.parent / spec.map).resolve())})
+    return build_layout(spec, file=str(path), name=path.stem), None, []
+
+
+def load_fleet(path: str | Path | None, n: int, scenario_types: dict[str, AgvTypeSpec] | None,
+               scenario_kinds: list[str]) -> list[AgvTypeSpec]:
+    """The AGV type of each of ``n`` agents.
+
+    ``FLEET.yaml`` is either one type for every agent (``{footprint: 1, body_m: [0.7, 0.7],
+    max_speed_mps: 1.0, ...}``) or ``{types: {NAME: {...}}, agents: [NAME, ...]}`` (one name
+    per agent, or a single name for all). Without a file: the scenario's fleet if the floor
+    is a scenario with ``n`` AGVs, else :data:`DEFAULT_TYPE`.
+    """
+    if path is None:
+        if scenario_types and len(scenario_kinds) == n:
+            return [scenario_types[k] for k in scenario_kinds]
+        return [DEFAULT_TYPE] * n
+    from pydantic import ValidationError
+
+    from .config import read_yaml
+
+    src = str(path)
+    data = read_yaml(Path(path))
+    if not isinstance(data, dict):
+        raise ScenarioError("a fleet file is a mapping", file=src, value=data)
+    try:
+        if "types" not in data:
+            return [AgvTypeSpec.model_validate(data)] * n
+        types = {k: AgvTypeSpec.model_validate(v) for k, v in data["types"].items()}
+    except ValidationError as err:
+        e = err.errors()[0]
+        raise ScenarioError(e["msg"], file=src, field=".".join(map(str, e["loc"])),
+                            value=e.get("input")) from None
+    agents = data.get("agents", next(iter(types), None))
+    names = [agents] * n if isinstance(agents, str) else list(agents or [])
+    if len(names) != n:
+        raise ScenarioError(f"lists {len(names)} agents but the plan has {n}", file=src,
+                            field="agents", value=len(names))
+    for i, name in enumerate(names):
+        if name not in types:
+            raise ScenarioError(f"unknown AGV type (choose from {sorted(types)})", file=src,
+                                field=f"agents[{i}]", value=name)
+    return [types[name] for name in names]
+
+
+# ----------------------------------------------------------------------------- validation
+
+def _dense(plan: Plan) -> np.ndarray:
+    """Cells as an array (T, N, 2), every path padded with its last cell."""
+    horizon = plan.makespan + 1
+    out = np.empty((horizon, plan.num_agents, 2), dtype=np.int64)
+    for i, path in enumerate(plan.paths):
+        arr = np.asarray(path, dtype=np.int64).reshape(-1, 2)
+        out[:len(arr), i] = arr
+        out[len(arr):, i] = arr[-1]
+    return out
+
+
+def validate_plan(plan: Plan, layout: Layout, sizes: list[int], *, source: str | None = None,
+                  ) -> None:
+    """Raise :class:`PlanError` for the first problem of ``plan`` on ``layout`` with AGVs
+    of footprints ``sizes``: more agents than free cells, a map of another size, a cell off
+    the map or on an obstacle, a jump of more than one cell, two agents on one cell (any
+    footprint cell), or two agents passing through each other."""
+    rows, cols = layout.rows, layout.cols
+    n = plan.num_agents
+    blocked = np.asarray(layout.grid) == CellType.OBSTACLE
+    if plan.rows is not None and plan.cols is not None and (plan.rows, plan.cols) != (rows, cols):
+        raise PlanError(f"plan is for a {plan.rows} x {plan.cols} map, the floor is "
+                        f"{rows} x {cols}", file=source)
+    free = int((~blocked).sum())
+    if n > free:
+        raise PlanError(f"{n} agents but the floor has only {free} free cells", file=source)
+    if len(sizes) != n:
+        raise PlanError(f"the fleet has {len(sizes)} AGVs, the plan {n} agents", file=source)
+    pos = _dense(plan)
+    k = np.asarray(sizes, dtype=np.int64)
+    # Footprint cells: offsets (di, dj) for di, dj < k of each agent.
+    kmax = int(k.max()) if n else 1
+    for di in range(kmax):
+        for dj in range(kmax):
+            use = (di < k) & (dj < k)
+            r, c = pos[:, use, 0] + di, pos[:, use, 1] + dj
+            ids = np.flatnonzero(use)
+            off = (r < 0) | (r >= rows) | (c < 0) | (c >= cols)
+            if off.any():
+                t, a = np.argwhere(off)[0]
+                raise PlanError(f"cell {(int(r[t, a]), int(c[t, a]))} is off the {rows} x "
+                                f"{cols} map", file=source, agent=int(ids[a]), timestep=int(t))
+            hit = blocked[r, c]
+            if hit.any():
+                t, a = np.argwhere(hit)[0]
+                raise PlanError(f"cell {(int(r[t, a]), int(c[t, a]))} is an obstacle",
+                                file=source, agent=int(ids[a]), timestep=int(t))
+    if len(pos) > 1:
+        step = np.abs(np.diff(pos, axis=0)).sum(axis=2)
+        jump = step > 1
+        if jump.any():
+            t, a = np.argwhere(jump)[0]
+            raise PlanError(f"jumps from {tuple(map(int, pos[t, a]))} to "
+                            f"{tuple(map(int, pos[t + 1, a]))} (more than one cell)",
+                            file=source, agent=int(a), timestep=int(t + 1))
+    _check_conflicts(pos, k, cols, source)
+
+
+def _occupancy(pos: np.ndarray, k: np.ndarray, cols: int) -> tuple[np.ndarray, np.ndarray]:
+    """Flat cells (T, M) covered by every agent's footprint, and the agent of each column."""
+    cells, owners = [], []
+    for di in range(int(k.max())):
+        for dj in range(int(k.max())):
+            use = np.flatnonzero((di < k) & (dj < k))
+            cells.append((pos[:, use, 0] + di) * cols + pos[:, use, 1] + dj)
+            owners.append(use)
+    return np.concatenate(cells, axis=1), np.concatenate(owners)
+
+
+def _check_conflicts(pos: np.ndarray, k: np.ndarray, cols: int, source: str | None) -> None:
+    occ, owner = _occupancy(pos, k, cols)
+    horizon = len(occ)
+    order = np.argsort(occ, axis=1, kind="stable")
+    srt = np.take_along_axis(occ, order, axis=1)
+    dup = srt[:, 1:] == srt[:, :-1]
+    if dup.any():
+        t, j = np.argwhere(dup)[0]
+        a, b = sorted((int(owner[order[t, j]]), int(owner[order[t, j + 1]])))
+        cell = divmod(int(srt[t, j]), cols)
+        raise PlanError(f"vertex conflict with agent {b} at cell {cell}", file=source, agent=a,
+                        timestep=int(t))
+    if horizon < 2:
+        return
+    # Swaps: agent a goes u -> v while agent b goes v -> u (anchor cells; for bigger
+    # footprints a swap also overlaps at one of the two timesteps, caught above).
+    anchors = pos[..., 0] * cols + pos[..., 1]
+    src, dst = anchors[:-1], anchors[1:]
+    moved = src != dst
+    for t in np.flatnonzero(moved.any(axis=1)):
+        m = np.flatnonzero(moved[t])
+        fwd = {(int(src[t, a]), int(dst[t, a])): int(a) for a in m}
+        for (u, v), a in fwd.items():
+            b = fwd.get((v, u))
+            if b is not None and a < b:
+                raise PlanError(f"swap conflict with agent {b} between cells "
+                                f"{divmod(u, cols)} and {divmod(v, cols)}", file=source,
+                                agent=a, timestep=int(t + 1))
+
+
+# ----------------------------------------------------------------------------- cycles
+
+@dataclass(frozen=True)
+class Cycle:
+    """Agents that move round a cycle at ``timestep`` (each enters the cell the next one
+    leaves), and the cells they occupy just before."""
+
+    timestep: int
+    agents: tuple[int, ...]
+    cells: tuple[tuple[int, int], ...]
+
+
+def find_cycles(plan: Plan, cols: int, sizes: list[int] | None = None) -> list[Cycle]:
+    """Every rotation of ``plan`` (1x1 footprints; a bigger footprint's rotation needs a
+    vertex conflict and is rejected by :func:`validate_plan`)."""
+    pos = _dense(plan)
+    if len(pos) < 2:
+        return []
+    anchors = pos[..., 0] * cols + pos[..., 1]
+    out = []
+    for t in np.flatnonzero((anchors[1:] != anchors[:-1]).any(axis=1)):
+        before, after = anchors[t], anchors[t + 1]
+        moved = np.flatnonzero(before != after)
+        at = {int(before[a]): int(a) for a in moved}
+        nxt = {int(a): at.get(int(after[a])) for a in moved}  # whose cell a enters
+        seen: set[int] = set()
+        for a0 in nxt:
+            if a0 in seen:
+                continue
+            chain, a = [], a0
+            while a is not None and a not in seen and a not in chain:
+                chain.append(a)
+                a = nxt.get(a)
+            seen.update(chain)
+            if a is not None and a in chain:
+                cyc = tuple(chain[chain.index(a):])
+                out.append(Cycle(int(t + 1), cyc,
+                                 tuple(tuple(map(int, pos[t, i])) for i in cyc)))
+    return out
+
+
+@dataclass(frozen=True)
+class Repair:
+    """One repaired rotation: the agents re-planned and what it cost them."""
+
+    timestep: int
+    agents: tuple[int, ...]
+    cells: tuple[tuple[int, int], ...]
+    added_ticks: int
+    """Sum over the re-planned agents of their new minus old finish time."""
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"timestep": self.timestep, "agents": list(self.agents),
+                "cells": [list(c) for c in self.cells], "added_ticks": self.added_ticks}
+
+
+def repair_cycles(plan: Plan, layout: Layout, sizes: list[int], *, strict: bool = False,
+                  source: str | None = None, max_rounds: int = 20) -> tuple[Plan, list[Repair]]:
+    """Break every rotation by re-planning only its agents (see the module docstring).
+    ``strict``: raise :class:`PlanError` naming the first cycle instead."""
+    repairs: list[Repair] = []
+    for _ in range(max_rounds):
+        cycles = find_cycles(plan, layout.cols, sizes)
+        if not cycles:
+            return plan, repairs
+        first = cycles[0]
+        if strict:
+            raise PlanError(f"agents {list(first.agents)} move round a cycle through cells "
+                            f"{[list(c) for c in first.cells]} (no execution order exists; "
+                            "drop --strict to repair it)", file=source, agent=first.agents[0],
+                            timestep=first.timestep)
+        plan, rep = _replan_cycle(plan, layout, sizes, first, source)
+        repairs.append(rep)
+    raise PlanError(f"rotations remain after {max_rounds} repairs", file=source)
+
+
+def _replan_cycle(plan: Plan, layout: Layout, sizes: list[int], cyc: Cycle,
+                  source: str | None) -> tuple[Plan, Repair]:
+    from .planning.astar import AStarPlanner
+    from .planning.base import AgentRequest, PlanRequest
+    from .planning.graph import GraphSet
+    from .planning.reservation import ReservationTable
+
+    cols = layout.cols
+    t0 = cyc.timestep - 1
+    res = ReservationTable(cols)
+    members = set(cyc.agents)
+    for i, path in enumerate(plan.paths):
+        if i not in members:
+            nodes = [r * cols + c for r, c in path]
+            res.commit(TimedPath(i, 0, tuple((v, v) for v in nodes)), sizes[i])
+    # The cycle's agents keep their paths up to t0 (reserved so none of them runs into
+    # another's past), then are planned from there to their own goals.
+    for i in cyc.agents:
+        head = plan.paths[i][:t0 + 1]
+        nodes = [r * cols + c for r, c in head]
+        res.commit(TimedPath(i, 0, tuple((v, v) for v in nodes)), sizes[i])
+    agents = []
+    for i in cyc.agents:
+        path = plan.paths[i]
+        start = path[min(t0, len(path) - 1)]
+        goal = path[-1]
+        agents.append(AgentRequest(i, start[0] * cols + start[1], goal[0] * cols + goal[1],
+                                   k=sizes[i]))
+    result = AStarPlanner(max_expansions=200_000, budget_per_move=None).plan(
+        PlanRequest(t0, agents, GraphSet(layout), res))
+    if result.failed or set(result.paths) != members:
+        raise PlanError(f"cannot repair the rotation of agents {list(cyc.agents)}: no detour "
+                        "around the other agents' fixed paths (run with --strict to see it, "
+                        "or fix the plan)", file=source, agent=cyc.agents[0],
+                        timestep=cyc.timestep)
+    paths = list(plan.paths)
+    added = 0
+    for i, tp in result.paths.items():
+        head = list(plan.paths[i][:t0])
+        tail = [divmod(s[1], cols) for s in tp.states]
+        new = tuple(head + tail)
+        added += (len(Plan((new,)).paths[0]) - 1) - (len(plan.paths[i]) - 1)
+        paths[i] = new
+    return Plan(tuple(paths), rows=plan.rows, cols=plan.cols, map_name=plan.map_name,
+                meta=plan.meta, fmt=plan.fmt), Repair(cyc.timestep, cyc.agents, cyc.cells,
+                                                      added)
+
+
+# ----------------------------------------------------------------------------- execution
+
+def plan_to_paths(plan: Plan, cols: int) -> dict[int, TimedPath]:
+    """Timed paths (one standing state per timestep) of every agent, from tick 0."""
+    return {i: TimedPath(i, 0, tuple((r * cols + c, r * cols + c) for r, c in path))
+            for i, path in enumerate(plan.paths)}
+
+
+@dataclass
+class ExecutionResult:
+    metrics: dict[str, Any]
+    executed: dict[int, list[State]]
+    """Executed state per tick per agent, from tick 0."""
+    planned_finish: list[int]
+    executed_finish: list[int]
+    events: list[dict] = field(default_factory=list)
+    trajectory: dict | None = None
+    repairs: list[Repair] = field(default_factory=list)
+
+
+def execute_plan(plan: Plan, layout: Layout, types: list[AgvTypeSpec], *,
+                 executor: str = "physics", seed: int = 0, delays: DelaySpec | None = None,
+                 tick_s: float = 1.0, dt_s: float = 0.02, trajectory_hz: float = 10.0,
+                 max_ticks: int | None = None, executor_params: dict | None = None,
+                 repairs: list[Repair] | None = None,
+                 progress: Callable[[int, int], None] | None = None) -> ExecutionResult:
+    """Execute ``plan`` (validated, cycle-free) on ``executor`` and measure it."""
+    from .registry import build
+
+    spec = ExecutorSpec(name=executor, params=executor_params or {}, dt_s=dt_s,
+                        delays=delays or DelaySpec(), trajectory_hz=trajectory_hz)
+    ex = build("executor", spec)
+    n = plan.num_agents
+    cols = layout.cols
+    paths = plan_to_paths(plan, cols)
+    rngs = np.random.SeedSequence(seed).spawn(5)  # same streams as an episode's make_rngs
+    rng = np.random.default_rng(rngs[4])
+    ex.bind(ExecutorSetup(layout=layout, tick_s=tick_s, rng=rng, agvs=tuple(
+        AgvBody(i, t.footprint, t, paths[i].states[0]) for i, t in enumerate(types))))
+    planned_finish = list(plan.costs)
+    horizon = plan.makespan
+    limit = max_ticks if max_ticks is not None else max(50, 10 * horizon + 100)
+    final = {i: p.states[-1] for i, p in paths.items()}
+    plans = MappingProxyType(paths)
+    behind = [0] * n
+    executed = {i: [paths[i].states[0]] for i in range(n)}
+    events: list[dict] = []
+    counts = {"blocked_moves": 0, "collisions": 0, "executor_replan_requests": 0}
+    zeros = tuple([0] * n)
+    wall0 = time.perf_counter()
+    tick = 0
+    while tick < limit:
+        view = TickView(tick=tick, plans=plans, behind=tuple(behind), failed=frozenset(),
+                        loaded=(False,) * n, carried=(None,) * n, task_state=zeros)
+        report: StepReport = ex.step(view)
+        for i, s in report.states.items():
+            executed[i].append(s)
+        for i, b in report.behind.items():
+            behind[i] = b
+        for name, fields in report.events:
+            events.append({"tick": tick, "event": name, **fields})
+        counts["blocked_moves"] += len(report.blocked)
+        counts["collisions"] += report.collisions
+        counts["executor_replan_requests"] += len(report.replan)
+        tick += 1
+        if progress is not None:
+            progress(tick, horizon)
+        if tick >= horizon and all(executed[i][-1] == final[i] for i in range(n)) and \
+                not any(ex.remaining(i) for i in range(n)):
+            break
+    wall = time.perf_counter() - wall0
+    done = all(executed[i][-1] == final[i] for i in range(n)) and \
+        not any(ex.remaining(i) for i in range(n))
+    executed_finish = []
+    for i in range(n):
+        states = executed[i]
+        t = len(states) - 1
+        while t > 0 and states[t - 1] == final[i]:
+            t -= 1
+        executed_finish.append(t)
+    summary = ex.summary()
+    planned_soc, exec_soc = sum(planned_finish), sum(executed_finish)
+    planned_ms, exec_ms = max(planned_finish, default=0), max(executed_finish, default=0)
+    lost = np.asarray(executed_finish) - np.asarray(planned_finish)
+    metrics: dict[str, Any] = {
+        "mode": "open-loop (fixed plan)",
+        "executor": executor, "agents": n, "seed": seed, "tick_s": tick_s,
+        "completed": done, "ticks": tick,
+        "planned_makespan_ticks": planned_ms, "executed_makespan_ticks": exec_ms,
+        "makespan_ratio": exec_ms / planned_ms if planned_ms else 1.0,
+        "planned_sum_of_costs_ticks": planned_soc, "executed_sum_of_costs_ticks": exec_soc,
+        "sum_of_costs_ratio": exec_soc / planned_soc if planned_soc else 1.0,
+        "lost_ticks_per_agent_mean": float(lost.mean()) if n else 0.0,
+        "lost_ticks_per_agent_max": int(lost.max()) if n else 0,
+        **counts,
+        "cycle_repairs": len(repairs or []),
+        "cycle_repair_added_ticks": sum(r.added_ticks for r in repairs or []),
+        "execute_wall_s": wall,
+        "real_time_factor": tick * tick_s / wall if wall > 0 else math.inf,
+        **summary,
+    }
+    if "real_time_factor" in summary:
+        metrics["real_time_factor"] = summary["real_time_factor"]
+    trajectory = ex.trajectory()
+    return ExecutionResult(metrics=metrics, executed=executed, planned_finish=planned_finish,
+                           executed_finish=executed_finish, events=events,
+                           trajectory=trajectory, repairs=list(repairs or []))
+
+
+# ----------------------------------------------------------------------------- outputs
+
+def write_execution(result: ExecutionResult, plan: Plan, layout: Layout,
+                    types: list[AgvTypeSpec], out_dir: str | Path, tick_s: float,
+                    ) -> dict[str, Path]:
+    """``metrics.json``, ``events.jsonl``, ``paths.json`` (planned = the executed plan,
+    actual = executed states per tick, the same structure as ``warerover run`` writes),
+    ``agents.csv`` (planned vs executed finish per agent) and ``trajectories.npz`` (physics;
+    a per-tick one on the grid), all written through temporary files."""
+    import csv
+    import io
+    import json
+
+    from .outputs import _atomic_write, write_trajectory
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    cols = layout.cols
+    files = {"metrics": out / "metrics.json", "events": out / "events.jsonl",
+             "paths": out / "paths.json", "agents": out / "agents.csv",
+             "trajectory": out / "trajectories.npz"}
+    paths = {
+        "agvs": {str(i): {"type": "execute", "footprint": t.footprint, "ticks_per_move": 1}
+                 for i, t in enumerate(types)},
+        "planned": [{"agv": i, "tick": 0, "states": [[list(c), list(c)] for c in p]}
+                    for i, p in enumerate(plan.paths)],
+        "actual": {str(i): [[list(divmod(a, cols)), list(divmod(b, cols))] for a, b in s]
+                   for i, s in result.executed.items()},
+    }
+    buf = io.StringIO()
+    w = csv.writer(buf)
+    w.writerow(["agent", "planned_finish_tick", "executed_finish_tick", "lost_ticks"])
+    for i, (p, e) in enumerate(zip(result.planned_finish, result.executed_finish,
+                                   strict=True)):
+        w.writerow([i, p, e, e - p])
+    metrics = dict(result.metrics)
+    metrics["cycle_repairs_detail"] = [r.as_dict() for r in result.repairs]
+    _atomic_write(files["metrics"], json.dumps(metrics, indent=2, sort_keys=True,
+                                               default=float) + "\n")
+    _atomic_write(files["events"], "".join(json.dumps(e, sort_keys=True) + "\n"
+                                           for e in result.events))
+    _atomic_write(files["paths"], json.dumps(paths, separators=(",", ":")) + "\n")
+    _atomic_write(files["agents"], buf.getvalue())
+    traj = result.trajectory if result.trajectory is not None else \
+        _grid_trajectory(result, layout, types, tick_s)
+    traj.setdefault("corridors_json", np.array("[]"))
+    write_trajectory(traj, files["trajectory"])
+    return files
+
+
+def _grid_trajectory(result: ExecutionResult, layout: Layout, types: list[AgvTypeSpec],
+                     tick_s: float) -> dict[str, np.ndarray]:
+    """One sample per tick of the executed states (half-way while moving)."""
+    cols, cell_m = layout.cols, float(layout.cell_m)
+    n = len(types)
+    ticks = max(len(s) for s in result.executed.values()) if n else 1
+    k = np.array([t.footprint for t in types], dtype=np.int64)
+    pos = np.zeros((ticks, n, 2))
+    for i, states in result.executed.items():
+        arr = np.asarray(states, dtype=np.int64)
+        arr = np.vstack([arr, np.repeat(arr[-1:], ticks - len(arr), axis=0)])
+        for j in (0, 1):
+            r, c = np.divmod(arr[:, j], cols)
+            pos[:, i, 0] += 0.5 * (c + k[i] / 2) * cell_m
+            pos[:, i, 1] += 0.5 * (r + k[i] / 2) * cell_m
+    step = np.diff(pos, axis=0, prepend=pos[:1])
+    heading = np.arctan2(step[..., 1], step[..., 0])
+    moving = np.abs(step).sum(axis=2) > 1e-9
+    for t in range(1, ticks):
+        heading[t] = np.where(moving[t], heading[t], heading[t - 1])
+    return {"t": np.arange(ticks, dtype=np.float64) * tick_s, "x": pos[..., 0],
+            "y": pos[..., 1], "heading": heading,
+            "state": np.zeros((ticks, n), dtype=np.int8),
+            "loaded": np.zeros((ticks, n), dtype=bool), "footprint": k,
+            "body_m": np.array([t.body_m for t in types], dtype=np.float64),
+            "cell_m": np.array(cell_m), "tick_s": np.array(float(tick_s)),
+            "grid": np.asarray(layout.grid).copy()}
+
+
+def executed_plan(result: ExecutionResult, cols: int) -> Plan:
+    """The executed paths as a plan (one cell per tick: the cell an agent is leaving while
+    it moves), for ``--export``."""
+    return Plan(tuple(tuple(divmod(a, cols) for a, _ in states)
+                      for _, states in sorted(result.executed.items())))
+
+
+def parse_delays(text: str | None) -> DelaySpec:
+    """``MODEL:PROB[:MIN_TICKS:MAX_TICKS]`` (``bernoulli:0.05:1:10``) as a DelaySpec."""
+    if not text:
+        return DelaySpec()
+    from pydantic import ValidationError
+
+    parts = text.split(":")
+    keys = ["model", "prob", "min_ticks", "max_ticks"]
+    if len(parts) not in (2, 4) or parts[0] not in ("none", "bernoulli", "poisson"):
+        raise ScenarioError("expected MODEL:PROB[:MIN_TICKS:MAX_TICKS] with MODEL bernoulli "
+                            "or poisson", field="--delays", value=text)
+    try:
+        return DelaySpec.model_validate(dict(zip(keys, parts, strict=False)))
+    except ValidationError as err:
+        e = err.errors()[0]
+        raise ScenarioError(e["msg"], field=f"--delays {e['loc'][0]}",
+                            value=e.get("input")) from None
