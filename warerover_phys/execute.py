@@ -325,18 +325,12 @@ def _replan_cycle(plan: Plan, layout: Layout, sizes: list[int], cyc: Cycle,
 
     cols = layout.cols
     t0 = cyc.timestep - 1
-    res = ReservationTable(cols)
+    base = ReservationTable(cols)
     members = set(cyc.agents)
     for i, path in enumerate(plan.paths):
         if i not in members:
             nodes = [r * cols + c for r, c in path]
-            res.commit(TimedPath(i, 0, tuple((v, v) for v in nodes)), sizes[i])
-    # The cycle's agents keep their paths up to t0 (reserved so none of them runs into
-    # another's past), then are planned from there to their own goals.
-    for i in cyc.agents:
-        head = plan.paths[i][:t0 + 1]
-        nodes = [r * cols + c for r, c in head]
-        res.commit(TimedPath(i, 0, tuple((v, v) for v in nodes)), sizes[i])
+            base.commit(TimedPath(i, 0, tuple((v, v) for v in nodes)), sizes[i])
     agents = []
     for i in cyc.agents:
         path = plan.paths[i]
@@ -344,16 +338,33 @@ def _replan_cycle(plan: Plan, layout: Layout, sizes: list[int], cyc: Cycle,
         goal = path[-1]
         agents.append(AgentRequest(i, start[0] * cols + start[1], goal[0] * cols + goal[1],
                                    k=sizes[i]))
-    result = AStarPlanner(max_expansions=200_000, budget_per_move=None).plan(
-        PlanRequest(t0, agents, GraphSet(layout), res))
-    if result.failed or set(result.paths) != members:
+    # Prioritized A* from t0 over the cycle's agents, around everyone else's fixed path;
+    # the order matters, so try each rotation of the cycle and its reverse.
+    graphs = GraphSet(layout)
+    orders = [agents[j:] + agents[:j] for j in range(len(agents))]
+    orders += [list(reversed(o)) for o in orders]
+    result = None
+    planner = AStarPlanner(max_expansions=200_000, budget_per_move=None)
+    for order in orders:
+        table, found = base.copy(), {}
+        for a in order:  # one at a time: each is held on the cell it leaves for a tick
+            got = planner.plan(PlanRequest(t0, [a], graphs, table.copy()))
+            path = got.paths.get(a.agv)
+            if got.failed or got.detours or path is None or path.goal != a.goal:
+                break
+            found[a.agv] = path
+            table.commit(_no_following(path), a.k)
+        if len(found) == len(order):
+            result = found
+            break
+    if result is None:
         raise PlanError(f"cannot repair the rotation of agents {list(cyc.agents)}: no detour "
                         "around the other agents' fixed paths (run with --strict to see it, "
                         "or fix the plan)", file=source, agent=cyc.agents[0],
                         timestep=cyc.timestep)
     paths = list(plan.paths)
     added = 0
-    for i, tp in result.paths.items():
+    for i, tp in result.items():
         head = list(plan.paths[i][:t0])
         tail = [divmod(s[1], cols) for s in tp.states]
         new = tuple(head + tail)
@@ -362,6 +373,17 @@ def _replan_cycle(plan: Plan, layout: Layout, sizes: list[int], cyc: Cycle,
     return Plan(tuple(paths), rows=plan.rows, cols=plan.cols, map_name=plan.map_name,
                 meta=plan.meta, fmt=plan.fmt), Repair(cyc.timestep, cyc.agents, cyc.cells,
                                                       added)
+
+
+def _no_following(path: TimedPath) -> TimedPath:
+    """The same path, but holding the cell it leaves during the tick it moves: reserved this
+    way, no later agent follows it into that cell in the same timestep (no new rotation)."""
+    states = [path.states[0]]
+    for (_, prev), (_, cur) in zip(path.states, path.states[1:]):
+        states.append((prev, cur) if prev != cur else (cur, cur))
+    if states[-1][0] != states[-1][1]:
+        states.append((states[-1][1], states[-1][1]))  # it rests on its goal only
+    return TimedPath(path.agv, path.start_tick, tuple(states))
 
 
 # ----------------------------------------------------------------------------- execution
