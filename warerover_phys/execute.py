@@ -379,7 +379,7 @@ def _no_following(path: TimedPath) -> TimedPath:
     """The same path, but holding the cell it leaves during the tick it moves: reserved this
     way, no later agent follows it into that cell in the same timestep (no new rotation)."""
     states = [path.states[0]]
-    for (_, prev), (_, cur) in zip(path.states, path.states[1:]):
+    for (_, prev), (_, cur) in zip(path.states, path.states[1:], strict=False):
         states.append((prev, cur) if prev != cur else (cur, cur))
     if states[-1][0] != states[-1][1]:
         states.append((states[-1][1], states[-1][1]))  # it rests on its goal only
