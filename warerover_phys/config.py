@@ -29,6 +29,7 @@ from pydantic import (
     model_validator,
 )
 
+from . import safe_yaml
 from .errors import ScenarioError
 
 __all__ = [
@@ -485,7 +486,9 @@ def parse_override(text: str) -> tuple[str, Any]:
     if not key:
         raise ScenarioError("override has an empty field path", field="--set", value=text)
     try:
-        value = yaml.safe_load(raw) if raw.strip() else ""
+        value = safe_yaml.load(raw) if raw.strip() else ""
+    except safe_yaml.YamlLimitError as err:
+        raise ScenarioError(f"value YAML is {err.problem}", field=key, value=raw) from None
     except yaml.YAMLError:
         value = raw
     return key, value
@@ -541,7 +544,11 @@ def read_yaml(path: Path, what: str = "scenario") -> dict[str, Any]:
     if path.is_dir():
         raise ScenarioError(f"{what} path is a directory, not a file", file=str(path))
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        if path.stat().st_size > safe_yaml.MAX_BYTES:
+            raise safe_yaml.YamlLimitError(f"larger than {safe_yaml.MAX_BYTES // 2**20} MiB")
+        data = safe_yaml.load(path.read_text(encoding="utf-8"))
+    except safe_yaml.YamlLimitError as err:
+        raise ScenarioError(f"YAML refused: {err.problem}", file=str(path)) from None
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
