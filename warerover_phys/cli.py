@@ -116,7 +116,7 @@ def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
                     task, completed=t, orders=f"orders {done}/{gen}"))
         else:
             result = sim.run()
-        files = write_outputs(result, out_dir)
+        files = write_outputs(result, out_dir, with_trajectory=video is not None)
         if video is not None:
             files.update(_run_video(result, files, video, style, fps, speed, sc.name))
     except WareroverError as err:
