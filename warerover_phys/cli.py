@@ -20,6 +20,7 @@ from rich.console import Console
 from rich.table import Table
 
 from .errors import WareroverError
+from .media import check_media_path
 
 __all__ = ["app", "main"]
 
@@ -100,6 +101,8 @@ def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
 
     try:
         style = _video_style(size, fps, speed, None) if video is not None else None
+        if video is not None:
+            check_media_path(video, "--video")
         sc = _scenario(scenario, set_, seed, scheduler, planner, executor, orders)
         sim = Simulation(sc)
         out_dir = out or Path("runs") / f"{sc.name}-seed{sc.seed}"
@@ -221,6 +224,7 @@ def render(trajectory: Annotated[Path, typer.Argument(
     """Re-render a recorded run to MP4 (or one frame to PNG) without re-simulating."""
     try:
         style = _video_style(size, fps, speed, viewport, paths)
+        check_media_path(out, "--out", still=png is not None)
         from .render import load_trajectory, render_video, write_png
 
         rec = load_trajectory(trajectory)
