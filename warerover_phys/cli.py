@@ -19,7 +19,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from .errors import WareroverError
+from .errors import ScenarioError, WareroverError
 from .media import check_media_path
 
 __all__ = ["app", "main"]
@@ -122,6 +122,8 @@ def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
         files = write_outputs(result, out_dir, with_trajectory=video is not None)
         if video is not None:
             files.update(_run_video(result, files, video, style, fps, speed, sc.name))
+    except ScenarioError as err:  # raised while running (plug-ins, corridors): name the file
+        _fail(err.with_file(str(scenario)))
     except WareroverError as err:
         _fail(err)
     except OSError as err:
@@ -273,6 +275,8 @@ def gap(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
         tmp = path.with_name(path.name + ".tmp")
         tmp.write_text(json.dumps(report, indent=2, sort_keys=True) + "\n", encoding="utf-8")
         os.replace(tmp, path)
+    except ScenarioError as err:
+        _fail(err.with_file(str(scenario)))
     except WareroverError as err:
         _fail(err)
     except OSError as err:

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..errors import ScenarioError
 from ..planning.base import TimedPath, occupancy
 from ..planning.graph import GraphSet
 from ..world import AgvState
@@ -89,8 +90,11 @@ class FaultProcess:
         # It stays where it is: a path that rests on its current state.
         w.reservations.commit(TimedPath(agv.id, w.tick, (agv.pos,)), agv.k)
         cells = occupancy(agv.pos, agv.k, w.layout.cols)
-        corridor = plan_corridor(w.layout, self._next_corridor, agv.id, cells,
-                                 self.spec.corridor_width_m, self.spec.corridor_margin_m)
+        try:
+            corridor = plan_corridor(w.layout, self._next_corridor, agv.id, cells,
+                                     self.spec.corridor_width_m, self.spec.corridor_margin_m)
+        except ScenarioError as err:         # name the scenario file, not <scenario>
+            raise err.with_file(w.scenario.source) if w.scenario.source else err from None
         self._next_corridor += 1
         self._corridor_of[agv.id] = corridor.id
         w.corridors[corridor.id] = corridor

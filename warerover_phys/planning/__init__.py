@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..plugins import build_plugin
 from ..registry import is_plugin, lookup
 from .astar import AStarPlanner
 from .base import AgentRequest, Planner, PlanRequest, PlanResult, TimedPath
@@ -22,7 +23,7 @@ def make_planner(spec) -> Planner:
     """Build the planner a :class:`~warerover_phys.config.PlannerSpec` names."""
     cls = lookup(PLANNERS, spec.name, "planner.name")
     if is_plugin(spec.name):
-        return cls(spec)
+        return build_plugin(cls, spec, "planner.name", spec.name)
     if cls is CBSPlanner:
         return CBSPlanner(max_expansions=spec.max_expansions, horizon=spec.horizon_ticks,
                           max_nodes=spec.max_nodes, time_budget_s=spec.time_budget_s)

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from ..registry import lookup
+from ..plugins import build_plugin
+from ..registry import is_plugin, lookup
 from .base import Assignment, Scheduler
 from .rd import RandomDispatch
 from .ta import TaskAssignment
@@ -16,4 +17,6 @@ SCHEDULERS = {"rd": RandomDispatch, "ta": TaskAssignment}
 def make_scheduler(spec) -> Scheduler:
     """Build the scheduler a :class:`~warerover_phys.config.SchedulerSpec` names."""
     cls = lookup(SCHEDULERS, spec.name, "scheduler.name")
+    if is_plugin(spec.name):
+        return build_plugin(cls, spec, "scheduler.name", spec.name)
     return cls(spec)
