@@ -60,9 +60,33 @@ def replacing(path: str | Path) -> Iterator[Path]:
         if not tmp.exists():
             raise OSError(f"{path}: nothing was written")
         os.replace(tmp, path)
+        _remove_stale(path)
     finally:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _remove_stale(path: Path) -> None:
+    """Remove temporary files of ``path`` left by writers that were killed (dead pids)."""
+    prefix = f".{path.stem}.tmp-"
+    for entry in path.parent.iterdir():
+        name = entry.name
+        if not (name.startswith(prefix) and name.endswith(path.suffix)):
+            continue
+        pid = name[len(prefix):].split("-", 1)[0]
+        if pid.isdigit() and not _alive(int(pid)):
+            with contextlib.suppress(OSError):
+                entry.unlink()
 
 
 def write_text(path: str | Path, text: str) -> None:
