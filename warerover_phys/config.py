@@ -359,8 +359,13 @@ class PlannerSpec(_Model):
     """CBS: conflicts between jointly planned AGVs are resolved this many ticks ahead."""
     max_nodes: Budget = 2_000
     """CBS: constraint-tree nodes before falling back to prioritized A* (counted)."""
+    max_iterations: Budget = 2_000
+    """LaCAM: high-level iterations per planning call before the documented fallback (one
+    PIBT step, counted in ``planner_budget_hits``). A work budget: same result on any
+    machine."""
     time_budget_s: PosFloat = 0.5
-    """CBS / LaCAM: seconds per planning call before the documented fallback (counted)."""
+    """CBS: seconds per planning call before the documented fallback (counted). LaCAM:
+    a wall-clock safety stop only (counted and logged when hit); ``max_iterations`` decides."""
 
 
 class DelaySpec(_Model):

@@ -28,5 +28,6 @@ def make_planner(spec) -> Planner:
         return CBSPlanner(max_expansions=spec.max_expansions, horizon=spec.horizon_ticks,
                           max_nodes=spec.max_nodes, time_budget_s=spec.time_budget_s)
     if cls is LaCAMPlanner:
-        return LaCAMPlanner(time_budget_s=spec.time_budget_s)
+        return LaCAMPlanner(time_budget_s=spec.time_budget_s,
+                            max_iterations=spec.max_iterations)
     return cls(max_expansions=spec.max_expansions)
