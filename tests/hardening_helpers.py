@@ -39,3 +39,40 @@ def assert_clean_error(proc: subprocess.CompletedProcess[str], *needles: str) ->
     for needle in needles:
         assert needle in err, (needle, err)
     return err
+
+
+TIMING = ("ct_", "wall_s", "real_time_factor")
+"""Metrics that measure the machine, not the episode (left out of determinism checks)."""
+
+
+def episode_digest(scenario: str, planner: str, executor: str, seed: int,
+                   max_ticks: int | None = None) -> str:
+    """SHA-256 of everything an episode decides: metrics (timing left out), events, planned
+    and executed paths."""
+    import hashlib
+    import json
+
+    from warerover_phys import load_scenario, run_episode
+
+    overrides = [("planner.name", planner), ("executor.name", executor)]
+    if max_ticks is not None:
+        overrides.append(("max_ticks", max_ticks))
+    result = run_episode(load_scenario(LAYOUTS / f"{scenario}.yaml", overrides), seed=seed)
+    metrics = {k: v for k, v in result.metrics.items() if not k.startswith(TIMING)}
+    blob = json.dumps([metrics, result.events, result.planned,
+                       {str(k): v for k, v in result.actual.items()}],
+                      sort_keys=True, default=str)
+    return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def digest_in_subprocess(*args: object, hashseed: int) -> str:
+    """:func:`episode_digest` in a fresh interpreter with ``PYTHONHASHSEED=hashseed`` (set
+    and dict orders of strings differ between processes: determinism must not depend on
+    them)."""
+    code = ("import sys; sys.path.insert(0, %r); import hardening_helpers as h; "
+            "print(h.episode_digest(*%r))" % (str(REPO / "tests"), args))
+    env = {**cli_env(), "PYTHONHASHSEED": str(hashseed)}
+    proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                          text=True, timeout=1800)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return proc.stdout.strip().splitlines()[-1]
