@@ -705,11 +705,14 @@ def scenario_from_dict(data: dict[str, Any], *, source: str | None = None,
 
 
 def load_scenario(path: str | Path, overrides: list[tuple[str, Any]] | None = None) -> Scenario:
-    """Read, override and validate a scenario file.
+    """Read, override and validate a scenario file (or a shipped scenario by bare name,
+    ``"paper_homogeneous"``: :mod:`warerover_phys.shipped`).
 
     Raises :class:`ScenarioError` naming the file, the field path and the bad value.
     """
-    path = Path(path)
+    from .shipped import resolve_scenario
+
+    path = resolve_scenario(path)
     data = read_yaml(path)
     try:
         return scenario_from_dict(data, source=str(path), overrides=overrides)
