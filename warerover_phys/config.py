@@ -363,9 +363,13 @@ class PlannerSpec(_Model):
     """LaCAM: high-level iterations per planning call before the documented fallback (one
     PIBT step, counted in ``planner_budget_hits``). A work budget: same result on any
     machine."""
-    time_budget_s: PosFloat = 0.5
-    """CBS: seconds per planning call before the documented fallback (counted). LaCAM:
-    a wall-clock safety stop only (counted and logged when hit); ``max_iterations`` decides."""
+    max_call_expansions: Budget = 100_000
+    """CBS: low-level A* expansions per planning call (all its searches together) before
+    falling back to prioritized A* (counted). A work budget: same result on any machine."""
+    time_budget_s: PosFloat = 10.0
+    """CBS / LaCAM: a wall-clock safety stop per planning call (seconds). The work budgets
+    above decide results; when this stop ends a search first it is counted in
+    ``planner_budget_hits`` and logged, as the result then depends on machine speed."""
 
 
 class DelaySpec(_Model):

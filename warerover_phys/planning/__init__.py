@@ -26,7 +26,8 @@ def make_planner(spec) -> Planner:
         return build_plugin(cls, spec, "planner.name", spec.name)
     if cls is CBSPlanner:
         return CBSPlanner(max_expansions=spec.max_expansions, horizon=spec.horizon_ticks,
-                          max_nodes=spec.max_nodes, time_budget_s=spec.time_budget_s)
+                          max_nodes=spec.max_nodes, time_budget_s=spec.time_budget_s,
+                          max_call_expansions=spec.max_call_expansions)
     if cls is LaCAMPlanner:
         return LaCAMPlanner(time_budget_s=spec.time_budget_s,
                             max_iterations=spec.max_iterations)
