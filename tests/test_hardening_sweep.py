@@ -10,6 +10,7 @@ import subprocess
 import time
 from pathlib import Path
 
+import pytest
 from hardening_helpers import LAYOUTS, assert_clean_error, cli_argv, cli_env, run_cli
 
 PAPER = LAYOUTS / "paper_homogeneous.yaml"
@@ -114,3 +115,36 @@ def test_failed_sweep_leaves_no_folder(tmp_path):
     proc = run_cli("sweep", sweep, "--out", tmp_path / "out", cwd=tmp_path)
     assert_clean_error(proc, "max_ticks")
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.slow
+def test_sigkill_of_a_ray_driver_leaves_no_ray_processes(tmp_path):
+    pytest.importorskip("ray")
+    sweep = tmp_path / "s.yaml"
+    sweep.write_text(f"scenarios: {{Ho: {PAPER}}}\nrepetitions: 200\n")
+    out = tmp_path / "out"
+    driver = subprocess.Popen(cli_argv("sweep", sweep, "--out", out, "--ray", "local",
+                                       "--workers", "1", "-q"),
+                              cwd=tmp_path, env=cli_env(), stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 240
+        results = out / "results.jsonl"
+        while (not results.exists() or not results.read_text().strip()) \
+                and time.monotonic() < deadline and driver.poll() is None:
+            time.sleep(0.5)
+        assert results.exists() and results.read_text().strip(), "no episode finished on Ray"
+        time.sleep(2)
+        kids = children(driver.pid)
+        assert len(kids) > 2, "Ray should have started processes"
+        driver.send_signal(signal.SIGKILL)
+        driver.wait()
+        deadline = time.monotonic() + 30
+        while any(alive(k) for k in kids) and time.monotonic() < deadline:
+            time.sleep(0.5)
+        left = [k for k in kids if alive(k)]
+        assert not left, [Path(f"/proc/{k}/cmdline").read_bytes()[:80] for k in left]
+    finally:
+        if driver.poll() is None:
+            driver.kill()
+            driver.wait()

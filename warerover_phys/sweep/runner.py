@@ -339,13 +339,20 @@ def _run_ray(tasks: Iterable[Task], address: str, workers: int,
     """Run the tasks as Ray tasks (1 CPU each), ``2 x cluster CPUs`` in flight."""
     ray = _import_ray()
     started = False
+    reaper = None
     if not ray.is_initialized():
+        from .reaper import start_reaper
+
+        reaper = start_reaper()   # ends Ray's processes if this driver is SIGKILL-ed
         try:
             if address == "local":
                 ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
             else:
                 ray.init(address=address, log_to_driver=False)
         except (ConnectionError, RuntimeError, ValueError) as err:
+            from .reaper import stop_reaper
+
+            stop_reaper(reaper)
             first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
             raise WareroverError(f"--ray {address}: cannot connect to a Ray cluster ({first}); "
                                  "start one with `ray start --head` or use --ray local") from None
@@ -373,3 +380,6 @@ def _run_ray(tasks: Iterable[Task], address: str, workers: int,
             ray.cancel(ref, force=True)
         if started:
             ray.shutdown()
+        from .reaper import stop_reaper
+
+        stop_reaper(reaper)
