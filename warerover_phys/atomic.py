@@ -56,7 +56,10 @@ def replacing(path: str | Path) -> Iterator[Path]:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = _tmp_name(path)
     try:
-        yield tmp
+        try:
+            yield tmp
+        except OSError as err:     # name the target, not the temporary file (or nothing)
+            raise OSError(err.errno, err.strerror or str(err), str(path)) from None
         if not tmp.exists():
             raise OSError(f"{path}: nothing was written")
         os.replace(tmp, path)
@@ -169,7 +172,11 @@ def write_set(out_dir: str | Path, writers: dict[str, Callable[[Path], Any]],
     _recover(out)
     run_id = uuid.uuid4().hex
     new = out.with_name(f".{out.name}.new-{run_id[:12]}")
-    new.mkdir()
+    try:
+        new.mkdir()
+    except OSError as err:
+        raise WareroverError(f"{out}: cannot write the output folder here "
+                             f"({err.strerror or err})") from None
     try:
         files: dict[str, Any] = {}
         for name, write in writers.items():

@@ -174,8 +174,8 @@ def _video_style(size: str, fps: float, speed: float | None, viewport: str | Non
                              "pip install 'warerover-phys[render]'") from None
     if not fps > 0 or fps > 240:
         raise WareroverError(f"--fps: must be in (0, 240] (got {fps})")
-    if speed is not None and not speed > 0:
-        raise WareroverError(f"--speed: must be positive (got {speed})")
+    if speed is not None and not 0 < speed < float("inf"):
+        raise WareroverError(f"--speed: must be positive and finite (got {speed})")
     view = None
     if viewport is not None:
         parts = viewport.split(",")
@@ -363,6 +363,8 @@ def solve(map_file: Annotated[Path, typer.Argument(metavar="MAP.map", help="Movi
     try:
         if agents < 1:
             raise WareroverError(f"--agents: must be at least 1 (got {agents})")
+        if not 0 < time_limit < float("inf"):
+            raise WareroverError(f"--time-limit: must be positive and finite (got {time_limit})")
         grid = read_map(map_file)
         scen = read_scen(scen_file, agents, grid)
         result = solve_instance(grid.obstacles, [a.start for a in scen], [a.goal for a in scen],

@@ -201,6 +201,7 @@ def write_png(recording: Recording, path: str | Path, tick: float,
         except cv2.error:
             ok = False
         if not ok:
-            raise OSError(f"{out}: cannot write an image with this extension")
+            raise OSError("cannot write the image (unsupported extension or unwritable "
+                          "folder)")
     return out
 
