@@ -204,3 +204,44 @@ def test_mutated_trajectories(traj_arrays, data):
         else:
             rec.at(rec.start_s)
             rec.at(rec.end_s)
+
+
+# ------------------------------------------------------------------------- MovingAI files
+
+MAP_TEXT = (Path(__file__).parent / "data" / "random-32-32-10.map").read_text()
+SCEN_TEXT = "\n".join((Path(__file__).parent / "data" /
+                       "random-32-32-10-random-1.scen").read_text().splitlines()[:12]) + "\n"
+
+
+def mutate_text(data, text: str) -> str:
+    for _ in range(data.draw(st.integers(1, 3))):
+        i = data.draw(st.integers(0, len(text)))
+        op = data.draw(st.sampled_from(["cut", "insert", "delete"]))
+        if op == "cut":
+            text = text[:i]
+        elif op == "insert":
+            text = text[:i] + data.draw(st.sampled_from(
+                ["\t", "-1", "1e999", "nan", "@", "\n", " ", "x", "99999999999", "é", "\x00"]
+            )) + text[i:]
+        else:
+            text = text[:i] + text[i + data.draw(st.integers(1, 30)):]
+    return text
+
+
+@SETTINGS
+@given(st.data())
+def test_mutated_movingai_files(data):
+    from warerover_phys.movingai import read_map, read_scen
+
+    mutate_map = data.draw(st.booleans())
+    map_text = mutate_text(data, MAP_TEXT) if mutate_map else MAP_TEXT
+    scen_text = SCEN_TEXT if mutate_map else mutate_text(data, SCEN_TEXT)
+    with tempfile.TemporaryDirectory() as d:
+        mp, sp = Path(d) / "m.map", Path(d) / "s.scen"
+        mp.write_text(map_text, encoding="utf-8")
+        sp.write_text(scen_text, encoding="utf-8")
+        try:
+            grid = read_map(mp)
+            read_scen(sp, data.draw(st.integers(0, 12)), grid)
+        except WareroverError as err:
+            assert "\n" not in str(err)

@@ -296,7 +296,10 @@ def heatmap(groups: Sequence[Group], path: str | Path, title: str = "") -> Path:
             y = top - row_h * (r + 1)
             ax.plot([0, sum(widths)], [y, y], color="0.6", linewidth=0.4)
     path = Path(path)
-    fig.savefig(path)
+    from ..atomic import replacing
+
+    with replacing(path) as tmp:      # a killed report never leaves half a PNG
+        fig.savefig(tmp, format=path.suffix.lstrip(".") or "png")
     return path
 
 
