@@ -69,8 +69,8 @@ def digest_in_subprocess(*args: object, hashseed: int) -> str:
     """:func:`episode_digest` in a fresh interpreter with ``PYTHONHASHSEED=hashseed`` (set
     and dict orders of strings differ between processes: determinism must not depend on
     them)."""
-    code = ("import sys; sys.path.insert(0, %r); import hardening_helpers as h; "
-            "print(h.episode_digest(*%r))" % (str(REPO / "tests"), args))
+    code = (f"import sys; sys.path.insert(0, {str(REPO / 'tests')!r}); "
+            f"import hardening_helpers as h; print(h.episode_digest(*{args!r}))")
     env = {**cli_env(), "PYTHONHASHSEED": str(hashseed)}
     proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
                           text=True, timeout=1800)

@@ -12,10 +12,9 @@ from typing import Any
 
 import numpy as np
 import pytest
-import yaml
+from hardening_helpers import LAYOUTS
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from hardening_helpers import LAYOUTS
 
 from warerover_phys.config import load_scenario, scenario_from_dict
 from warerover_phys.errors import WareroverError

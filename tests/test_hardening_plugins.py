@@ -7,7 +7,6 @@ from __future__ import annotations
 import json
 import textwrap
 from concurrent.futures import ThreadPoolExecutor
-from pathlib import Path
 
 import pytest
 from hardening_helpers import LAYOUTS, assert_clean_error, run_cli

@@ -65,7 +65,7 @@ def test_recursive_alias_is_refused(tmp_path):
 
 def test_laughs_in_a_set_value():
     flow = "x=[" + "&a [1,1,1,1,1,1,1,1,1,1], " + ", ".join(
-        f"&{c} [" + ", ".join([f"*{p}"] * 10) + "]" for p, c in zip("abcdefgh", "bcdefghi")) + "]"
+        f"&{c} [" + ", ".join([f"*{p}"] * 10) + "]" for p, c in zip("abcdefgh", "bcdefghi", strict=True)) + "]"
     with pytest.raises(ScenarioError, match="--set|x"):
         parse_override(flow)
 

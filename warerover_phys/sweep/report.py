@@ -135,9 +135,9 @@ def _check_row(row: Any, key: str, path: Path) -> None:
 
     if not isinstance(row, dict):
         raise bad("row", row)
-    for field in ("scenario", "scheduler", "planner", "pattern", "status"):
-        if not isinstance(row.get(field), str):
-            raise bad(field, row.get(field, "nothing"))
+    for name in ("scenario", "scheduler", "planner", "pattern", "status"):
+        if not isinstance(row.get(name), str):
+            raise bad(name, row.get(name, "nothing"))
     if not isinstance(row.get("variant") or {}, dict):
         raise bad("variant", row.get("variant"))
     if row["status"] != "ok":
@@ -145,7 +145,7 @@ def _check_row(row: Any, key: str, path: Path) -> None:
     metrics = row.get("metrics")
     if not isinstance(metrics, dict):
         raise bad("metrics", metrics if "metrics" in row else "nothing")
-    for name, (mkey, *_rest) in METRICS.items():
+    for mkey, *_rest in METRICS.values():
         v = metrics.get(mkey)
         if v is not None and (isinstance(v, bool) or not isinstance(v, int | float)
                               or not math.isfinite(v)):
