@@ -33,6 +33,38 @@ PLUGIN = textwrap.dedent('''
             raise ValueError()
         def plan(self, request):
             return None
+
+    class PlanRaises:
+        def __init__(self, spec):
+            pass
+        def plan(self, request):
+            raise ZeroDivisionError("oops")
+
+    class PlanReturnsNone:
+        def __init__(self, spec):
+            pass
+        def plan(self, request):
+            return None
+
+    class AssignJunk:
+        def __init__(self, spec):
+            pass
+        def assign(self, world, rng):
+            return 42
+
+    class AssignTwice:
+        def __init__(self, spec):
+            pass
+        def assign(self, world, rng):
+            from warerover_phys.schedulers import Assignment
+            return [Assignment(0, 0, ()), Assignment(0, 1, ())]
+
+    class AssignBadOrder:
+        def __init__(self, spec):
+            pass
+        def assign(self, world, rng):
+            from warerover_phys.schedulers import Assignment
+            return [Assignment(0, 0, (10**6,))]
 ''')
 WALLED = textwrap.dedent('''
     name: walled
@@ -87,6 +119,11 @@ def procs(tmp_path_factory):
         "silent": ("run", PAPER, "--planner", "boom_plugins:SilentBoom", "--json"),
         "missing": ("run", PAPER, "--planner", "boom_plugins:Nope", "--json"),
         "gap": ("gap", PAPER, "--planner", "boom_plugins:BoomPlanner", "--json"),
+        "plan-raises": ("run", PAPER, "--planner", "boom_plugins:PlanRaises", "--json"),
+        "plan-none": ("run", PAPER, "--planner", "boom_plugins:PlanReturnsNone", "--json"),
+        "assign-junk": ("run", PAPER, "--scheduler", "boom_plugins:AssignJunk", "--json"),
+        "assign-twice": ("run", PAPER, "--scheduler", "boom_plugins:AssignTwice", "--json"),
+        "assign-order": ("run", PAPER, "--scheduler", "boom_plugins:AssignBadOrder", "--json"),
         "walled": ("run", root / "walled.yaml", "--json"),
         "sweep-list": ("sweep", sweep, "--out", root / "sw", "--workers", "1", "-q"),
         "sweep-map": ("sweep", sweep_ok, "--out", root / "sw2", "--workers", "1", "-q"),
@@ -105,6 +142,11 @@ def procs(tmp_path_factory):
     ("missing", ["paper_homogeneous.yaml", "planner.name", "Nope"]),
     ("gap", ["paper_homogeneous.yaml", "planner.name", "KeyError"]),
     ("walled", ["walled.yaml", "corridor"]),
+    ("plan-raises", ["paper_homogeneous.yaml", "plan() raised ZeroDivisionError", "tick 0"]),
+    ("plan-none", ["paper_homogeneous.yaml", "PlanResult", "NoneType"]),
+    ("assign-junk", ["scheduler.name", "assign()", "int"]),
+    ("assign-twice", ["scheduler.name", "AGV 0"]),
+    ("assign-order", ["scheduler.name", "order 1000000"]),
     ("sweep-list", ["sweep.yaml", "planner.name"]),
     ("report", ["results.jsonl", "planner"]),
     ("report-type", ["results.jsonl", "metrics.success_rate"]),
