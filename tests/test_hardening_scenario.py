@@ -73,6 +73,9 @@ BAD: list[tuple[str, Any, str]] = [
     ("planner.max_expansions", 10**30, "planner.max_expansions"),
     ("executor.dt_s", float("nan"), "executor.dt_s"),
     ("executor.dt_s", 2.0, "executor.dt_s"),          # longer than tick_s = 1.0
+    ("executor.dt_s", 1e-6, "executor.dt_s"),         # a million physics steps per tick
+    ("orders.hotspot.alpha", 1e-6, "orders.hotspot.alpha"),
+    ("layout.inventory.skus_per_shelf", 10**6, "layout.inventory.skus_per_shelf"),
     ("executor.adg", "yes please", "executor.adg"),
     ("executor.adg", 1, "executor.adg"),
     ("executor.trajectory_hz", float("inf"), "executor.trajectory_hz"),

@@ -198,7 +198,7 @@ class InventorySpec(_Model):
 
     num_skus: PosInt | None = None
     """Number of distinct SKUs (default: 2 x number of shelves)."""
-    skus_per_shelf: PosInt = 4
+    skus_per_shelf: Annotated[PosInt, Field(le=10_000)] = 4
     seed: Seed = 0
 
 
@@ -298,7 +298,8 @@ class WaveSpec(_Model):
 
 
 class HotspotSpec(_Model):
-    alpha: PosFloat = 2.0
+    alpha: Annotated[PosFloat, Field(ge=0.5)] = 2.0
+    """Pareto shape (>= 0.5; batches are cut at 1,000 x ``scale``)."""
     scale: Annotated[PosFloat, Field(le=10_000)] = 10.0
     every_ticks: Ticks = 30
     hot_fraction: Annotated[PosFloat, Field(lt=1)] = 0.2
@@ -452,11 +453,13 @@ class FaultsSpec(_Model):
 
 MAX_TICKS_PER_MOVE = 1_000
 """Longest one cell move may take, ticks (``cell_m / (max_speed_mps * tick_s)``)."""
+MAX_STEPS_PER_TICK = 10_000
+"""Most physics steps per tick (``tick_s / executor.dt_s``)."""
 
 
 def _orders_bound(orders: OrdersSpec, max_ticks: int) -> int:
     """An upper bound of the orders a stream generates in ``max_ticks`` ticks (hotspot:
-    batches taken as 100 x ``scale``, far beyond any Pareto draw the stream will make)."""
+    batches taken as 1,000 x ``scale``, where ``orders.py`` cuts its Pareto draws)."""
     ticks = min(orders.duration_ticks, max_ticks)
 
     def batches(every: int) -> int:
@@ -471,7 +474,7 @@ def _orders_bound(orders: OrdersSpec, max_ticks: int) -> int:
         w = orders.wave
         return batches(w.every_ticks) * math.ceil(w.base * w.max_mult)
     if p == "hotspot":
-        return batches(orders.hotspot.every_ticks) * math.ceil(100 * orders.hotspot.scale)
+        return batches(orders.hotspot.every_ticks) * math.ceil(1000 * orders.hotspot.scale)
     b = orders.burst
     return batches(b.every_ticks) * b.base + batches(b.burst_every_ticks) * b.burst_orders
 
@@ -528,6 +531,9 @@ class Scenario(_Model):
 
         if self.executor.dt_s > self.tick_s:
             raise fail(f"the physics step must not be longer than a tick (tick_s = "
+                       f"{self.tick_s:g} s)", "executor.dt_s", self.executor.dt_s)
+        if self.tick_s / self.executor.dt_s > MAX_STEPS_PER_TICK:
+            raise fail(f"more than {MAX_STEPS_PER_TICK:,} physics steps per tick (tick_s = "
                        f"{self.tick_s:g} s)", "executor.dt_s", self.executor.dt_s)
         for name, spec in self.fleet.types.items():
             moves = self.layout.cell_m / (spec.max_speed_mps * self.tick_s)
