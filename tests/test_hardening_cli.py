@@ -54,6 +54,10 @@ CASES = {
     "sweep-scenario": (("sweep", PAPER, "--out", "{tmp}/sw"), [PAPER.name]),
     "sweep-workers": (("sweep", PAPER, "--out", "{tmp}/sw", "--workers", "0"), ["--workers"]),
     "report-missing": (("report", "{tmp}/nope"), ["nope"]),
+    # values that look like rich console markup are printed as typed, never interpreted
+    "markup-value": (("run", PAPER, "--set", 'name="[/foo]"'), ["name", "'[/foo]'"]),
+    "markup-value2": (("run", PAPER, "--set", 'planner.name="[bold]x"'), ["'[bold]x'"]),
+    "markup-path": (("render", "{tmp}/[/b]", "--out", "{tmp}/a.mp4"), ["[/b]"]),
 }
 
 
@@ -82,3 +86,10 @@ def test_bad_option_is_a_clean_error(results, case):
     assert_clean_error(procs[case], *CASES[case][1])
     assert not list(tmp.glob("*.mp4")) and not list(tmp.glob("*.png"))
     assert not (tmp / "r").exists() and not (tmp / "sw").exists() and not (tmp / "runs").exists()
+
+
+def test_paths_that_look_like_markup_work(tmp_path):
+    out = tmp_path / "r[/x]"
+    proc = run_cli("run", PAPER, "--out", out, "--set", "max_ticks=20", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "r[/x]" in proc.stdout and (out / "metrics.json").exists()

@@ -17,6 +17,7 @@ from typing import Annotated, Any
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from .errors import ScenarioError, WareroverError
@@ -44,7 +45,7 @@ SizeOpt = Annotated[str, typer.Option(help="Frame size: 720p | 1080p | WxH.")]
 
 
 def _fail(err: Exception) -> None:
-    err_console.print(f"[bold red]error:[/] {err}", highlight=False, soft_wrap=True)
+    err_console.print(f"[bold red]error:[/] {escape(str(err))}", highlight=False, soft_wrap=True)
     raise typer.Exit(2)
 
 
@@ -161,7 +162,7 @@ def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
     console = Console()
     console.print(table)
     names = ", ".join(f.name for k, f in files.items() if k != "metrics")
-    console.print(f"wrote {files['metrics']}, {names}")
+    console.print(f"wrote {files['metrics']}, {names}", markup=False)
 
 
 def _video_style(size: str, fps: float, speed: float | None, viewport: str | None,
@@ -321,7 +322,7 @@ def gap(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
         table.add_row(escape(label), "", f(v, ".2f") if isinstance(v, float) else str(v), "")
     console = Console()
     console.print(table)
-    console.print(f"wrote {path}")
+    console.print(f"wrote {path}", markup=False)
 
 
 @app.command()
