@@ -46,8 +46,11 @@ class LongestFirstAStar:
             return graph.distance(graph.cell(agent.start), graph.cell(agent.goal)) \
                 * agent.ticks_per_move
 
-        # AStarPlanner plans in (priority, agv) order; the request itself stays untouched.
-        agents = [replace(a, priority=(sign * ticks_to_go(a),)) for a in request.agents]
+        # AStarPlanner plans in (priority, agv) order: keep the loop's priority (AGVs that
+        # failed to get a plan go first) and break its ties by the distance. The request
+        # itself stays untouched.
+        agents = [replace(a, priority=(*a.priority, sign * ticks_to_go(a)))
+                  for a in request.agents]
         return self.astar.plan(replace(request, agents=agents))
 
 

@@ -46,6 +46,7 @@ class SlowGrid:
             path = view.plans.get(agv)
             if path is not None and path.end_tick > view.tick - view.behind[agv]:
                 report.behind[agv] = view.behind[agv] + 1
+                report.replan.append(agv)
         return report
 
     def remaining(self, agv: int) -> list[tuple[int, int]]:

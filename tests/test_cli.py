@@ -108,8 +108,8 @@ def test_run_json_prints_metrics(cli: Cli) -> None:
 def test_run_writes_the_three_files(cli: Cli) -> None:
     proc = cli.ok("base")
     out = cli.root / "base"
-    assert sorted(p.name for p in out.iterdir()) == ["events.jsonl", "metrics.json",
-                                                      "paths.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["events.jsonl", "manifest.json",
+                                                      "metrics.json", "paths.json"]
     assert json.loads((out / "metrics.json").read_text()) == json.loads(proc.stdout)
 
 

@@ -17,11 +17,13 @@ from typing import Annotated, Any
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from .console import err_console
 from .console import fail as _fail
-from .errors import WareroverError
+from .errors import ScenarioError, WareroverError
+from .media import check_media_path
 
 __all__ = ["app", "main"]
 
@@ -103,6 +105,8 @@ def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
 
     try:
         style = _video_style(size, fps, speed, None) if video is not None else None
+        if video is not None:
+            check_media_path(video, "--video")
         sc = _scenario(scenario, set_, seed, scheduler, planner, executor, orders)
         sim = Simulation(sc)
         out_dir = out or Path("runs") / f"{sc.name}-seed{sc.seed}"
@@ -119,9 +123,11 @@ def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
                     task, completed=t, orders=f"orders {done}/{gen}"))
         else:
             result = sim.run()
-        files = write_outputs(result, out_dir)
+        files = write_outputs(result, out_dir, with_trajectory=video is not None)
         if video is not None:
             files.update(_run_video(result, files, video, style, fps, speed, sc.name))
+    except ScenarioError as err:  # raised while running (plug-ins, corridors): name the file
+        _fail(err.with_file(str(scenario)))
     except WareroverError as err:
         _fail(err)
     except OSError as err:
@@ -159,7 +165,7 @@ def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
     console = Console()
     console.print(table)
     names = ", ".join(f.name for k, f in files.items() if k != "metrics")
-    console.print(f"wrote {files['metrics']}, {names}")
+    console.print(f"wrote {files['metrics']}, {names}", markup=False)
 
 
 def _video_style(size: str, fps: float, speed: float | None, viewport: str | None,
@@ -172,8 +178,8 @@ def _video_style(size: str, fps: float, speed: float | None, viewport: str | Non
                              "pip install 'warerover-phys[render]'") from None
     if not fps > 0 or fps > 240:
         raise WareroverError(f"--fps: must be in (0, 240] (got {fps})")
-    if speed is not None and not speed > 0:
-        raise WareroverError(f"--speed: must be positive (got {speed})")
+    if speed is not None and not 0 < speed < float("inf"):
+        raise WareroverError(f"--speed: must be positive and finite (got {speed})")
     view = None
     if viewport is not None:
         parts = viewport.split(",")
@@ -224,6 +230,7 @@ def render(trajectory: Annotated[Path, typer.Argument(
     """Re-render a recorded run to MP4 (or one frame to PNG) without re-simulating."""
     try:
         style = _video_style(size, fps, speed, viewport, paths)
+        check_media_path(out, "--out", still=png is not None)
         from .render import load_trajectory, render_video, write_png
 
         rec = load_trajectory(trajectory)
@@ -272,6 +279,8 @@ def gap(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
         tmp = path.with_name(path.name + ".tmp")
         tmp.write_text(json.dumps(report, indent=2, sort_keys=True) + "\n", encoding="utf-8")
         os.replace(tmp, path)
+    except ScenarioError as err:
+        _fail(err.with_file(str(scenario)))
     except WareroverError as err:
         _fail(err)
     except OSError as err:
@@ -316,7 +325,7 @@ def gap(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
         table.add_row(escape(label), "", f(v, ".2f") if isinstance(v, float) else str(v), "")
     console = Console()
     console.print(table)
-    console.print(f"wrote {path}")
+    console.print(f"wrote {path}", markup=False)
 
 
 @app.command()
@@ -358,6 +367,8 @@ def solve(map_file: Annotated[Path, typer.Argument(metavar="MAP.map", help="Movi
     try:
         if agents < 1:
             raise WareroverError(f"--agents: must be at least 1 (got {agents})")
+        if not 0 < time_limit < float("inf"):
+            raise WareroverError(f"--time-limit: must be positive and finite (got {time_limit})")
         grid = read_map(map_file)
         scen = read_scen(scen_file, agents, grid)
         result = solve_instance(grid.obstacles, [a.start for a in scen], [a.goal for a in scen],

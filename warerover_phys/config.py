@@ -22,6 +22,7 @@ import yaml
 from pydantic import (
     AfterValidator,
     BaseModel,
+    BeforeValidator,
     ConfigDict,
     Field,
     ValidationError,
@@ -29,6 +30,7 @@ from pydantic import (
     model_validator,
 )
 
+from . import safe_yaml
 from .errors import ScenarioError
 
 __all__ = [
@@ -38,11 +40,46 @@ __all__ = [
     "apply_overrides", "parse_override",
 ]
 
-Cell = tuple[int, int]
-PosInt = Annotated[int, Field(ge=1)]
-NonNegInt = Annotated[int, Field(ge=0)]
-PosFloat = Annotated[float, Field(gt=0)]
-Prob = Annotated[float, Field(ge=0.0, le=1.0)]
+MAX_COUNT = 1_000_000
+"""Largest count of anything (orders per batch, AGVs per group, shelves per block, ...)."""
+MAX_TICKS = 10_000_000
+"""Largest tick count (``max_ticks``, ``duration_ticks``, every ``*_ticks`` field)."""
+MAX_SIDE = 4_096
+"""Largest layout side, cells."""
+MAX_CELLS = 4_000_000
+"""Largest layout, cells (rows x cols)."""
+MAX_ORDERS = 1_000_000
+"""Largest number of orders an order stream may generate."""
+MAX_FLOAT = 1e6
+"""Largest value of a float field (metres, seconds, kg, m/s, ...); all must be finite."""
+
+
+def _not_bool_or_text(value: Any) -> Any:
+    """Numbers only: ``true`` or ``"1.5"`` are not numbers (strict ints and floats)."""
+    if isinstance(value, bool | str | bytes):
+        raise ValueError("Input should be a number")
+    return value
+
+
+Int = Annotated[int, Field(strict=True)]
+Cell = tuple[Int, Int]
+PosInt = Annotated[int, Field(ge=1, le=MAX_COUNT, strict=True)]
+NonNegInt = Annotated[int, Field(ge=0, le=MAX_COUNT, strict=True)]
+Ticks = Annotated[int, Field(ge=1, le=MAX_TICKS, strict=True)]
+NonNegTicks = Annotated[int, Field(ge=0, le=MAX_TICKS, strict=True)]
+Seed = Annotated[int, Field(ge=0, le=2**63 - 1, strict=True)]
+Side = Annotated[int, Field(ge=1, le=MAX_SIDE, strict=True)]
+PosFloat = Annotated[float, BeforeValidator(_not_bool_or_text),
+                     Field(gt=0, le=MAX_FLOAT, allow_inf_nan=False)]
+NonNegFloat = Annotated[float, BeforeValidator(_not_bool_or_text),
+                        Field(ge=0, le=MAX_FLOAT, allow_inf_nan=False)]
+Prob = Annotated[float, BeforeValidator(_not_bool_or_text),
+                 Field(ge=0.0, le=1.0, allow_inf_nan=False)]
+Bool = Annotated[bool, Field(strict=True)]
+Budget = Annotated[int, Field(ge=1, le=10**9, strict=True)]
+"""A work budget (search nodes, expansions, iterations)."""
+NAME = re.compile(r"[\w][\w .+=,-]{0,127}")
+"""A scenario name: it becomes part of file names, so no path separators, no leading dot."""
 
 
 PLUGIN_PATH = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*[:.][A-Za-z_]\w*")
@@ -74,7 +111,7 @@ Params = dict[str, Any]
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 def _named(value: Any) -> Any:
@@ -167,8 +204,8 @@ class InventorySpec(_Model):
 
     num_skus: PosInt | None = None
     """Number of distinct SKUs (default: 2 x number of shelves)."""
-    skus_per_shelf: PosInt = 4
-    seed: NonNegInt = 0
+    skus_per_shelf: Annotated[PosInt, Field(le=10_000)] = 4
+    seed: Seed = 0
 
 
 class GeneratorSpec(_Model):
@@ -188,7 +225,7 @@ class GeneratorSpec(_Model):
     parking: NonNegInt = 0
     """Parking cells (0: one per AGV in the fleet, filled in at load)."""
     parking_side: Literal["left", "right", "top", "bottom"] = "bottom"
-    walls: bool = True
+    walls: Bool = True
 
 
 class LayoutSpec(_Model):
@@ -202,7 +239,7 @@ class LayoutSpec(_Model):
     """
 
     cell_m: PosFloat = 1.0
-    size: tuple[PosInt, PosInt] | None = None
+    size: tuple[Side, Side] | None = None
     """(rows, cols) of an empty floor for a structured layout."""
     grid: list[str] | None = None
     map: str | None = None
@@ -219,6 +256,14 @@ class LayoutSpec(_Model):
     def _split_grid(cls, value: Any) -> Any:
         if isinstance(value, str):
             return [line for line in value.strip("\n").splitlines()]
+        return value
+
+    @field_validator("grid")
+    @classmethod
+    def _grid_size(cls, value: list[str] | None) -> list[str] | None:
+        if value is not None and (len(value) > MAX_SIDE or
+                                  any(len(row) > MAX_SIDE for row in value)):
+            raise ValueError(f"grid is larger than {MAX_SIDE} x {MAX_SIDE} cells")
         return value
 
     @model_validator(mode="after")
@@ -240,15 +285,15 @@ class OneshotSpec(_Model):
 
 class ConstantSpec(_Model):
     batch: PosInt = 10
-    every_ticks: PosInt = 50
+    every_ticks: Ticks = 50
 
 
 class WaveSpec(_Model):
     base: PosInt = 10
-    min_mult: Annotated[float, Field(ge=0)] = 0.3
-    max_mult: Annotated[float, Field(ge=0)] = 3.0
-    cycle_ticks: PosInt = 80
-    every_ticks: PosInt = 20
+    min_mult: Annotated[NonNegFloat, Field(le=100)] = 0.3
+    max_mult: Annotated[NonNegFloat, Field(le=100)] = 3.0
+    cycle_ticks: Ticks = 80
+    every_ticks: Ticks = 20
     shape: Literal["sine", "square"] = "sine"
 
     @model_validator(mode="after")
@@ -259,20 +304,21 @@ class WaveSpec(_Model):
 
 
 class HotspotSpec(_Model):
-    alpha: PosFloat = 2.0
-    scale: PosFloat = 10.0
-    every_ticks: PosInt = 30
-    hot_fraction: Annotated[float, Field(gt=0, lt=1)] = 0.2
-    hot_share: Annotated[float, Field(gt=0, lt=1)] = 0.8
+    alpha: Annotated[PosFloat, Field(ge=0.5)] = 2.0
+    """Pareto shape (>= 0.5; batches are cut at 1,000 x ``scale``)."""
+    scale: Annotated[PosFloat, Field(le=10_000)] = 10.0
+    every_ticks: Ticks = 30
+    hot_fraction: Annotated[PosFloat, Field(lt=1)] = 0.2
+    hot_share: Annotated[PosFloat, Field(lt=1)] = 0.8
 
 
 class BurstSpec(_Model):
     base: PosInt = 10
-    every_ticks: PosInt = 60
+    every_ticks: Ticks = 60
     start_prob: Prob = 0.05
     burst_orders: PosInt = 50
-    burst_every_ticks: PosInt = 5
-    burst_ticks: PosInt = 20
+    burst_every_ticks: Ticks = 5
+    burst_ticks: Ticks = 20
     """How long a burst lasts once it starts."""
 
 
@@ -280,7 +326,7 @@ class OrdersSpec(_Model):
     """The order stream. Parameters of every pattern have defaults (WareRover's)."""
 
     pattern: Literal["oneshot", "constant", "wave", "hotspot", "burst"] = "oneshot"
-    duration_ticks: PosInt = 400
+    duration_ticks: Ticks = 400
     """Streaming patterns generate orders in ticks [0, duration_ticks)."""
     large_fraction: Prob | None = None
     """Share of orders needing a size-2 container (default: share of size-2 SKUs)."""
@@ -295,9 +341,9 @@ class OrdersSpec(_Model):
 
 
 class TasksSpec(_Model):
-    pick_ticks: NonNegInt = 2
-    handover_ticks: NonNegInt = 2
-    place_ticks: NonNegInt = 2
+    pick_ticks: NonNegTicks = 2
+    handover_ticks: NonNegTicks = 2
+    place_ticks: NonNegTicks = 2
 
 
 class SchedulerSpec(_Model):
@@ -317,16 +363,25 @@ class PlannerSpec(_Model):
     ``package.module:ClassName``."""
     params: Params = {}
     """Parameters of a plug-in planner (its ``Params`` model)."""
-    replan_blocked_ticks: PosInt = 3
+    replan_blocked_ticks: Ticks = 3
     """Replan an AGV that could not follow its plan for this many ticks."""
-    max_expansions: PosInt = 50_000
+    max_expansions: Budget = 50_000
     """Node budget of one single-agent search; past it the AGV waits and retries."""
-    horizon_ticks: PosInt = 20
+    horizon_ticks: Ticks = 20
     """CBS: conflicts between jointly planned AGVs are resolved this many ticks ahead."""
-    max_nodes: PosInt = 2_000
+    max_nodes: Budget = 2_000
     """CBS: constraint-tree nodes before falling back to prioritized A* (counted)."""
-    time_budget_s: PosFloat = 0.5
-    """CBS / LaCAM: seconds per planning call before the documented fallback (counted)."""
+    max_iterations: Budget = 2_000
+    """LaCAM: high-level iterations per planning call before the documented fallback (one
+    PIBT step, counted in ``planner_budget_hits``). A work budget: same result on any
+    machine."""
+    max_call_expansions: Budget = 100_000
+    """CBS: low-level A* expansions per planning call (all its searches together) before
+    falling back to prioritized A* (counted). A work budget: same result on any machine."""
+    time_budget_s: PosFloat = 10.0
+    """CBS / LaCAM: a wall-clock safety stop per planning call (seconds). The work budgets
+    above decide results; when this stop ends a search first it is counted in
+    ``planner_budget_hits`` and logged, as the result then depends on machine speed."""
 
 
 class DelaySpec(_Model):
@@ -339,10 +394,10 @@ class DelaySpec(_Model):
     model: Literal["none", "bernoulli", "poisson"] = "none"
     prob: Prob = 0.0
     duration: Literal["uniform", "gaussian"] = "uniform"
-    min_ticks: PosInt = 1
-    max_ticks: PosInt = 10
+    min_ticks: Ticks = 1
+    max_ticks: Ticks = 10
     mean_ticks: PosFloat = 5.0
-    std_ticks: Annotated[float, Field(ge=0)] = 2.0
+    std_ticks: NonNegFloat = 2.0
 
     @model_validator(mode="after")
     def _range(self) -> DelaySpec:
@@ -361,7 +416,7 @@ class ExecutorSpec(_Model):
     """Parameters of a plug-in executor (its ``Params`` model)."""
     dt_s: PosFloat = 0.02
     """Physics step (seconds); the planning tick is ``tick_s``."""
-    adg: bool = True
+    adg: Bool = True
     """Follow the action dependency graph; ``false`` = naive time-indexed following (an
     action starts at its planned tick whatever the other AGVs do)."""
     delays: DelaySpec = DelaySpec()
@@ -382,16 +437,16 @@ class ExecutorSpec(_Model):
 
 class RandomFaultsSpec(_Model):
     prob_per_tick: Prob = 0.0
-    repair_ticks: PosInt = 40
-    repair_ticks_max: PosInt | None = None
+    repair_ticks: Ticks = 40
+    repair_ticks_max: Ticks | None = None
     """If set, repair time is drawn uniformly from [repair_ticks, repair_ticks_max]."""
     max_down: PosInt | None = None
 
 
 class ScheduledFaultSpec(_Model):
     agv: NonNegInt
-    tick: NonNegInt
-    repair_ticks: PosInt = 40
+    tick: NonNegTicks
+    repair_ticks: Ticks = 40
 
 
 class FaultsSpec(_Model):
@@ -400,7 +455,7 @@ class FaultsSpec(_Model):
     random: RandomFaultsSpec = RandomFaultsSpec()
     scheduled: list[ScheduledFaultSpec] = Field(default_factory=list)
     corridor_width_m: PosFloat = 1.0
-    corridor_margin_m: Annotated[float, Field(ge=0)] = 0.2
+    corridor_margin_m: NonNegFloat = 0.2
     orders_of_failed: Literal["reassign", "wait"] = "reassign"
 
     @property
@@ -410,13 +465,41 @@ class FaultsSpec(_Model):
 
 # --------------------------------------------------------------------------------- scenario
 
+MAX_TICKS_PER_MOVE = 1_000
+"""Longest one cell move may take, ticks (``cell_m / (max_speed_mps * tick_s)``)."""
+MAX_STEPS_PER_TICK = 10_000
+"""Most physics steps per tick (``tick_s / executor.dt_s``)."""
+
+
+def _orders_bound(orders: OrdersSpec, max_ticks: int) -> int:
+    """An upper bound of the orders a stream generates in ``max_ticks`` ticks (hotspot:
+    batches taken as 1,000 x ``scale``, where ``orders.py`` cuts its Pareto draws)."""
+    ticks = min(orders.duration_ticks, max_ticks)
+
+    def batches(every: int) -> int:
+        return -(-ticks // every)
+
+    p = orders.pattern
+    if p == "oneshot":
+        return orders.oneshot.count
+    if p == "constant":
+        return batches(orders.constant.every_ticks) * orders.constant.batch
+    if p == "wave":
+        w = orders.wave
+        return batches(w.every_ticks) * math.ceil(w.base * w.max_mult)
+    if p == "hotspot":
+        return batches(orders.hotspot.every_ticks) * math.ceil(1000 * orders.hotspot.scale)
+    b = orders.burst
+    return batches(b.every_ticks) * b.base + batches(b.burst_every_ticks) * b.burst_orders
+
+
 
 class Scenario(_Model):
     """A whole episode: layout, fleet, orders, algorithms, seed and time."""
 
     name: str = "scenario"
-    seed: NonNegInt = 0
-    max_ticks: PosInt = 2000
+    seed: Seed = 0
+    max_ticks: Ticks = 2000
     tick_s: PosFloat = 1.0
     layout: LayoutSpec
     fleet: FleetSpec
@@ -442,6 +525,45 @@ class Scenario(_Model):
                                     f"{self.fleet.size}: ids 0..{self.fleet.size - 1})",
                                     file=self.source, field=f"faults.scheduled[{i}].agv",
                                     value=fault.agv)
+        return self
+
+    @field_validator("name")
+    @classmethod
+    def _safe_name(cls, value: str) -> str:
+        if not NAME.fullmatch(value) or value.strip() != value:
+            raise ValueError("name must be 1-128 letters, digits, spaces or _ . + = , - "
+                             "(it becomes part of file names: no path separators, no leading "
+                             "dot)")
+        return value
+
+    @model_validator(mode="after")
+    def _within_limits(self) -> Scenario:
+        """Cross-field limits: the physics step fits in a tick, one move takes at most
+        ``MAX_TICKS_PER_MOVE`` ticks, the order stream stays under ``MAX_ORDERS``."""
+        def fail(msg: str, field: str, value: Any) -> ScenarioError:
+            return ScenarioError(msg, file=self.source, field=field, value=value)
+
+        if self.executor.dt_s > self.tick_s:
+            raise fail(f"the physics step must not be longer than a tick (tick_s = "
+                       f"{self.tick_s:g} s)", "executor.dt_s", self.executor.dt_s)
+        if self.tick_s / self.executor.dt_s > MAX_STEPS_PER_TICK:
+            raise fail(f"more than {MAX_STEPS_PER_TICK:,} physics steps per tick (tick_s = "
+                       f"{self.tick_s:g} s)", "executor.dt_s", self.executor.dt_s)
+        for name, spec in self.fleet.types.items():
+            moves = self.layout.cell_m / (spec.max_speed_mps * self.tick_s)
+            if moves > MAX_TICKS_PER_MOVE:
+                raise fail(f"one cell move would take {moves:.3g} ticks (at most "
+                           f"{MAX_TICKS_PER_MOVE}: raise the speed or tick_s)",
+                           f"fleet.types.{name}.max_speed_mps", spec.max_speed_mps)
+        orders = _orders_bound(self.orders, self.max_ticks)
+        if orders > MAX_ORDERS:
+            raise fail(f"the order stream could generate {orders:,} orders (at most "
+                       f"{MAX_ORDERS:,})", f"orders.{self.orders.pattern}",
+                       self.orders.pattern)
+        if self.layout.size is not None and self.layout.size[0] * self.layout.size[1] > \
+                MAX_CELLS:
+            raise fail(f"layout has more than {MAX_CELLS:,} cells", "layout.size",
+                       list(self.layout.size))
         return self
 
     @property
@@ -499,7 +621,9 @@ def parse_override(text: str) -> tuple[str, Any]:
     if not key:
         raise ScenarioError("override has an empty field path", field="--set", value=text)
     try:
-        value = yaml.safe_load(raw) if raw.strip() else ""
+        value = safe_yaml.load(raw) if raw.strip() else ""
+    except safe_yaml.YamlLimitError as err:
+        raise ScenarioError(f"value YAML is {err.problem}", field=key, value=raw) from None
     except yaml.YAMLError:
         value = raw
     return key, value
@@ -555,7 +679,11 @@ def read_yaml(path: Path, what: str = "scenario") -> dict[str, Any]:
     if path.is_dir():
         raise ScenarioError(f"{what} path is a directory, not a file", file=str(path))
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        if path.stat().st_size > safe_yaml.MAX_BYTES:
+            raise safe_yaml.YamlLimitError(f"larger than {safe_yaml.MAX_BYTES // 2**20} MiB")
+        data = safe_yaml.load(path.read_text(encoding="utf-8"))
+    except safe_yaml.YamlLimitError as err:
+        raise ScenarioError(f"YAML refused: {err.problem}", file=str(path)) from None
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
@@ -602,11 +730,14 @@ def scenario_from_dict(data: dict[str, Any], *, source: str | None = None,
 
 
 def load_scenario(path: str | Path, overrides: list[tuple[str, Any]] | None = None) -> Scenario:
-    """Read, override and validate a scenario file.
+    """Read, override and validate a scenario file (or a shipped scenario by bare name,
+    ``"paper_homogeneous"``: :mod:`warerover_phys.shipped`).
 
     Raises :class:`ScenarioError` naming the file, the field path and the bad value.
     """
-    path = Path(path)
+    from .shipped import resolve_scenario
+
+    path = resolve_scenario(path)
     data = read_yaml(path)
     try:
         return scenario_from_dict(data, source=str(path), overrides=overrides)

@@ -10,6 +10,7 @@ from typing import NoReturn
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 
 from .errors import WareroverError
 
@@ -20,7 +21,7 @@ err_console = Console(stderr=True)
 
 def fail(err: Exception) -> NoReturn:
     """Print ``err`` as one line on stderr and exit with code 2."""
-    err_console.print(f"[bold red]error:[/] {err}", highlight=False, soft_wrap=True)
+    err_console.print(f"[bold red]error:[/] {escape(str(err))}", highlight=False, soft_wrap=True)
     raise typer.Exit(2)
 
 

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import GeneratorSpec, InventorySpec, LayoutSpec
+from .config import MAX_CELLS, GeneratorSpec, InventorySpec, LayoutSpec
 from .errors import LayoutError, ScenarioError
 
 __all__ = ["CellType", "Shelf", "Layout", "build_layout", "generate_base"]
@@ -160,6 +160,10 @@ def generate_base(gen: GeneratorSpec, fleet_size: int) -> np.ndarray:
     wall = 1 if gen.walls else 0
     rows = area_h + margin["top"] + margin["bottom"] + 2 * wall
     cols = area_w + margin["left"] + margin["right"] + 2 * wall
+    if rows * cols > MAX_CELLS:
+        raise ScenarioError(f"generated layout would be {rows} x {cols} cells (at most "
+                            f"{MAX_CELLS:,})", field="layout.generator",
+                            value=f"{rows}x{cols}")
     grid = np.zeros((rows, cols), dtype=np.int8)
     if wall:
         grid[0, :] = grid[-1, :] = grid[:, 0] = grid[:, -1] = CellType.OBSTACLE

@@ -48,6 +48,10 @@ __all__ = ["Order", "OrderStream"]
 _LARGE = 2
 """The size class ``OrdersSpec.large_fraction`` refers to."""
 
+HOTSPOT_MAX_FACTOR = 1000.0
+"""A hotspot batch is at most this many times ``scale`` (a Pareto draw beyond it, probability
+10^-6 at alpha 2, is cut there): batch sizes stay finite for any alpha."""
+
 
 @dataclass(frozen=True, slots=True)
 class Order:
@@ -170,7 +174,8 @@ class OrderStream:
             h = spec.hotspot
             if t % h.every_ticks != 0:
                 return 0
-            return int((self._rng.pareto(h.alpha) + 1.0) * h.scale)
+            draw = min(self._rng.pareto(h.alpha) + 1.0, HOTSPOT_MAX_FACTOR)   # finite
+            return int(draw * h.scale)
         # burst
         b = spec.burst
         if not self._burst_running(t) and self._rng.random() < b.start_prob:

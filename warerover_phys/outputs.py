@@ -4,16 +4,21 @@ executor) ``trajectories.npz`` in one folder.
 ``paths.json`` holds ``agvs`` (id -> type, footprint, ticks per move), ``planned`` (every
 committed path: AGV, start tick, per-tick ``[[row, col], [row, col]]`` from/to anchors) and
 ``actual`` (per AGV, the executed ``[[row, col], [row, col]]`` per tick from tick 0).
-Files are written to a temporary name and renamed, so an interrupted run never leaves a
-half-written file in place of a good one.
+The files are written as one set (:func:`warerover_phys.atomic.write_set`): into a new
+folder beside the output folder, with a ``manifest.json`` (run id, every file's size and
+SHA-256), which then takes the output folder's place in one step. An interrupted run leaves
+the previous complete set; readers refuse a folder whose files do not match its manifest.
 """
 
 from __future__ import annotations
 
 import json
-import os
+import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+from .atomic import replacing, write_set
 
 if TYPE_CHECKING:
     from .sim import EpisodeResult
@@ -21,16 +26,11 @@ if TYPE_CHECKING:
 __all__ = ["write_outputs"]
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
-
-
-def write_outputs(result: EpisodeResult, out_dir: str | Path) -> dict[str, Path]:
-    """Write the three output files of an episode into ``out_dir`` (created if missing)."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+def write_outputs(result: EpisodeResult, out_dir: str | Path, *,
+                  with_trajectory: bool = False) -> dict[str, Path]:
+    """Write the output files of an episode into ``out_dir`` (created if missing), as one
+    set. ``with_trajectory``: a grid episode also gets ``trajectories.npz`` (for rendering).
+    """
     cols = result.world.layout.cols
 
     def cell(node: int) -> list[int]:
@@ -46,22 +46,39 @@ def write_outputs(result: EpisodeResult, out_dir: str | Path) -> dict[str, Path]
         "actual": {str(aid): [[cell(a), cell(b)] for a, b in states]
                    for aid, states in result.actual.items()},
     }
-    files = {"metrics": out / "metrics.json", "events": out / "events.jsonl",
-             "paths": out / "paths.json"}
-    _atomic_write(files["metrics"], json.dumps(result.metrics, indent=2, sort_keys=True) + "\n")
-    _atomic_write(files["events"], "".join(json.dumps(e, sort_keys=True) + "\n"
-                                           for e in result.events))
-    _atomic_write(files["paths"], json.dumps(paths, separators=(",", ":")) + "\n")
-    if result.trajectory is not None:
-        files["trajectory"] = out / "trajectories.npz"
-        write_trajectory(result.trajectory, files["trajectory"])
-    return files
+    finite = {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+              for k, v in result.metrics.items()}          # JSON has no inf / nan
+    metrics = json.dumps(finite, indent=2, sort_keys=True) + "\n"
+    events = "".join(json.dumps(e, sort_keys=True) + "\n" for e in result.events)
+    paths_text = json.dumps(paths, separators=(",", ":")) + "\n"
+    writers: dict[str, Callable[[Path], object]] = {
+        "metrics.json": lambda p: p.write_text(metrics, encoding="utf-8"),
+        "events.jsonl": lambda p: p.write_text(events, encoding="utf-8"),
+        "paths.json": lambda p: p.write_text(paths_text, encoding="utf-8"),
+    }
+    trajectory = result.trajectory
+    if trajectory is None and with_trajectory:
+        from .render.trajectory import grid_trajectory
+
+        trajectory = grid_trajectory(result)
+    if trajectory is not None:
+        writers["trajectories.npz"] = lambda p: _savez(p, trajectory)
+    sc = result.world.scenario
+    written = write_set(out_dir, writers, meta={"scenario": sc.name, "seed": sc.seed,
+                                                "source": sc.source})
+    names = {"metrics.json": "metrics", "events.jsonl": "events", "paths.json": "paths",
+             "trajectories.npz": "trajectory"}
+    return {names[n]: p for n, p in written.items()}
+
+
+def _savez(path: Path, trajectory: dict) -> None:
+    import numpy as np
+
+    with path.open("wb") as f:
+        np.savez_compressed(f, **trajectory)
 
 
 def write_trajectory(trajectory: dict, path: Path) -> None:
     """Executed poses (see ``PhysicsExecutor.trajectory``), compressed numpy arrays."""
-    import numpy as np
-
-    tmp = path.with_name(path.name + ".tmp.npz")
-    np.savez_compressed(tmp, **trajectory)
-    os.replace(tmp, path)
+    with replacing(path) as tmp:
+        _savez(tmp, trajectory)

@@ -63,13 +63,14 @@ def _cbs(spec):
     from .planning.cbs import CBSPlanner
 
     return CBSPlanner(max_expansions=spec.max_expansions, horizon=spec.horizon_ticks,
-                      max_nodes=spec.max_nodes, time_budget_s=spec.time_budget_s)
+                      max_nodes=spec.max_nodes, time_budget_s=spec.time_budget_s,
+                      max_call_expansions=spec.max_call_expansions)
 
 
 def _lacam(spec):
     from .planning.lacam_planner import LaCAMPlanner
 
-    return LaCAMPlanner(time_budget_s=spec.time_budget_s)
+    return LaCAMPlanner(time_budget_s=spec.time_budget_s, max_iterations=spec.max_iterations)
 
 
 def _ta(spec):
@@ -218,14 +219,19 @@ def build(kind: str, spec: Any) -> Any:
     target = resolve(kind, spec.name)
     params = validate_params(kind, spec.name, dict(getattr(spec, "params", {}) or {}))
     try:
-        if params is not None:
-            return target(spec, params)
-        return target(spec)
+        obj = target(spec, params) if params is not None else target(spec)
     except ScenarioError:
         raise
     except Exception as err:  # noqa: BLE001 - a plug-in's constructor is user code
-        raise ScenarioError(f"{kind} constructor failed ({type(err).__name__}: {err})",
-                            field=f"{kind}.name", value=spec.name) from None
+        first = str(err).strip().splitlines()[0] if str(err).strip() else ""
+        raise ScenarioError(f"plugin constructor raised {type(err).__name__}"
+                            + (f": {first}" if first else ""), field=f"{kind}.name",
+                            value=spec.name) from None
+    if spec.name in BUILTINS[kind] or kind == "executor":
+        return obj
+    from .plugins import Guarded  # run-time guard: a plug-in's errors become clean lines
+
+    return Guarded(obj, f"{kind}.name", spec.name)
 
 
 def check_plugins(scenario: Any) -> None:

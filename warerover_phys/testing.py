@@ -129,7 +129,7 @@ def _factory(kind: str, target: Any, spec: Any, ck: _Checker) -> Callable[[], An
     if isinstance(target, str):
         spec = spec_cls(name=target) if spec is None else spec.model_copy(update={"name": target})
         try:
-            registry.resolve(kind, target)
+            _check_params_model(registry.resolve(kind, target), ck)
         except ScenarioError as err:
             ck.fail("build", f"the name does not resolve ({err})",
                     f"give a built-in ({registry.builtin_names(kind)}), an installed entry point "
@@ -137,6 +137,7 @@ def _factory(kind: str, target: Any, spec: Any, ck: _Checker) -> Callable[[], An
         return lambda: registry.build(kind, spec)
     spec = spec if spec is not None else spec_cls()
     if isinstance(target, type):
+        _check_params_model(target, ck)
         model = registry.params_of(target)
         if model is not None:
             try:
@@ -161,6 +162,20 @@ def _factory(kind: str, target: Any, spec: Any, ck: _Checker) -> Callable[[], An
             "class, a factory nor an instance",
             f"pass the {kind}'s registry name, its class, or a callable returning an instance")
     raise AssertionError  # unreachable: fail raises
+
+
+def _check_params_model(target: Any, ck: _Checker) -> None:
+    """A ``Params`` model must be closed: a misspelt key in a scenario is an error."""
+    from .registry import params_of
+
+    model = params_of(target)
+    if model is None:
+        return
+    if model.model_config.get("extra") != "forbid":
+        ck.fail("params", f"its Params model {model.__name__} accepts unknown keys, so a "
+                "misspelt key in a scenario's params would be silently ignored",
+                "add model_config = pydantic.ConfigDict(extra='forbid', frozen=True) to it")
+    ck.ok("params")
 
 
 def _new(factory: Callable[[], Any], ck: _Checker) -> Any:
@@ -445,8 +460,9 @@ class _PlanCase:
 
 PLAN_CASES = (
     _PlanCase("crossing", {0: (3, 7), 1: (0, 7), 2: (0, 5)}),
-    _PlanCase("around a committed path", {0: (0, 7)},
-              committed={1: [(1, 0), (1, 1), (1, 2), (0, 2), (0, 3), (0, 4), (1, 4), (1, 5)],
+    _PlanCase("around a committed path", {1: (0, 7)},
+              committed={0: [(0, 0), (0, 1), (0, 2), (0, 3), (0, 3), (0, 3), (0, 3), (0, 3),
+                             (1, 3), (2, 3)],
                          2: [(2, 1)]}, all_agents=False),
     _PlanCase("goal held for good", {0: (0, 6)},
               committed={1: [(1, 0), (1, 1), (1, 2), (1, 3), (1, 4), (1, 5), (1, 6), (0, 6)],

@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..errors import ScenarioError
 from ..planning.graph import GraphSet
 from ..planning.paths import TimedPath, occupancy
 from ..world import AgvState
@@ -117,8 +118,11 @@ def open_failure(world: World, agv_id: int, repair_ticks: int | None,
     # It stays where it is: a path that rests on its current state.
     w.reservations.commit(TimedPath(agv.id, w.tick, (agv.pos,)), agv.k)
     cells = occupancy(agv.pos, agv.k, w.layout.cols)
-    corridor = plan_corridor(w.layout, len(w.corridor_log), agv.id, cells,
-                             spec.corridor_width_m, spec.corridor_margin_m)
+    try:
+        corridor = plan_corridor(w.layout, len(w.corridor_log), agv.id, cells,
+                                 spec.corridor_width_m, spec.corridor_margin_m)
+    except ScenarioError as err:  # name the scenario file, not <scenario>
+        raise err.with_file(w.scenario.source) if w.scenario.source else err from None
     w.corridors[corridor.id] = corridor
     w.corridor_exempt[corridor.id] = set()
     w.log("corridor_opened", corridor=corridor.id, agv=agv.id,

@@ -32,8 +32,10 @@ AGVs whose paths do not fit (the lower-priority side of a late conflict) are rep
 prioritized A* (:class:`~warerover_phys.planning.astar.AStarPlanner`) around everything
 committed so far. Use a horizon longer than any path for plain (unwindowed) CBS.
 
-Fallback. When the high level runs out of ``max_nodes`` CT nodes, ``time_budget_s`` seconds
-(monotonic clock) or the request's ``deadline``, or when the CT is exhausted, or when a
+Fallback. When the high level runs out of ``max_nodes`` CT nodes or ``max_call_expansions``
+low-level expansions (work budgets: the same on any machine), the ``time_budget_s`` safety
+stop (monotonic clock; logged as a warning) or the request's ``deadline``, or when the CT is
+exhausted, or when a
 replanned AGV of the window repair finds no path, the whole request is handed to
 :class:`~warerover_phys.planning.astar.AStarPlanner` on the table as it was received (every
 planned AGV's old path put back). A budget stop sets ``result.budget_hits = 1`` (else 0).
@@ -43,7 +45,7 @@ resting non-planned AGV holds, or whose goal footprint overlaps that of an AGV o
 priority in the same request, is sent to the nearest free anchor (``request.keep_clear``
 respected) and listed in ``detours``. An AGV with no path even when alone among the fixed
 AGVs keeps its old path, which then counts as fixed for the others, and is listed in
-``failed``. Everything is deterministic except where the time budget or deadline stops it.
+``failed``. Everything is deterministic except where the safety stop or deadline stops it.
 
 >>> from warerover_phys.config import LayoutSpec
 >>> from warerover_phys.layout import build_layout
@@ -426,11 +428,13 @@ class CBSPlanner:
     """How many of a node's earliest conflicts are tried when looking for a cardinal one."""
 
     def __init__(self, max_expansions: int = 50_000, horizon: int = 20, max_nodes: int = 2_000,
-                 time_budget_s: float = 0.5) -> None:
+                 time_budget_s: float = 10.0, max_call_expansions: int | None = 100_000,
+                 ) -> None:
         self.max_expansions = max_expansions
         self.horizon = horizon
         self.max_nodes = max_nodes
         self.time_budget_s = time_budget_s
+        self.max_call_expansions = max_call_expansions
 
     # ------------------------------------------------------------------------- entry point
 
@@ -534,6 +538,11 @@ class CBSPlanner:
         def cost(p: TimedPath) -> int:
             return p.end_tick - t0
 
+        def out_of_work() -> bool:
+            """The work budget (deterministic): low-level expansions of this call."""
+            return self.max_call_expansions is not None and \
+                result.expansions >= self.max_call_expansions
+
         def child(node: _Node, idx: int, adds: list[tuple[int, str, object]]) -> _Node | None:
             chain = node.constraints
             for agent, kind, payload in adds:
@@ -569,7 +578,7 @@ class CBSPlanner:
                 rises = sum(1 for kid in kids if kid is None or kid.soc > node.soc)
                 if choice is None or rises > choice[0]:
                     choice = (rises, kids)
-                if rises == len(kids) or time.monotonic() > stop_at:
+                if rises == len(kids) or out_of_work() or time.monotonic() > stop_at:
                     break
             assert choice is not None
             return [kid for kid in choice[1] if kid is not None]
@@ -583,7 +592,13 @@ class CBSPlanner:
             node = heapq.heappop(open_list)[3]
             if not node.conflicts:
                 return node.paths, "solved"
-            if generated >= self.max_nodes or time.monotonic() > stop_at:
+            if generated >= self.max_nodes or out_of_work():
+                return None, "budget"
+            if time.monotonic() > stop_at:
+                log.warning("CBS: wall-clock safety stop (%g s) hit at tick %d; this result "
+                            "depends on machine speed (raise planner.time_budget_s or lower "
+                            "planner.max_nodes / planner.max_call_expansions)",
+                            self.time_budget_s, t0)
                 return None, "budget"
             for kid in expand(node):
                 generated += 1

@@ -64,13 +64,15 @@ def update_footprint_priorities(prio: Sequence[float], movers: Sequence[Mover],
 
 def footprint_lacam(movers: Sequence[Mover], starts: Sequence[Pose], cols: int,
                     deadline: float, rng: np.random.Generator, held: Sequence[int] = (),
-                    prio: list[float] | None = None,
+                    prio: list[float] | None = None, max_iterations: int | None = None,
                     ) -> tuple[list[Config] | None, dict]:
     """Configurations from ``starts`` until every agent rests on its goal, or None.
 
     Agents in ``held`` never move (their goal must be where they stand). Returns
     (configurations or None, stats); None with ``stats["exhausted"]`` True means there is
-    no solution, otherwise the deadline (a ``time.monotonic()`` value) passed.
+    no solution, otherwise ``max_iterations`` high-level iterations were spent
+    (``stats["stopped"] == "iterations"``: deterministic) or the deadline (a
+    ``time.monotonic()`` value, a safety stop) passed (``"time"``).
     """
     n_nodes = len(movers[0].dist) if movers else 0
     ties = rng.random(n_nodes + 4099) * 0.5
@@ -84,15 +86,23 @@ def footprint_lacam(movers: Sequence[Mover], starts: Sequence[Pose], cols: int,
                        key=lambda i: -prio[i])
         return _High(config, parent, prio, order)
 
+    if any(mv.dist[start[i][1]] >= UNREACHABLE for i, mv in enumerate(movers)
+           if i not in held_set):
+        # An agent that cannot reach its goal: no configuration search can succeed.
+        return None, {"iterations": 0, "explored": 0, "exhausted": True,
+                      "stopped": "unreachable"}
     root = make(start, None, prio if prio is not None else footprint_priorities(movers, start))
     stack = [root]
     explored = {start: root}
     iterations = 0
     while stack:
         iterations += 1
+        if max_iterations is not None and iterations > max_iterations:
+            return None, {"iterations": iterations, "explored": len(explored),
+                          "exhausted": False, "stopped": "iterations"}
         if iterations % 64 == 0 and time.monotonic() > deadline:
             return None, {"iterations": iterations, "explored": len(explored),
-                          "exhausted": False}
+                          "exhausted": False, "stopped": "time"}
         node = stack[-1]
         if node.config == goal:
             return _unwind(node), {"iterations": iterations, "explored": len(explored)}

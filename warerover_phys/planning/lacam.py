@@ -59,8 +59,13 @@ def lacam_nodes(graph: MotionGraph, starts: Sequence[int], goals: Sequence[int],
                 dists: Sequence[np.ndarray], deadline: float, rng: np.random.Generator,
                 tables: Sequence[Sequence[tuple[int, ...]]] | None = None,
                 held: Sequence[int] = (), prio: list[float] | None = None,
+                max_iterations: int | None = None,
                 ) -> tuple[list[list[int]] | None, dict]:
     """LaCAM over node indices: the configurations from ``starts`` to ``goals``.
+
+    Stops (None, ``stats["stopped"]``) after ``max_iterations`` high-level iterations
+    (``"iterations"``: the same result on any machine) or at ``deadline``, a
+    ``time.monotonic()`` value kept as a safety stop (``"time"``).
 
     ``tables`` gives each agent its own neighbour lists; agents in ``held`` never move (their
     goal must be their start).
@@ -76,15 +81,23 @@ def lacam_nodes(graph: MotionGraph, starts: Sequence[int], goals: Sequence[int],
         order = sorted(movable, key=lambda i: -prio[i])
         return _High(config, parent, prio, order)
 
+    if any(dists[i][s[i]] >= UNREACHABLE for i in movable):
+        # An agent that cannot reach its goal (a closed corridor, say): no configuration
+        # search can succeed, so do not spend the budget proving it.
+        return None, {"iterations": 0, "explored": 0, "exhausted": True,
+                      "stopped": "unreachable"}
     root = make(s, None, prio if prio is not None else initial_priorities(dists, s))
     stack = [root]
     explored = {s: root}
     iterations = 0
     while stack:
         iterations += 1
+        if max_iterations is not None and iterations > max_iterations:
+            return None, {"iterations": iterations, "explored": len(explored),
+                          "exhausted": False, "stopped": "iterations"}
         if iterations % 64 == 0 and time.monotonic() > deadline:
             return None, {"iterations": iterations, "explored": len(explored),
-                          "exhausted": False}
+                          "exhausted": False, "stopped": "time"}
         node = stack[-1]
         if node.config == g:
             configs = []

@@ -11,8 +11,11 @@ problem solvable:
   claimed (or stands on, held) queues at the nearest free floor cell instead, away from
   the cells in front of stations; it is replanned when its goal frees up.
 
-If LaCAM does not finish within ``time_budget_s``, the fleet takes one PIBT step instead and
-the budget hit is counted (``PlanResult.budget_hits``), never silently.
+If LaCAM does not finish within ``max_iterations`` high-level iterations (a work budget: the
+same result on any machine), the fleet takes one PIBT step instead and the budget hit is
+counted (``PlanResult.budget_hits``), never silently. ``time_budget_s`` is a wall-clock
+safety stop only: when it ends a search first (so the result depends on the machine), the
+hit is counted too and a warning is logged.
 
 A fleet of 1x1 AGVs that move one cell per tick takes the fast path (:func:`lacam_nodes`).
 Any other fleet is solved by :func:`footprint_lacam` over poses (an AGV in the middle of a
@@ -22,6 +25,7 @@ footprint-aware effective goals: goal footprints of different AGVs never overlap
 
 from __future__ import annotations
 
+import logging
 import time
 from collections import deque
 
@@ -39,13 +43,25 @@ from .reservation import ReservationTable
 
 __all__ = ["LaCAMPlanner", "effective_goals", "on_plan", "solve_footprints"]
 
+log = logging.getLogger(__name__)
+
+
+def _report_stop(stats: dict, budget_s: float) -> None:
+    """Log a search that the wall-clock safety stop ended (results then depend on timing)."""
+    if stats.get("stopped") == "time":
+        log.warning("lacam: wall-clock safety stop (%g s) hit after %d iterations; this "
+                    "result depends on machine speed (raise planner.time_budget_s or lower "
+                    "planner.max_iterations)", budget_s, stats.get("iterations", 0))
+
 
 class LaCAMPlanner:
     name = "lacam"
     replans_all = True
 
-    def __init__(self, time_budget_s: float = 2.0, **_: object) -> None:
+    def __init__(self, time_budget_s: float = 10.0, max_iterations: int | None = 2_000,
+                 **_: object) -> None:
         self.time_budget_s = time_budget_s
+        self.max_iterations = max_iterations
 
     def plan(self, request: PlanRequest) -> PlanResult:
         agents: list[AgentRequest] = sorted(request.agents, key=lambda a: a.agv)
@@ -69,8 +85,10 @@ class LaCAMPlanner:
         deadline = time.monotonic() + self.time_budget_s
         if request.deadline is not None:
             deadline = min(deadline, request.deadline)
-        configs, _ = lacam_nodes(unloaded, starts, goals, dists, deadline, rng, tables=tables,
-                                 held=held, prio=prio)
+        configs, stats = lacam_nodes(unloaded, starts, goals, dists, deadline, rng,
+                                     tables=tables, held=held, prio=prio,
+                                     max_iterations=self.max_iterations)
+        _report_stop(stats, self.time_budget_s)
         if configs is None:
             result.budget_hits += 1
             nxt = pibt_step(unloaded, starts, dists, prio, rng.random(unloaded.num_nodes) * 0.5,
@@ -90,11 +108,12 @@ class LaCAMPlanner:
         deadline = time.monotonic() + self.time_budget_s
         if request.deadline is not None:
             deadline = min(deadline, request.deadline)
-        return solve_footprints(request, agents, deadline, keep=True)
+        return solve_footprints(request, agents, deadline, keep=True,
+                                max_iterations=self.max_iterations)
 
 
 def solve_footprints(request: PlanRequest, agents: list[AgentRequest], deadline: float,
-                     keep: bool) -> PlanResult:
+                     keep: bool, max_iterations: int | None = None) -> PlanResult:
     """Footprint-aware LaCAM for the whole fleet towards its effective goals; commit every
     AGV's full path. With ``keep``, nothing is planned while every committed path still
     leads to its effective goal. Past ``deadline``, one footprint-aware PIBT step (counted
@@ -110,7 +129,9 @@ def solve_footprints(request: PlanRequest, agents: list[AgentRequest], deadline:
     held = [i for i, a in enumerate(agents) if a.hold and poses[i][2] == 0]
     prio = [float(a.priority[0]) if a.priority else 0.0 for a in agents]
     rng = request.rng if request.rng is not None else np.random.default_rng(0)
-    configs, _ = footprint_lacam(movers, poses, res.cols, deadline, rng, held=held, prio=prio)
+    configs, stats = footprint_lacam(movers, poses, res.cols, deadline, rng, held=held,
+                                     prio=prio, max_iterations=max_iterations)
+    _report_stop(stats, deadline - time.monotonic())
     if configs is None:
         result.budget_hits += 1
         nxt = footprint_step(movers, poses, prio, rng.random(len(movers[0].dist)) * 0.5,

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import json
 import math
+import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -168,9 +170,11 @@ def _plans(planned: list[dict], footprint: np.ndarray, cols: int, cell_m: float,
     out: dict[int, list[tuple[int, np.ndarray]]] = {}
     for p in planned:
         aid, states = int(p["agv"]), p["states"]
-        if not states or aid >= len(footprint):
+        if not states or not 0 <= aid < len(footprint):
             continue
         arr = np.asarray(states, dtype=np.float64)
+        if arr.shape[1:] not in ((2,), (2, 2)) or not np.isfinite(arr).all():
+            raise ValueError(f"states of AGV {aid} must be from/to pairs of cells")
         if arr.ndim == 3:                       # cells -> nodes
             arr = arr[..., 0] * cols + arr[..., 1]
         pts = 0.5 * (_centres(arr[:, 0], int(footprint[aid]), cols, cell_m)
@@ -188,53 +192,142 @@ def _orders(events: list[dict]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _from_dict(traj: dict, events: list[dict] | None, planned: list[dict] | None,
-               source: str) -> Recording:
+               source: str, plans_source: str = "plans") -> Recording:
     missing = [k for k in REQUIRED if k not in traj]
     if missing:
         raise WareroverError(f"{source}: not a trajectory file (missing {', '.join(missing)})")
+    try:
+        return _build(traj, events, planned, source, plans_source)
+    except WareroverError:
+        raise
+    except (ValueError, TypeError, KeyError, IndexError, OverflowError, AttributeError) as err:
+        raise WareroverError(f"{source}: not a valid trajectory ({type(err).__name__}: "
+                             f"{str(err).splitlines()[0] if str(err) else 'bad value'})") from None
+
+
+def _build(traj: dict, events: list[dict] | None, planned: list[dict] | None,
+           source: str, plans_source: str) -> Recording:
+    def bad(field: str, why: str) -> WareroverError:
+        return WareroverError(f"{source}: {field}: {why}")
+
     t = np.asarray(traj["t"], dtype=np.float64)
     if t.ndim != 1 or len(t) == 0:
         raise WareroverError(f"{source}: trajectory has no samples")
+    if not np.isfinite(t).all() or (len(t) > 1 and (np.diff(t) < 0).any()):
+        raise bad("t", "sample times must be finite and non-decreasing")
+    arrays = {}
+    for key, dtype in (("x", np.float64), ("y", np.float64), ("heading", np.float64),
+                       ("state", np.int8), ("loaded", bool)):
+        a = np.asarray(traj[key])
+        if a.ndim != 2 or a.shape[0] != len(t):
+            raise bad(key, f"expected shape ({len(t)}, AGVs) (got {a.shape})")
+        if a.dtype.kind not in "biuf":
+            raise bad(key, f"expected numbers (got {a.dtype})")
+        if dtype is np.float64 and not np.isfinite(a).all():
+            raise bad(key, "values must be finite")
+        arrays[key] = a.astype(dtype)
+    n = arrays["x"].shape[1]
+    if any(a.shape[1] != n for a in arrays.values()):
+        raise bad("x", "arrays disagree on the number of AGVs")
     grid = np.asarray(traj["grid"])
+    if grid.ndim != 2 or grid.dtype.kind not in "iu" or 0 in grid.shape:
+        raise bad("grid", f"expected a 2-D integer array (got {grid.dtype} {grid.shape})")
     cell_m, tick_s = float(traj["cell_m"]), float(traj["tick_s"])
-    footprint = np.asarray(traj["footprint"], dtype=np.int64)
+    for key, v in (("cell_m", cell_m), ("tick_s", tick_s)):
+        if not (math.isfinite(v) and v > 0):
+            raise bad(key, f"must be a positive finite number (got {v})")
+    footprint = np.asarray(traj["footprint"])
+    body_m = np.asarray(traj["body_m"])
+    if footprint.shape != (n,) or footprint.dtype.kind not in "iu" or (footprint < 1).any():
+        raise bad("footprint", f"expected {n} positive integers (got {footprint.shape})")
+    if body_m.shape != (n, 2) or body_m.dtype.kind not in "iuf" or \
+            not np.isfinite(body_m).all() or (body_m <= 0).any():
+        raise bad("body_m", f"expected ({n}, 2) positive sizes (got {body_m.shape})")
+    footprint = footprint.astype(np.int64)
     corridors: tuple[dict, ...] = ()
     if "corridors_json" in traj:
-        corridors = tuple(json.loads(str(traj["corridors_json"])))
+        try:
+            corridors = tuple(json.loads(str(traj["corridors_json"])))
+        except ValueError:
+            raise bad("corridors_json", "not valid JSON") from None
+        for c in corridors:
+            if not isinstance(c, dict) or "open_tick" not in c or "close_tick" not in c:
+                raise bad("corridors_json", "each corridor needs open_tick and close_tick")
     created = done = None
     if events is not None:
         created, done = _orders(events)
-    plans = _plans(planned, footprint, grid.shape[1], cell_m) if planned else {}
+    try:
+        plans = _plans(planned, footprint, grid.shape[1], cell_m) if planned else {}
+    except (ValueError, TypeError, KeyError, IndexError, OverflowError) as err:
+        why = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise WareroverError(f"{plans_source}: planned: not valid plans ({why})") from None
     return Recording(
-        t=t, x=np.asarray(traj["x"], dtype=np.float64), y=np.asarray(traj["y"], dtype=np.float64),
-        heading=np.asarray(traj["heading"], dtype=np.float64),
-        state=np.asarray(traj["state"], dtype=np.int8),
-        loaded=np.asarray(traj["loaded"], dtype=bool), footprint=footprint,
-        body_m=np.asarray(traj["body_m"], dtype=np.float64), cell_m=cell_m, tick_s=tick_s,
-        grid=grid, corridors=corridors, order_created=created, order_done=done, plans=plans)
+        t=t, x=arrays["x"], y=arrays["y"], heading=arrays["heading"], state=arrays["state"],
+        loaded=arrays["loaded"], footprint=footprint, body_m=body_m.astype(np.float64),
+        cell_m=cell_m, tick_s=tick_s, grid=grid, corridors=corridors, order_created=created,
+        order_done=done, plans=plans)
+
+
+def _read_json(path: Path, lines: bool) -> object:
+    """A JSON (``lines``: JSON-lines) file beside a trajectory, or a one-line error."""
+    try:
+        text = path.read_text(encoding="utf-8")
+        if lines:
+            out = [json.loads(line) for line in text.splitlines() if line.strip()]
+            if not all(isinstance(e, dict) for e in out):
+                raise ValueError("every line must be a JSON object")
+            return out
+        return json.loads(text)
+    except (ValueError, UnicodeDecodeError, RecursionError) as err:
+        why = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise WareroverError(f"{path}: corrupt or truncated ({why})") from None
 
 
 def load_trajectory(path: str | Path) -> Recording:
     """Load ``trajectories.npz`` (a file, or a run folder holding one). ``events.jsonl`` and
-    ``paths.json`` beside it, when present, give the order counts and the planned paths."""
+    ``paths.json`` beside it, when present, give the order counts and the planned paths.
+
+    A run folder whose files do not match its ``manifest.json`` (a mixed or half-written set,
+    :func:`warerover_phys.atomic.check_set`) is refused; so is any corrupt or truncated file,
+    with a :class:`WareroverError` naming it."""
+    from ..atomic import check_set
+
     p = Path(path)
     if p.is_dir():
         p = p / "trajectories.npz"
     if not p.is_file():
         raise WareroverError(f"{p}: no such trajectory file")
+    check_set(p.parent)
     try:
-        with np.load(p, allow_pickle=False) as data:
+        data = np.load(p, allow_pickle=False)
+        if not isinstance(data, np.lib.npyio.NpzFile):
+            raise ValueError("a single array, not an .npz archive")
+        with data:
             traj = {k: data[k] for k in data.files}
-    except (OSError, ValueError) as err:
-        raise WareroverError(f"{p}: cannot read trajectories ({err})") from None
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error,
+            NotImplementedError, RuntimeError) as err:
+        why = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise WareroverError(f"{p}: cannot read trajectories ({why})") from None
     events = planned = None
     ev_file, paths_file = p.with_name("events.jsonl"), p.with_name("paths.json")
     if ev_file.is_file():
-        events = [json.loads(line) for line in ev_file.read_text(encoding="utf-8").splitlines()
-                  if line.strip()]
+        events = _read_json(ev_file, lines=True)
+        for i, e in enumerate(events):
+            if e.get("event") in ("order_created", "order_completed") and \
+                    not isinstance(e.get("tick"), int | float):
+                raise WareroverError(f"{ev_file}: line {i + 1}: tick: expected a number "
+                                     f"(got {e.get('tick')!r})")
     if paths_file.is_file():
-        planned = json.loads(paths_file.read_text(encoding="utf-8")).get("planned")
-    return _from_dict(traj, events, planned, str(p))
+        data = _read_json(paths_file, lines=False)
+        planned = data.get("planned") if isinstance(data, dict) else None
+        if not isinstance(data, dict) or not isinstance(planned, list | None):
+            raise WareroverError(f"{paths_file}: planned: expected a list of plans")
+        for i, plan in enumerate(planned or []):
+            if not (isinstance(plan, dict) and isinstance(plan.get("agv"), int)
+                    and isinstance(plan.get("tick"), int)
+                    and isinstance(plan.get("states"), list)):
+                raise WareroverError(f"{paths_file}: planned[{i}]: expected agv, tick, states")
+    return _from_dict(traj, events, planned, str(p), str(paths_file))
 
 
 def grid_trajectory(result: EpisodeResult) -> dict[str, np.ndarray]:

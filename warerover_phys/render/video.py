@@ -8,6 +8,9 @@ that file plays in VLC/ffmpeg but not in Chrome or Firefox.
 :func:`render_video` samples a :class:`~.trajectory.Recording` at the video's own frame times:
 frame ``k`` shows simulated time ``start + k * speed / fps``, so the frame rate and playback
 speed are independent of the physics step and of the recording rate.
+
+Videos and images are written to a temporary file beside the target and renamed into place
+when complete: a killed or failed render leaves an existing file as it was.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
+from ..atomic import replacing
 from .frame import Style, draw_frame
 
 if TYPE_CHECKING:
@@ -172,8 +176,9 @@ def render_video(recording: Recording, path: str | Path, *, fps: float = 30.0,
         speed = auto_speed(end - start)
     times = frame_times(start, end, fps, speed, max_frames)
     horizon = style.path_ticks if style.show_paths and recording.plans else 0
-    with VideoWriter(path, fps, style.size, codec=codec, preset=preset) as writer:
-        for t in times:
+    with replacing(path) as tmp, \
+            VideoWriter(tmp, fps, style.size, codec=codec, preset=preset) as writer:
+        for t in times:                 # ``path`` is replaced only once the video is whole
             writer.write(draw_frame(recording.at(float(t), horizon), style))
     log.info("wrote %s: %d frames, %s", path, writer.frames, writer.codec)
     return {"path": str(path), "frames": int(writer.frames), "fps": fps, "speed": speed,
@@ -190,8 +195,13 @@ def write_png(recording: Recording, path: str | Path, tick: float,
     horizon = style.path_ticks if style.show_paths and recording.plans else 0
     img = draw_frame(recording.at(tick * recording.tick_s, horizon), style)
     out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(out), img):
-        raise OSError(f"{out}: cannot write PNG")
+    with replacing(out) as tmp:
+        try:
+            ok = cv2.imwrite(str(tmp), img)
+        except cv2.error:
+            ok = False
+        if not ok:
+            raise OSError("cannot write the image (unsupported extension or unwritable "
+                          "folder)")
     return out
 

@@ -58,6 +58,16 @@ class SchedulerView:
     def orders(self) -> Mapping[int, Order]:
         return MappingProxyType(self._world.orders)
 
+    @property
+    def status(self) -> Mapping[int, int]:
+        """Order id -> ``world.OrderStatus``."""
+        return MappingProxyType(self._world.status)
+
+    @property
+    def shelf_busy(self) -> Mapping[int, int]:
+        """Shelf id -> id of the trip that uses it."""
+        return MappingProxyType(self._world.shelf_busy)
+
     def pending_orders(self) -> list[Order]:
         """Pending orders, by id."""
         return self._world.pending_orders()

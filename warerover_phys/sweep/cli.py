@@ -30,7 +30,7 @@ class _Progress:
         self.total = to_run
         self.every = max(1, to_run // 20)
         self.console.print(f"sweep: {summary.total} episodes, {summary.done_before} already in "
-                           f"{summary.results}, {to_run} to run on {where}", highlight=False, soft_wrap=True)
+                           f"{summary.results}, {to_run} to run on {where}", markup=False, highlight=False, soft_wrap=True)
         if self.quiet or not to_run:
             return
         if self.console.is_terminal:
@@ -118,7 +118,7 @@ def sweep(sweep_file: Annotated[Path, typer.Argument(metavar="SWEEP.yaml",
     except KeyboardInterrupt:
         progress.stop()
         err_console.print(f"interrupted: {progress.done} episode(s) of this run recorded in "
-                          f"{out}; run the same command again to resume", highlight=False, soft_wrap=True)
+                          f"{out}; run the same command again to resume", markup=False, highlight=False, soft_wrap=True)
         raise typer.Exit(130) from None
     except WareroverError as err:
         progress.stop()
@@ -154,7 +154,7 @@ def report(out_dir: Annotated[Path, typer.Argument(metavar="DIR",
         _fail(WareroverError(f"{getattr(err, 'filename', '') or ''}: {err.strerror or err}"))
     typer.echo(result["markdown"])
     for note in result["notes"]:
-        err_console.print(f"note: {note}", highlight=False, soft_wrap=True)
+        err_console.print(f"note: {note}", markup=False, highlight=False, soft_wrap=True)
     typer.echo("wrote " + ", ".join(str(p) for p in result["files"].values()))
 
 

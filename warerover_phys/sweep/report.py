@@ -107,6 +107,8 @@ def load_rows(out_dir: str | Path) -> tuple[list[dict[str, Any]], dict[str, Any]
         raise WareroverError(f"{out_dir}: no {RESULTS_NAME} here (run `warerover sweep "
                              f"SWEEP.yaml --out {out_dir}` first)")
     rows = ResultsFile(results).load()
+    for key, row in rows.items():
+        _check_row(row, key, results)
     spec_data = None
     spec_path = out_dir / SPEC_NAME
     if spec_path.exists():
@@ -119,6 +121,35 @@ def load_rows(out_dir: str | Path) -> tuple[list[dict[str, Any]], dict[str, Any]
         kept = [r for k, r in rows.items() if k in keys]
         return kept, spec_data, len(rows) - len(kept)
     return list(rows.values()), None, 0
+
+
+def _check_row(row: Any, key: str, path: Path) -> None:
+    """A row the report can use, or a :class:`WareroverError` naming the file, the row and
+    the field (rows are written by ``warerover sweep``; this catches edited or foreign ones).
+    """
+    def bad(field: str, value: Any) -> WareroverError:
+        text = repr(value)
+        text = text if len(text) <= 60 else text[:57] + "..."
+        return WareroverError(f"{path}: row {key}: {field}: missing or of the wrong type "
+                              f"(got {text})")
+
+    if not isinstance(row, dict):
+        raise bad("row", row)
+    for name in ("scenario", "scheduler", "planner", "pattern", "status"):
+        if not isinstance(row.get(name), str):
+            raise bad(name, row.get(name, "nothing"))
+    if not isinstance(row.get("variant") or {}, dict):
+        raise bad("variant", row.get("variant"))
+    if row["status"] != "ok":
+        return
+    metrics = row.get("metrics")
+    if not isinstance(metrics, dict):
+        raise bad("metrics", metrics if "metrics" in row else "nothing")
+    for mkey, *_rest in METRICS.values():
+        v = metrics.get(mkey)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, int | float)
+                              or not math.isfinite(v)):
+            raise bad(f"metrics.{mkey}", v)
 
 
 def _variant(row: dict[str, Any]) -> str:
@@ -265,7 +296,10 @@ def heatmap(groups: Sequence[Group], path: str | Path, title: str = "") -> Path:
             y = top - row_h * (r + 1)
             ax.plot([0, sum(widths)], [y, y], color="0.6", linewidth=0.4)
     path = Path(path)
-    fig.savefig(path)
+    from ..atomic import replacing
+
+    with replacing(path) as tmp:      # a killed report never leaves half a PNG
+        fig.savefig(tmp, format=path.suffix.lstrip(".") or "png")
     return path
 
 

@@ -12,6 +12,7 @@ only the episodes without a row.
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import json
 import logging
@@ -24,7 +25,7 @@ import threading
 import time
 import traceback
 from collections import deque
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
@@ -33,6 +34,7 @@ from typing import Any
 
 from ..config import Scenario
 from ..errors import WareroverError
+from .lock import sweep_lock
 from .results import RESULTS_NAME, ResultsFile
 from .spec import Episode, SweepSpec, compile_scenarios, expand
 
@@ -165,8 +167,37 @@ def run_sweep(spec: SweepSpec, out_dir: str | Path, *, workers: int | None = Non
     ``workers``: local processes (default: CPU count); ``ray_address``: run on Ray instead
     (``auto``, ``local`` or a cluster address; a Ray already initialised in this process is
     used as it is). ``on_start(summary, to_run)`` and ``on_row(row)`` drive a progress display.
-    Raises :class:`KeyboardInterrupt` through (what finished is on disk).
+    Raises :class:`KeyboardInterrupt` through (what finished is on disk); SIGTERM does the
+    same. Holds ``out_dir``'s sweep lock (:mod:`.lock`): a second sweep on the same folder
+    raises a :class:`WareroverError` naming the holder.
     """
+    with sweep_lock(out_dir), _term_as_interrupt():
+        return _run_locked(spec, out_dir, workers=workers, ray_address=ray_address,
+                           retry_failed=retry_failed, on_start=on_start, on_row=on_row)
+
+
+@contextlib.contextmanager
+def _term_as_interrupt() -> Iterator[None]:
+    """SIGTERM ends a sweep as Ctrl-C does: workers and Ray are shut down, what finished is
+    on disk (the default action would end the process without any clean-up)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    old = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
+def _run_locked(spec: SweepSpec, out_dir: str | Path, *, workers: int | None,
+                ray_address: str | None, retry_failed: bool,
+                on_start: Callable[[SweepSummary, int], None] | None,
+                on_row: Callable[[dict[str, Any]], None] | None) -> SweepSummary:
     t0 = time.perf_counter()
     tasks, summary, results = plan_sweep(spec, out_dir, retry_failed=retry_failed)
     _write_spec(spec, summary.out_dir)
@@ -308,13 +339,20 @@ def _run_ray(tasks: Iterable[Task], address: str, workers: int,
     """Run the tasks as Ray tasks (1 CPU each), ``2 x cluster CPUs`` in flight."""
     ray = _import_ray()
     started = False
+    reaper = None
     if not ray.is_initialized():
+        from .reaper import start_reaper
+
+        reaper = start_reaper()   # ends Ray's processes if this driver is SIGKILL-ed
         try:
             if address == "local":
                 ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
             else:
                 ray.init(address=address, log_to_driver=False)
         except (ConnectionError, RuntimeError, ValueError) as err:
+            from .reaper import stop_reaper
+
+            stop_reaper(reaper)
             first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
             raise WareroverError(f"--ray {address}: cannot connect to a Ray cluster ({first}); "
                                  "start one with `ray start --head` or use --ray local") from None
@@ -342,3 +380,6 @@ def _run_ray(tasks: Iterable[Task], address: str, workers: int,
             ray.cancel(ref, force=True)
         if started:
             ray.shutdown()
+        from .reaper import stop_reaper
+
+        stop_reaper(reaper)

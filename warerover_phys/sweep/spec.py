@@ -190,8 +190,9 @@ class Episode:
         return episode_key(self.label, self.overrides, self.seed)
 
     @property
-    def combo(self) -> tuple[str, tuple[tuple[str, Any], ...]]:
-        return self.label, self.overrides
+    def combo(self) -> tuple[str, str]:
+        """(label, overrides as JSON): hashable even when a value is a mapping or a list."""
+        return self.label, json.dumps(self.overrides, sort_keys=True, default=str)
 
 
 def episode_key(label: str, overrides: Any, seed: int) -> str:
@@ -295,7 +296,7 @@ def compile_scenarios(spec: SweepSpec, episodes: list[Episode]) -> dict[tuple, S
     for ep in episodes:
         if ep.combo in out:
             continue
-        label, overrides = ep.combo
+        label, overrides = ep.label, ep.overrides
         where = f"scenarios.{label}" + (
             " with " + ", ".join(f"{k}={v}" for k, v in overrides) if overrides else "")
         path = spec.scenario_path(label)
