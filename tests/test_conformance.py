@@ -182,7 +182,61 @@ class NumpyNodesPlanner:
         return result
 
 
+class GraphVandalPlanner:
+    """Closes a cell by editing the shared motion graph."""
+
+    name = "graph-vandal"
+    replans_all = False
+
+    def __init__(self, spec):
+        self.astar = AStarPlanner()
+
+    def plan(self, request):
+        graph = request.graphs.get(1, False)
+        graph.neighbors[0] = ()
+        return self.astar.plan(request)
+
+
+class LazyPlanner:
+    """Lets every AGV stand where it is."""
+
+    name = "lazy"
+    replans_all = False
+
+    def __init__(self, spec):
+        pass
+
+    def plan(self, request):
+        from warerover_phys.planning import PlanResult
+
+        return PlanResult(paths={a.agv: TimedPath(a.agv, request.tick, ((a.start, a.start),))
+                                 for a in request.agents})
+
+
+class StatefulPlanner:
+    """Plans the AGVs in an order that rotates with every call (state kept on self)."""
+
+    name = "stateful"
+    replans_all = False
+
+    def __init__(self, spec):
+        self.astar = AStarPlanner()
+        self.calls = 0
+
+    def plan(self, request):
+        from dataclasses import replace
+
+        self.calls += 1
+        n = len(request.agents)
+        agents = [replace(a, priority=((i + self.calls) % n,))
+                  for i, a in enumerate(request.agents)]
+        return self.astar.plan(replace(request, agents=agents))
+
+
 BROKEN_PLANNERS = [
+    (GraphVandalPlanner, "request untouched", "changed the motion graph of 1x1 unloaded AGVs"),
+    (LazyPlanner, "reaches goals", "not at its goal"),
+    (StatefulPlanner, "determinism", "keep no state between calls on self"),
     (WrongTypePlanner, "return type", "plan() returned dict"),
     (JumpingPlanner, "motion graph", "not an edge of its motion graph"),
     (IgnoresCommittedPlanner, "conflict-free", "runs into AGV 0's committed path"),
@@ -285,7 +339,30 @@ class WrongSignatureScheduler:
         return []
 
 
+class StatefulScheduler:
+    """Serves the pending orders newest first on every other call (state kept on self)."""
+
+    name = "stateful"
+
+    def __init__(self, spec):
+        self.flip = False
+
+    def assign(self, world, rng):
+        self.flip = not self.flip
+        pending = world.pending_orders()[::-1 if self.flip else 1]
+        out, taken = [], set()
+        for agv in world.idle_agvs():
+            for order in pending:
+                free = [s for s in world.free_shelves_for(order.sku, agv) if s not in taken]
+                if free and order.id not in {o for a in out for o in a.orders}:
+                    out.append(Assignment(agv.id, free[0], (order.id,)))
+                    taken.add(free[0])
+                    break
+        return out
+
+
 BROKEN_SCHEDULERS = [
+    (StatefulScheduler, "determinism", "a fresh scheduler and the one that ran"),
     (BusyAgvScheduler, "assignments", "gives a trip to AGV 0, which is TO_SHELF, not IDLE"),
     (MeddlingScheduler, "read-only world", "assign() changed the world's AGVs"),
     (TupleScheduler, "return type", "assign() returned tuple"),
@@ -503,3 +580,12 @@ def test_bad_params_name_the_field_and_the_file(tmp_path, section, name, params,
     err = info.value
     assert err.file == str(path) and err.field == field, str(err)
     assert str(err).startswith(f"{path}: {field}: ")
+
+
+def test_docstring_examples():
+    import doctest
+
+    import warerover_phys.testing
+
+    result = doctest.testmod(warerover_phys.testing)
+    assert result.attempted >= 4 and result.failed == 0

@@ -294,7 +294,6 @@ def gap(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
     def f(x, spec=".3f"):
         return "-" if x is None else format(x, spec)
 
-    from rich.markup import escape
 
     table = Table(title=f"sim-to-real gap: {sc.name}  seed {sc.seed}  {sc.scheduler.name} + "
                         f"{sc.planner.name}", show_header=True)

@@ -503,19 +503,15 @@ def write_execution(result: ExecutionResult, plan: Plan, layout: Layout,
     """``metrics.json``, ``events.jsonl``, ``paths.json`` (planned = the executed plan,
     actual = executed states per tick, the same structure as ``warerover run`` writes),
     ``agents.csv`` (planned vs executed finish per agent) and ``trajectories.npz`` (physics;
-    a per-tick one on the grid), all written through temporary files."""
+    a per-tick one on the grid), written as one set (see :mod:`warerover_phys.atomic`)."""
     import csv
     import io
     import json
 
-    from .outputs import _atomic_write, write_trajectory
+    from .atomic import write_set
+    from .outputs import _savez
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     cols = layout.cols
-    files = {"metrics": out / "metrics.json", "events": out / "events.jsonl",
-             "paths": out / "paths.json", "agents": out / "agents.csv",
-             "trajectory": out / "trajectories.npz"}
     paths = {
         "agvs": {str(i): {"type": "execute", "footprint": t.footprint, "ticks_per_move": 1}
                  for i, t in enumerate(types)},
@@ -530,18 +526,27 @@ def write_execution(result: ExecutionResult, plan: Plan, layout: Layout,
     for i, (p, e) in enumerate(zip(result.planned_finish, result.executed_finish,
                                    strict=True)):
         w.writerow([i, p, e, e - p])
-    metrics = dict(result.metrics)
+    metrics = {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+               for k, v in result.metrics.items()}
     metrics["cycle_repairs_detail"] = [r.as_dict() for r in result.repairs]
-    _atomic_write(files["metrics"], json.dumps(metrics, indent=2, sort_keys=True,
-                                               default=float) + "\n")
-    _atomic_write(files["events"], "".join(json.dumps(e, sort_keys=True) + "\n"
-                                           for e in result.events))
-    _atomic_write(files["paths"], json.dumps(paths, separators=(",", ":")) + "\n")
-    _atomic_write(files["agents"], buf.getvalue())
+    texts = {
+        "metrics.json": json.dumps(metrics, indent=2, sort_keys=True, default=float) + "\n",
+        "events.jsonl": "".join(json.dumps(e, sort_keys=True) + "\n" for e in result.events),
+        "paths.json": json.dumps(paths, separators=(",", ":")) + "\n",
+        "agents.csv": buf.getvalue(),
+    }
     traj = result.trajectory if result.trajectory is not None else \
         _grid_trajectory(result, layout, types, tick_s)
     traj.setdefault("corridors_json", np.array("[]"))
-    write_trajectory(traj, files["trajectory"])
+    writers: dict[str, Callable[[Path], object]] = {
+        name: (lambda p, text=text: p.write_text(text, encoding="utf-8"))
+        for name, text in texts.items()}
+    writers["trajectories.npz"] = lambda p: _savez(p, traj)
+    written = write_set(out_dir, writers, meta={"plan": plan.meta.get("source", ""),
+                                                "agents": plan.num_agents})
+    names = {"metrics.json": "metrics", "events.jsonl": "events", "paths.json": "paths",
+             "agents.csv": "agents", "trajectories.npz": "trajectory"}
+    files = {names[n]: p for n, p in written.items()}
     return files
 
 

@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from pydantic import ValidationError
 
 from .errors import ScenarioError, WareroverError
 
@@ -142,8 +143,11 @@ def _factory(kind: str, target: Any, spec: Any, ck: _Checker) -> Callable[[], An
         if model is not None:
             try:
                 params = model.model_validate(dict(spec.params))
-            except Exception as err:  # noqa: BLE001 - pydantic's message says which field
-                ck.fail("build", f"its Params model rejects the spec's params ({err})",
+            except ValidationError as err:
+                e = err.errors()[0]
+                where = ".".join([kind, "params", *(str(p) for p in e["loc"])])
+                ck.fail("build", f"its Params model rejects the spec's params ({where}: "
+                        f"{e['msg']}, got {e.get('input')!r})",
                         f"pass spec={spec_cls.__name__}(params={{...}}) with valid values, or "
                         "give every Params field a default")
             return lambda: target(spec, params)
@@ -297,11 +301,13 @@ def check_scheduler(target: Any, spec: Any = None, *, seed: int = 0) -> Conforma
         _assign_checked(sched, case, seed, ck)
     ck.case = "busy"
     first = _assign_checked(_new(factory, ck), _case_busy, seed, ck)
-    again = _assign_checked(_new(factory, ck), _case_busy, seed, ck)
+    again = _assign_checked(sched, _case_busy, seed, ck)  # the instance that ran every case
     if first != again:
-        ck.fail("determinism", f"two runs with seed {seed} gave {first} and then {again}",
+        ck.fail("determinism", f"a fresh scheduler and the one that ran the other cases gave "
+                f"{first} and {again} for the same world and seed {seed}",
                 "draw randomness only from the rng argument (never the random module, "
-                "time or hash(set)) and iterate in a fixed order (sorted ids)")
+                "time or hash(set)), keep no state between calls on self, and iterate in a "
+                "fixed order (sorted ids)")
     ck.ok("determinism")
     return ck.report
 
@@ -496,12 +502,13 @@ def check_planner(target: Any, spec: Any = None, *, seed: int = 0) -> Conformanc
         _run_plan_case(planner, case, seed, ck)
     ck.case = PLAN_CASES[0].name
     first = _run_plan_case(_new(factory, ck), PLAN_CASES[0], seed, ck)
-    again = _run_plan_case(_new(factory, ck), PLAN_CASES[0], seed, ck)
+    again = _run_plan_case(planner, PLAN_CASES[0], seed, ck)  # it ran every case before
     if first != again:
-        diff = next(i for i, (a, b) in enumerate(zip(first, again, strict=False)) if a != b) \
-            if len(first) == len(again) else min(len(first), len(again))
-        ck.fail("determinism", f"two runs of the same requests with seed {seed} differ from "
-                f"call {diff} on: {_short(first[diff:diff + 1])} vs {_short(again[diff:diff + 1])}",
+        diff = next((i for i, (a, b) in enumerate(zip(first, again, strict=False)) if a != b),
+                    min(len(first), len(again)))
+        ck.fail("determinism", f"a fresh planner and the one that ran the other cases answer "
+                f"the same requests (seed {seed}) differently from call {diff} on: "
+                f"{_short(first[diff:diff + 1])} vs {_short(again[diff:diff + 1])}",
                 "draw randomness only from request.rng, keep no state between calls on self, "
                 "and break ties by AGV id, not by set or dict order of unsorted keys")
     ck.ok("determinism")
