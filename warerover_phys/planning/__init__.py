@@ -8,6 +8,7 @@ from .base import AgentRequest, Planner, PlanRequest, PlanResult, TimedPath
 from .cbs import CBSPlanner
 from .graph import GraphSet, MotionGraph
 from .lacam_planner import LaCAMPlanner
+from .learned import LearnedPlanner
 from .pibt_planner import PIBTPlanner
 from .reservation import ReservationTable
 
@@ -15,7 +16,7 @@ __all__ = ["AStarPlanner", "CBSPlanner", "PIBTPlanner", "LaCAMPlanner", "AgentRe
            "GraphSet", "MotionGraph", "ReservationTable", "make_planner", "PLANNERS"]
 
 PLANNERS = {"astar": AStarPlanner, "cbs": CBSPlanner, "pibt": PIBTPlanner,
-            "lacam": LaCAMPlanner}
+            "lacam": LaCAMPlanner, "learned": LearnedPlanner}
 
 
 def make_planner(spec) -> Planner:
