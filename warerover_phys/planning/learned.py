@@ -110,7 +110,8 @@ class LearnedPlanner:
         classes = np.array([1 if a.loaded else 0 for a in agents], dtype=np.int64)
         prio = [float(a.priority[0]) if a.priority else 0.0 for a in agents]
         held = [(i, a.start) for i, a in enumerate(agents) if a.hold]
-        limit = self.fallback_age or 2 * (unloaded.rows + unloaded.cols)
+        limit = (2 * (unloaded.rows + unloaded.cols) if self.fallback_age is None
+                 else self.fallback_age)
         stale = any(p > limit and not a.hold and a.start != a.goal
                     for p, a in zip(prio, agents, strict=True))
         nxt = None
