@@ -40,7 +40,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from warerover_phys.planning.graph import UNREACHABLE  # noqa: E402
+from warerover_phys.planning.graph import UNREACHABLE  # noqa: E402  (also the off-grid column)
 from warerover_phys.planning.lacam import lacam  # noqa: E402
 from warerover_phys.planning.oneshot import grid_graph  # noqa: E402
 from warerover_phys.planning.pibt import pibt_oneshot  # noqa: E402
@@ -121,7 +121,7 @@ def samples(graph, paths, goals, radius: int, rng: np.random.Generator, keep_idl
     grid = ObsGrid(~graph.enterable, radius)
     cols = graph.cols
     g = np.array([graph.node(c) for c in goals])
-    dists = np.stack([graph.dist_to(c) for c in goals])
+    dists = np.stack([np.append(graph.dist_to(c), UNREACHABLE) for c in goals])
     configs = np.array([[r * cols + c for r, c in p] for p in paths]).T  # (T+1, N)
     xs, ys = [], []
     for t in range(len(configs) - 1):

@@ -137,7 +137,8 @@ class GridMAPF:
                              f"free cells of {instance.name!r}")
         self.pos = np.zeros(n, dtype=np.int64)
         self.goal = np.zeros(n, dtype=np.int64)
-        self.dist = np.zeros((n, self.rows * self.cols), dtype=np.int32)
+        self.dist = np.full((n, self.rows * self.cols + 1), UNREACHABLE, dtype=np.int32)
+        """Per agent, distance to its goal from every node; last column: off the grid."""
         self.t = 0
         self._rng: np.random.Generator | None = None
 
@@ -165,7 +166,7 @@ class GridMAPF:
             self.pos[:] = rng.choice(self.sample_nodes, size=n, replace=False)
             self.goal[:] = rng.choice(self.sample_nodes, size=n, replace=False)
         for i in range(n):
-            self.dist[i] = self.graph.dist_to(self.graph.cell(int(self.goal[i])))
+            self.dist[i, :-1] = self.graph.dist_to(self.graph.cell(int(self.goal[i])))
         if (self.dist[np.arange(n), self.pos] >= UNREACHABLE).any():
             raise ValueError(f"instance {inst.name!r}: a goal cannot be reached from its start")
         self.t = 0
@@ -205,7 +206,7 @@ class GridMAPF:
             while g == self.pos[i]:
                 g = int(self._rng.choice(self.sample_nodes))
             self.goal[i] = g
-            self.dist[i] = self.graph.dist_to(self.graph.cell(g))
+            self.dist[i, :-1] = self.graph.dist_to(self.graph.cell(g))
 
     def _resolve(self, actions: np.ndarray) -> np.ndarray:
         """Next positions: moves off the grid, onto obstacles or into conflicts cancelled."""

@@ -72,10 +72,20 @@ class ObsGrid:
         if blocked.ndim == 2:
             blocked = blocked[None]
         self.rows, self.cols = blocked.shape[1:]
-        self.r = int(fov_radius)
-        r = self.r
-        self.padded = np.pad(blocked, ((0, 0), (r, r), (r, r)), constant_values=True)
-        self.offsets = np.arange(-r, r + 1)
+        self.r = r = int(fov_radius)
+        self.padded_cols = self.cols + 2 * r
+        padded = np.pad(blocked, ((0, 0), (r, r), (r, r)), constant_values=True)
+        self.blocked_flat = padded.reshape(len(blocked), -1).astype(np.float32)
+        """Per class, the padded grid's blocked mask, flattened (1.0 = blocked)."""
+        nodes = np.full((self.rows + 2 * r, self.padded_cols), self.rows * self.cols,
+                        dtype=np.int64)
+        nodes[r:r + self.rows, r:r + self.cols] = np.arange(self.rows * self.cols).reshape(
+            self.rows, self.cols)
+        self.node_flat = nodes.ravel()
+        """Padded flat index -> grid node (``rows * cols`` off the grid)."""
+        o = np.arange(-r, r + 1)
+        self.window = (o[:, None] * self.padded_cols + o[None, :]).ravel()
+        """Padded flat offsets of the window's cells, row by row."""
 
     @property
     def width(self) -> int:
@@ -88,39 +98,43 @@ def observe(grid: ObsGrid, positions: np.ndarray, goals: np.ndarray,
     """Observations of every agent, ``(N, 4, W, W)`` float32 (see the module doc).
 
     ``positions`` and ``goals`` are flat nodes (``row * cols + col``); ``dists[i]`` is agent
-    ``i``'s flat distance-to-goal table (a 2-D array or a sequence of 1-D arrays).
+    ``i``'s flat distance-to-goal table: a sequence of 1-D arrays, or a 2-D array (with one
+    extra last column holding ``UNREACHABLE``, read for cells off the grid).
     """
     positions = np.asarray(positions, dtype=np.int64)
     goals = np.asarray(goals, dtype=np.int64)
     n = len(positions)
-    r, w, rows, cols = grid.r, grid.width, grid.rows, grid.cols
-    out = np.zeros((n, NUM_CHANNELS, w, w), dtype=np.float32)
+    r, w, cols = grid.r, grid.width, grid.cols
+    out = np.empty((n, NUM_CHANNELS, w * w), dtype=np.float32)
     if n == 0:
-        return out
+        return out.reshape(n, NUM_CHANNELS, w, w)
     pr, pc = np.divmod(positions, cols)
-    rr = pr[:, None] + grid.offsets  # (N, W) grid rows of the window
-    cc = pc[:, None] + grid.offsets
-    cls = np.zeros(n, dtype=np.int64) if classes is None else np.asarray(classes, np.int64)
-    out[:, 0] = grid.padded[cls[:, None, None], rr[:, :, None] + r, cc[:, None, :] + r]
-    occ = np.zeros((rows + 2 * r, cols + 2 * r), dtype=np.float32)
-    occ[pr + r, pc + r] = 1.0
-    out[:, 1] = occ[rr[:, :, None] + r, cc[:, None, :] + r]
-    out[:, 1, r, r] = 0.0
-    gr, gc = np.divmod(goals, cols)
-    idx = np.arange(n)
-    out[idx, 2, np.clip(gr - pr, -r, r) + r, np.clip(gc - pc, -r, r) + r] = 1.0
-    inside = ((rr >= 0) & (rr < rows))[:, :, None] & ((cc >= 0) & (cc < cols))[:, None, :]
-    flat = np.clip(rr, 0, rows - 1)[:, :, None] * cols + np.clip(cc, 0, cols - 1)[:, None, :]
-    if isinstance(dists, np.ndarray) and dists.ndim == 2:
-        d = dists[idx[:, None, None], flat].astype(np.int64)
+    base = (pr + r) * grid.padded_cols + (pc + r)
+    idx = base[:, None] + grid.window  # (N, W*W) padded flat cells of each window
+    if classes is None:
+        out[:, 0] = grid.blocked_flat[0][idx]
     else:
-        d = np.stack([np.asarray(t)[f] for t, f in zip(dists, flat, strict=True)]).astype(
-            np.int64)
-    here = d[:, r, r][:, None, None]
-    rel = np.clip((d - here) / r, -1.0, 1.0)
-    bad = ~inside | (d >= UNREACHABLE) | (here >= UNREACHABLE)
-    out[:, 3] = np.where(bad, 1.0, rel)
-    return out
+        out[:, 0] = grid.blocked_flat[np.asarray(classes, np.int64)[:, None], idx]
+    occ = np.zeros(grid.node_flat.shape, dtype=np.float32)
+    occ[base] = 1.0
+    out[:, 1] = occ[idx]
+    centre = (w * w) // 2
+    out[:, 1, centre] = 0.0
+    gr, gc = np.divmod(goals, cols)
+    out[:, 2] = 0.0
+    out[np.arange(n), 2, (np.clip(gr - pr, -r, r) + r) * w + np.clip(gc - pc, -r, r) + r] = 1.0
+    node = grid.node_flat[idx]
+    if isinstance(dists, np.ndarray) and dists.ndim == 2:
+        d = dists[np.arange(n)[:, None], node]
+    else:
+        last = grid.rows * grid.cols - 1
+        d = np.stack([np.asarray(t)[np.minimum(v, last)] for t, v in zip(dists, node, strict=True)])
+        d[node > last] = UNREACHABLE
+    here = d[:, centre:centre + 1]
+    rel = np.clip((d - here).astype(np.float32) * np.float32(1.0 / r), -1.0, 1.0)
+    rel[(d >= UNREACHABLE) | (here >= UNREACHABLE)] = 1.0
+    out[:, 3] = rel
+    return out.reshape(n, NUM_CHANNELS, w, w)
 
 
 def _weights_error(message: str, file: str, field: str | None = None, value=ScenarioError._MISSING):
