@@ -190,3 +190,14 @@ def test_env_episode_with_learned_policy_equals_learned_planner(agents, seed):
     cols = m.cols
     states = {i: [(r * cols + c,) * 2 for r, c in p] for i, p in enumerate(paths)}
     assert validate_states(states, m.obstacles) == []
+
+
+@pytest.mark.parametrize("module", ["warerover_phys.envs", "warerover_phys.envs.parallel",
+                                    "warerover_phys.envs.single",
+                                    "warerover_phys.planning.policy"])
+def test_docstring_examples(module):
+    import doctest
+    import importlib
+
+    result = doctest.testmod(importlib.import_module(module))
+    assert result.attempted > 0 and result.failed == 0
