@@ -17,6 +17,9 @@ defaults.
    95 % of the "already on goal, waits" samples are dropped.
 4. Training: cross-entropy, Adam, mini-batches, each batch under a random symmetry of the
    square (flips, transpose; actions permuted to match); 5 % of instances held out.
+4b. DAgger (``--dagger-rounds``, default 1): the trained policy, behind its shield, drives
+   new instances; every configuration it visits is labelled by one PIBT step from there;
+   the samples join the data set and training goes on (half the learning rate).
 5. Output: the weights as ``.npz`` (see :mod:`warerover_phys.planning.policy`) and a JSON
    log next to it.
 
@@ -211,13 +214,57 @@ def accuracy(p: dict, x8: np.ndarray, y: np.ndarray, radius: int) -> float:
     return hits / max(1, len(y))
 
 
-def train(x8, y, groups, *, rng, radius, hidden, epochs, batch, lr):
+def dagger_dataset(root: np.random.SeedSequence, count: int, policy: MLPPolicy,
+                   keep_idle: float, group0: int):
+    """DAgger (Ross et al., AISTATS 2011) with a one-step PIBT expert: the current policy
+    (behind its shield) drives new instances; at every configuration it visits, every agent
+    is labelled with the move one PIBT step (with swap, the controller's priorities) would
+    make from there."""
+    from warerover_phys.planning.learned import LearnedController
+    from warerover_phys.planning.pibt import pibt_step
+
+    radius = policy.fov_radius
+    xs, ys, group = [], [], []
+    t0 = time.perf_counter()
+    for i, child in enumerate(root.spawn(count)):
+        rng = np.random.default_rng(child)
+        obstacles, starts, goals = make_instance(rng)
+        graph = grid_graph(obstacles)
+        grid = ObsGrid(~graph.enterable, radius)
+        s = [graph.node(c) for c in starts]
+        g = [graph.node(c) for c in goals]
+        ctrl = LearnedController(policy, graph, seed=int(rng.integers(2**31)))
+        ctrl.reset(s, g)
+        g_arr = np.array(g)
+        dists2 = np.stack([np.append(d, UNREACHABLE) for d in ctrl.dists])
+        config = s
+        for _ in range(2 * (graph.rows + graph.cols)):
+            if config == g:
+                break
+            tie = rng.random(graph.num_nodes) * 0.5
+            best = pibt_step(graph, config, ctrl.dists, ctrl.prio, tie, goals=g)
+            here = np.array(config)
+            labels = actions_from_moves(here, best, graph.cols)
+            keep = ~((here == g_arr) & (labels == 0)) | (rng.random(len(here)) < keep_idle)
+            obs = observe(grid, here[keep], g_arr[keep], dists2[keep])
+            xs.append(np.rint(obs * radius).astype(np.int8))
+            ys.append(labels[keep].astype(np.int8))
+            group.append(np.full(int(keep.sum()), group0 + i, dtype=np.int32))
+            config = ctrl.step(config)
+        if (i + 1) % 25 == 0:
+            print(f"  dagger instance {i + 1}/{count}: {sum(len(a) for a in ys)} samples, "
+                  f"{time.perf_counter() - t0:.0f} s", flush=True)
+    return np.concatenate(xs), np.concatenate(ys), np.concatenate(group)
+
+
+def train(x8, y, groups, *, rng, radius, hidden, epochs, batch, lr, init=None):
     held = np.unique(groups)
     held = set(rng.choice(held, size=max(1, len(held) // 20), replace=False).tolist())
     val = np.isin(groups, list(held))
     xt, yt, xv, yv = x8[~val], y[~val].astype(np.int64), x8[val], y[val].astype(np.int64)
     features = x8[0].size
-    p = init_params(rng, [features, hidden, hidden // 2, NUM_ACTIONS])
+    p = init if init is not None else init_params(rng, [features, hidden, hidden // 2,
+                                                         NUM_ACTIONS])
     m = {k: np.zeros_like(v) for k, v in p.items()}
     v = {k: np.zeros_like(v) for k, v in p.items()}
     b1, b2, eps = 0.9, 0.999, 1e-8
@@ -262,20 +309,35 @@ def main() -> None:
     ap.add_argument("--lr", type=float, default=2e-3)
     ap.add_argument("--keep-idle", type=float, default=0.05,
                     help="share of 'on goal, waits' samples kept")
+    ap.add_argument("--dagger-rounds", type=int, default=1)
+    ap.add_argument("--dagger-instances", type=int, default=300)
+    ap.add_argument("--dagger-epochs", type=int, default=4)
     ap.add_argument("--out", type=Path, default=DEFAULT_WEIGHTS)
     args = ap.parse_args()
     t_start = time.perf_counter()
     root = np.random.SeedSequence(args.seed)
-    data_seed, train_seed = root.spawn(2)
+    data_seed, train_seed, *dagger_seeds = root.spawn(2 + args.dagger_rounds)
     print(f"generating {args.instances} instances and expert solutions (seed {args.seed})")
     x8, y, groups, stats = build_dataset(data_seed, args.instances, args.radius, args.keep_idle)
     t_data = time.perf_counter() - t_start
     counts = np.bincount(y.astype(np.int64), minlength=NUM_ACTIONS).tolist()
     print(f"{len(y)} samples (actions wait/up/down/left/right: {counts}), experts {stats}, "
           f"{t_data:.0f} s")
-    p, log, split = train(x8, y, groups, rng=np.random.default_rng(train_seed),
-                          radius=args.radius, hidden=args.hidden, epochs=args.epochs,
-                          batch=args.batch, lr=args.lr)
+    train_rng = np.random.default_rng(train_seed)
+    p, log, split = train(x8, y, groups, rng=train_rng, radius=args.radius, hidden=args.hidden,
+                          epochs=args.epochs, batch=args.batch, lr=args.lr)
+    for k, seed in enumerate(dagger_seeds):
+        print(f"DAgger round {k + 1}: rolling out the policy on {args.dagger_instances} new "
+              "instances")
+        dx, dy, dg = dagger_dataset(seed, args.dagger_instances, MLPPolicy(p, args.radius),
+                                    args.keep_idle, int(groups.max()) + 1)
+        print(f"  {len(dy)} new samples")
+        x8, y, groups = (np.concatenate([x8, dx]), np.concatenate([y, dy]),
+                         np.concatenate([groups, dg]))
+        p, more, split = train(x8, y, groups, rng=train_rng, radius=args.radius,
+                               hidden=args.hidden, epochs=args.dagger_epochs,
+                               batch=args.batch, lr=args.lr / 2, init=p)
+        log += [{**e, "dagger_round": k + 1} for e in more]
     policy = MLPPolicy(p, args.radius)
     policy.save(args.out)
     wall = time.perf_counter() - t_start
