@@ -73,7 +73,9 @@ def policy_step(policy: MLPPolicy, grid: ObsGrid, neighbors: Sequence[Sequence[t
 
 
 def _blocked(graph: MotionGraph) -> np.ndarray:
-    return ~graph.enterable
+    """Cells the obstacle channel marks: where the AGV may not stand on its way (shelf homes
+    a loaded AGV may enter only to put its shelf back count as blocked)."""
+    return ~graph.valid
 
 
 class LearnedPlanner:
