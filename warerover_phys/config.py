@@ -104,7 +104,7 @@ def _builtin_or_plugin(*builtins: str) -> AfterValidator:
 
 
 SchedulerName = Annotated[str, _builtin_or_plugin("rd", "ta")]
-PlannerName = Annotated[str, _builtin_or_plugin("astar", "cbs", "pibt", "lacam")]
+PlannerName = Annotated[str, _builtin_or_plugin("astar", "cbs", "pibt", "lacam", "learned")]
 ExecutorName = Annotated[str, _builtin_or_plugin("grid", "physics")]
 Params = dict[str, Any]
 """A plug-in's own parameters, validated against its ``Params`` model when loaded."""

@@ -73,6 +73,12 @@ def _lacam(spec):
     return LaCAMPlanner(time_budget_s=spec.time_budget_s, max_iterations=spec.max_iterations)
 
 
+def _learned(spec):  # numpy inference only: the shipped weights, no PyTorch
+    from .planning.learned import LearnedPlanner
+
+    return LearnedPlanner(spec)
+
+
 def _ta(spec):
     from .schedulers.ta import TaskAssignment
 
@@ -99,7 +105,8 @@ def _physics(spec):  # pymunk is imported only when the physics executor is aske
 
 BUILTINS: dict[str, dict[str, Callable[[Any], Any]]] = {
     "scheduler": {"ta": _ta, "rd": _rd},
-    "planner": {"astar": _astar, "cbs": _cbs, "pibt": _pibt, "lacam": _lacam},
+    "planner": {"astar": _astar, "cbs": _cbs, "pibt": _pibt, "lacam": _lacam,
+                "learned": _learned},
     "executor": {"grid": _grid, "physics": _physics},
 }
 """Built-in factories: ``spec -> instance`` (their parameters are the spec's own fields)."""

@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import inspect
 import json
-import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -47,8 +46,6 @@ from .errors import ScenarioError, WareroverError
 
 __all__ = ["ConformanceError", "ConformanceReport", "check_scheduler", "check_planner",
            "check_executor"]
-
-log = logging.getLogger(__name__)
 
 # The members of each Protocol: name -> the arguments it is called with (besides self).
 SIGNATURES: dict[str, dict[str, tuple[str, ...]]] = {
@@ -225,7 +222,8 @@ def _check_name(obj: Any, ck: _Checker) -> None:
     name = getattr(obj, "name", None)
     if not isinstance(name, str) or not name:
         ck.fail("name", f"its name is {name!r}, not a non-empty str",
-                'add a class attribute such as name = "my-planner" (metrics and logs show it)')
+                f'add a class attribute such as name = "my-{ck.report.kind}" (metrics and '
+                "logs show it)")
     ck.ok("name")
 
 
@@ -300,11 +298,12 @@ def check_scheduler(target: Any, spec: Any = None, *, seed: int = 0) -> Conforma
         ck.case = case.__name__.removeprefix("_case_")
         _assign_checked(sched, case, seed, ck)
     ck.case = "busy"
-    first = _assign_checked(_new(factory, ck), _case_busy, seed, ck)
-    again = _assign_checked(sched, _case_busy, seed, ck)  # the instance that ran every case
-    if first != again:
-        ck.fail("determinism", f"a fresh scheduler and the one that ran the other cases gave "
-                f"{first} and {again} for the same world and seed {seed}",
+    fresh = _new(factory, ck)
+    runs = [_assign_checked(s, _case_busy, seed, ck) for s in (fresh, fresh, sched)]
+    if runs.count(runs[0]) != len(runs):
+        first, again = runs[0], next(r for r in runs if r != runs[0])
+        ck.fail("determinism", f"the same world and seed {seed} gave {first} and then {again} "
+                "(a fresh scheduler, called twice, and the one that ran the other cases)",
                 "draw randomness only from the rng argument (never the random module, "
                 "time or hash(set)), keep no state between calls on self, and iterate in a "
                 "fixed order (sorted ids)")
@@ -385,13 +384,13 @@ def _assign_checked(sched, case, seed: int, ck: _Checker) -> list:
                 "never write the AGVs, orders or world the view hands out (they are the "
                 "world's own objects); return Assignments and let the loop apply them")
     ck.ok("read-only world")
-    if not isinstance(out, list) or not all(isinstance(a, Assignment) for a in out):
-        bad = out if not isinstance(out, list) else next(a for a in out
-                                                         if not isinstance(a, Assignment))
-        ck.fail("return type", f"assign() returned {type(out).__name__} containing "
-                f"{type(bad).__name__} {bad!r}" if isinstance(out, list) else
-                f"assign() returned {type(out).__name__} {out!r}",
-                "return a list of warerover_phys.schedulers.Assignment(agv, shelf, orders)")
+    fix = "return a list of warerover_phys.schedulers.Assignment(agv, shelf, orders)"
+    if not isinstance(out, list):
+        ck.fail("return type", f"assign() returned {type(out).__name__} {_short(out)}", fix)
+    bad = next((a for a in out if not isinstance(a, Assignment)), None)
+    if bad is not None:
+        ck.fail("return type", f"assign() returned a list holding {type(bad).__name__} "
+                f"{_short(bad)}", fix)
     ck.ok("return type")
     _check_assignments(world, out, ck)
     if can_assign and not out:
@@ -451,7 +450,7 @@ def _check_assignments(world, out: list, ck: _Checker) -> None:
 # ================================================================================ planner
 
 
-@dataclass
+@dataclass(frozen=True)
 class _PlanCase:
     """Agents to plan from tick 0 (``goals``); other AGVs hold ``committed`` cell paths."""
 
@@ -501,18 +500,30 @@ def check_planner(target: Any, spec: Any = None, *, seed: int = 0) -> Conformanc
         ck.case = case.name
         _run_plan_case(planner, case, seed, ck)
     ck.case = PLAN_CASES[0].name
-    first = _run_plan_case(_new(factory, ck), PLAN_CASES[0], seed, ck)
-    again = _run_plan_case(planner, PLAN_CASES[0], seed, ck)  # it ran every case before
-    if first != again:
-        diff = next((i for i, (a, b) in enumerate(zip(first, again, strict=False)) if a != b),
-                    min(len(first), len(again)))
-        ck.fail("determinism", f"a fresh planner and the one that ran the other cases answer "
-                f"the same requests (seed {seed}) differently from call {diff} on: "
-                f"{_short(first[diff:diff + 1])} vs {_short(again[diff:diff + 1])}",
+    fresh = _new(factory, ck)
+    runs = [_run_plan_case(p, PLAN_CASES[0], seed, ck) for p in (fresh, fresh, planner)]
+    if runs.count(runs[0]) != len(runs):
+        first, again = runs[0], next(r for r in runs if r != runs[0])
+        ck.fail("determinism", f"the same requests (seed {seed}) got different answers from "
+                "a fresh planner, called twice, and the one that ran the other cases: "
+                f"{_plan_difference(first, again)}",
                 "draw randomness only from request.rng, keep no state between calls on self, "
                 "and break ties by AGV id, not by set or dict order of unsorted keys")
     ck.ok("determinism")
     return ck.report
+
+
+def _plan_difference(first: list, again: list) -> str:
+    """Where two planner traces (tick, {agv: (start tick, states)}, failed) first differ."""
+    for (t, paths_a, failed_a), (_, paths_b, failed_b) in zip(first, again, strict=False):
+        for agv in sorted(paths_a.keys() | paths_b.keys()):
+            a, b = paths_a.get(agv), paths_b.get(agv)
+            if a != b:
+                return (f"at tick {t}, AGV {agv}'s path is {_short(a and a[1], 120)} in one "
+                        f"run and {_short(b and b[1], 120)} in the other")
+        if failed_a != failed_b:
+            return f"at tick {t}, failed is {failed_a} in one run and {failed_b} in the other"
+    return f"one run made {len(first)} planning calls, the other {len(again)}"
 
 
 def _short(value: Any, limit: int = 200) -> str:
@@ -668,11 +679,14 @@ def _check_paths(world, agents: list, result, tick: int, ck: _Checker) -> None:
             what = (f"two returned paths conflict ({c})", "commit each new path into "
                     "request.reservations (reservations.commit(path, agent.k)) before "
                     "planning the next AGV, or resolve conflicts jointly")
-        else:
-            what = (f"a returned path breaks the motion rules ({c}; 'move' = not a wait or "
-                    "a move to a 4-neighbour taking exactly ticks_per_move ticks)",
+        elif c.kind == "move":
+            what = (f"a returned path breaks the motion rules ({c}: not a wait, or a move to "
+                    "a 4-neighbour that does not take exactly ticks_per_move ticks)",
                     "move one cell at a time along graph edges; a slow AGV holds (a, b) for "
                     "ticks_per_move - 1 ticks, then stands at (b, b)")
+        else:
+            what = (f"a returned path leaves the floor ({c})", "use only nodes of "
+                    "request.graphs.get(agent.k, agent.loaded, agent.shelf)")
         ck.fail("conflict-free", *what)
     ck.ok("conflict-free")
 
@@ -752,12 +766,10 @@ def check_executor(target: Any, spec: Any = None, *, seed: int = 0,
     first = _run_executor(_new(factory, ck), seed, ck, plans=True, ticks=max_ticks)
     again = _run_executor(_new(factory, ck), seed, ck, plans=True, ticks=max_ticks)
     if first != again:
-        t = next((i for i, (a, b) in enumerate(zip(first, again, strict=False)) if a != b),
-                 min(len(first), len(again)))
         ck.fail("determinism", f"two fresh executors bound with the same seed ({seed}) "
-                f"reported different things at tick {t}: {_short(first[t:t + 1])} vs "
-                f"{_short(again[t:t + 1])}", "draw randomness only from setup.rng, keep "
-                "nothing in module or class globals, and iterate AGVs in id order")
+                f"differ: {_trace_difference(first, again)}", "draw randomness only from "
+                "setup.rng, keep nothing in module or class globals, and iterate AGVs in id "
+                "order")
     ck.ok("determinism")
     return ck.report
 
@@ -821,6 +833,23 @@ def _run_executor(ex, seed: int, ck: _Checker, *, plans: bool, ticks: int) -> li
     _check_executed(world, executed, ck)
     _check_results(world, ex, view, ck)
     return trace
+
+
+TRACE_FIELDS = ("states", "behind", "blocked", "collisions", "replan")
+
+
+def _trace_difference(first: list, again: list) -> str:
+    """Where two executor traces first differ, in words."""
+    for t, (a, b) in enumerate(zip(first, again, strict=False)):
+        for what, x, y in zip(TRACE_FIELDS, a, b, strict=True):
+            if x == y:
+                continue
+            if isinstance(x, dict) and isinstance(y, dict):
+                agv = min(i for i in x.keys() | y.keys() if x.get(i) != y.get(i))
+                return (f"at tick {t}, report.{what}[{agv}] is {x.get(agv)!r} in one run and "
+                        f"{y.get(agv)!r} in the other")
+            return f"at tick {t}, report.{what} is {x!r} in one run and {y!r} in the other"
+    return f"one run took {len(first)} ticks to finish the plans, the other {len(again)}"
 
 
 def _check_report(world, report, view, ck: _Checker) -> None:

@@ -1,0 +1,187 @@
+"""The ``learned`` planner: weights loading errors, the PIBT shield's validity whatever the
+network says, one-shot instances and the closed loop, every plan checked by the independent
+validator."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from warerover_phys.config import load_scenario
+from warerover_phys.errors import PlanningError
+from warerover_phys.movingai import read_map, read_scen
+from warerover_phys.planning import PLANNERS
+from warerover_phys.planning.base import AgentRequest, PlanRequest
+from warerover_phys.planning.learned import LearnedPlanner, learned_oneshot
+from warerover_phys.planning.oneshot import grid_graph
+from warerover_phys.planning.policy import DEFAULT_WEIGHTS, MLPPolicy, WeightsError, shield_step
+from warerover_phys.sim import run_episode
+from warerover_phys.validate import validate_states
+from warerover_phys.world import World
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT / "tests" / "data"
+PAPER = ROOT / "layouts" / "paper_homogeneous.yaml"
+PLUGIN = "warerover_phys.planning.learned:LearnedPlanner"
+
+
+# ------------------------------------------------------------------------- weights
+
+def test_shipped_weights_load_and_are_small():
+    policy = MLPPolicy.load()
+    assert policy.fov_radius == 5
+    assert DEFAULT_WEIGHTS.stat().st_size < 5_000_000
+    assert PLANNERS["learned"] is LearnedPlanner
+
+
+def _resave(tmp_path: Path, **change) -> Path:
+    with np.load(DEFAULT_WEIGHTS) as data:
+        params = {k: data[k] for k in data.files}
+    params.update(change)
+    params = {k: v for k, v in params.items() if v is not None}
+    out = tmp_path / "w.npz"
+    np.savez(out, **params)
+    return out
+
+
+def test_missing_truncated_and_misshapen_weights_name_file_and_field(tmp_path):
+    with pytest.raises(WeightsError, match="weights file not found") as err:
+        MLPPolicy.load(tmp_path / "nope.npz")
+    assert "nope.npz" in str(err.value)
+    cut = tmp_path / "cut.npz"
+    cut.write_bytes(DEFAULT_WEIGHTS.read_bytes()[: DEFAULT_WEIGHTS.stat().st_size // 2])
+    with pytest.raises(WeightsError, match="not a readable .npz") as err:
+        MLPPolicy.load(cut)
+    assert "cut.npz" in str(err.value) and "\n" not in str(err.value)
+    with pytest.raises(WeightsError, match=r"W2: expected \d+ input rows") as err:
+        MLPPolicy.load(_resave(tmp_path, W2=np.zeros((7, 128), np.float32)))
+    assert "(got (7, 128))" in str(err.value)
+    with pytest.raises(WeightsError, match="b3: field missing"):
+        MLPPolicy.load(_resave(tmp_path, b3=None))
+    with pytest.raises(WeightsError, match=r"W1: expected \d+ input rows \(fov_radius 4\)"):
+        MLPPolicy.load(_resave(tmp_path, fov_radius=np.int64(4)))
+    with pytest.raises(WeightsError, match="version"):
+        MLPPolicy.load(_resave(tmp_path, version=np.int64(9)))
+    with pytest.raises(WeightsError, match="W3: expected 5 outputs"):
+        p = MLPPolicy.load()
+        MLPPolicy({**p.params, "W3": p.params["W3"][:, :4], "b3": p.params["b3"][:4]}, 5)
+
+
+def test_cli_exits_2_with_one_line_on_bad_weights(tmp_path):
+    cut = tmp_path / "cut.npz"
+    cut.write_bytes(DEFAULT_WEIGHTS.read_bytes()[:100])
+    env = {**os.environ, "WAREROVER_LEARNED_WEIGHTS": str(cut), "NO_COLOR": "1",
+           "COLUMNS": "300", "PYTHONPATH": str(ROOT)}
+    proc = subprocess.run([sys.executable, "-m", "warerover_phys", "run", str(PAPER),
+                           "--planner", PLUGIN, "--json", "--out", str(tmp_path / "o")],
+                          capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "cut.npz" in lines[0] and "not a readable .npz" in lines[0]
+
+
+# ------------------------------------------------------------------------- shield
+
+@pytest.mark.parametrize("seed", range(20))
+def test_shield_is_valid_whatever_the_logits(seed):
+    """Random obstacles, agents and logits: one shielded step never conflicts."""
+    rng = np.random.default_rng(seed)
+    obstacles = rng.random((9, 11)) < 0.25
+    graph = grid_graph(obstacles)
+    free = np.flatnonzero(~obstacles.ravel())
+    n = int(rng.integers(2, min(40, len(free))))
+    config = rng.choice(free, n, replace=False).tolist()
+    goals = rng.choice(free, n, replace=False).tolist()
+    dists = [graph.dist_to(graph.cell(g)) for g in goals]
+    held = [(0, config[0])] if seed % 2 else []
+    for _ in range(5):
+        logits = rng.standard_normal((n, 5)) * 3
+        nxt = shield_step([graph.neighbors] * n, config, dists, rng.random(n), logits,
+                          graph.cols, held, guide=int(rng.integers(n)))
+        traj = {i: [(a, a), (b, b)] for i, (a, b) in enumerate(zip(config, nxt, strict=True))}
+        assert validate_states(traj, obstacles) == []
+        assert all(nxt[i] == v for i, v in held)
+        config = nxt
+
+
+# ------------------------------------------------------------------------- one-shot
+
+def _oneshot(map_name: str, scen: str, agents: int, seed: int = 0):
+    m = read_map(DATA / f"{map_name}.map")
+    sc = read_scen(DATA / scen)[:agents]
+    graph = grid_graph(m.obstacles)
+    paths, stats = learned_oneshot(graph, [a.start for a in sc], [a.goal for a in sc],
+                                   time.monotonic() + 120, seed=seed)
+    return m, sc, paths, stats
+
+
+@pytest.mark.parametrize("map_name,scen,agents", [
+    ("random-32-32-10", "random-32-32-10-random-1.scen", 50),
+    ("warehouse-10-20-10-2-1", "warehouse-10-20-10-2-1-random-1.scen", 50)])
+def test_oneshot_solves_and_validates(map_name, scen, agents):
+    m, sc, paths, stats = _oneshot(map_name, scen, agents)
+    assert paths is not None, stats
+    assert [p[0] for p in paths] == [a.start for a in sc]
+    assert [p[-1] for p in paths] == [a.goal for a in sc]
+    states = {i: [(r * m.cols + c,) * 2 for r, c in p] for i, p in enumerate(paths)}
+    assert validate_states(states, m.obstacles) == []
+
+
+def test_oneshot_same_seed_same_paths():
+    a = _oneshot("random-32-32-10", "random-32-32-10-random-1.scen", 40, seed=2)[2]
+    b = _oneshot("random-32-32-10", "random-32-32-10-random-1.scen", 40, seed=2)[2]
+    assert a == b
+
+
+# ------------------------------------------------------------------------- closed loop
+
+def _request(world: World, tick: int = 0, hold: int | None = None) -> PlanRequest:
+    agents = [AgentRequest(a.id, a.node, world.node(world.layout.stations[0])
+                           if a.id % 2 else world.node(world.layout.shelves[a.id].anchor),
+                           priority=(float(a.id),), hold=a.id == hold)
+              for a in world.agvs]
+    return PlanRequest(tick, agents, world.graphs, world.reservations,
+                       rng=np.random.default_rng(0))
+
+
+def test_plan_request_paths_are_valid_and_returned():
+    world = World.build(load_scenario(PAPER))
+    planner = LearnedPlanner()
+    req = _request(world, hold=3)
+    result = planner.plan(req)
+    assert sorted(result.paths) == [a.id for a in world.agvs] and not result.failed
+    held = result.paths[3]
+    assert held.states == ((world.agvs[3].node,) * 2,)
+    traj = {aid: list(p.states) for aid, p in result.paths.items()}
+    assert validate_states(traj, world.layout.obstacles) == []
+    assert result.budget_hits == 0
+    forced = LearnedPlanner(fallback_age=0).plan(_request(World.build(load_scenario(PAPER))))
+    assert forced.budget_hits == 1
+    traj = {aid: list(p.states) for aid, p in forced.paths.items()}
+    assert validate_states(traj, world.layout.obstacles) == []
+
+
+def test_mixed_fleet_is_refused():
+    world = World.build(load_scenario(PAPER))
+    req = _request(world)
+    req.agents[0] = AgentRequest(0, req.agents[0].start, req.agents[0].goal, k=2)
+    with pytest.raises(PlanningError, match="1x1 AGVs"):
+        LearnedPlanner().plan(req)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_learned_in_the_loop_is_conflict_free(seed):
+    sc = load_scenario(PAPER, [("planner.name", PLUGIN)])
+    result = run_episode(sc, seed=seed)
+    w = result.world
+    assert result.metrics["collisions"] == 0
+    assert result.metrics["orders_completed"] > 0
+    assert validate_states(result.actual, w.layout.obstacles) == []
+    again = run_episode(load_scenario(PAPER, [("planner.name", PLUGIN)]), seed=seed)
+    assert again.actual == result.actual

@@ -1,0 +1,84 @@
+"""Benchmark the environments: steps per second (and agent-steps per second) on a MovingAI map.
+
+For each agent count N: the numpy core (:class:`warerover_phys.envs.GridMAPF`, arrays in and
+out, observations included) with random actions; the PettingZoo parallel API (dicts) with
+random actions; and the learned policy + PIBT shield choosing every action
+(:class:`warerover_phys.envs.LearnedDriver`, inference included). One BLAS thread.
+
+    PYTHONPATH=. .venv/bin/python tools/bench_env.py
+    PYTHONPATH=. .venv/bin/python tools/bench_env.py --agents 64 --steps 200
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from warerover_phys.envs import EnvConfig, GridMAPF, Instance, LearnedDriver  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+MAP = ROOT / "tests" / "data" / "random-32-32-10.map"
+
+
+def bench_core(inst, n, steps, lifelong=True):
+    core = GridMAPF(inst, EnvConfig(num_agents=n, max_steps=10**9, lifelong=lifelong))
+    rng = np.random.default_rng(0)
+    core.reset(rng)
+    acts = rng.integers(0, 5, size=(steps, n))
+    t0 = time.perf_counter()
+    for a in acts:
+        core.step(a)
+    return steps / (time.perf_counter() - t0)
+
+
+def bench_parallel(inst, n, steps):
+    from warerover_phys.envs import parallel_env
+
+    env = parallel_env(inst, num_agents=n, max_steps=10**9, lifelong=True)
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        env.step({a: int(rng.integers(5)) for a in env.agents})
+    return steps / (time.perf_counter() - t0)
+
+
+def bench_learned(inst, n, steps):
+    core = GridMAPF(inst, EnvConfig(num_agents=n, max_steps=10**9, lifelong=True))
+    core.reset(np.random.default_rng(0))
+    driver = LearnedDriver(core, seed=0)
+    driver.reset()
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        core.step(driver.actions())
+    return steps / (time.perf_counter() - t0)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--agents", nargs="+", type=int, default=[16, 64, 256])
+    ap.add_argument("--steps", type=int, default=300)
+    ap.add_argument("--map", type=Path, default=MAP)
+    args = ap.parse_args()
+    inst = Instance.from_movingai(args.map)
+    print(f"map {args.map.name}, {args.steps} steps per run, lifelong goals, one BLAS thread")
+    print(f"{'agents':>6} | {'core steps/s':>12} {'agent-steps/s':>13} | "
+          f"{'PettingZoo steps/s':>18} | {'learned steps/s':>15} {'agent-steps/s':>13}")
+    for n in args.agents:
+        core = bench_core(inst, n, args.steps)
+        pz = bench_parallel(inst, n, args.steps)
+        learned = bench_learned(inst, n, max(20, args.steps // 3))
+        print(f"{n:>6} | {core:>12.0f} {core * n:>13.0f} | {pz:>18.0f} | "
+              f"{learned:>15.0f} {learned * n:>13.0f}", flush=True)
+
+
+if __name__ == "__main__":
+    main()

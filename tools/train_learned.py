@@ -1,0 +1,355 @@
+"""Train the ``learned`` planner's policy by imitation of the project's PIBT / LaCAM solutions.
+
+Reproducible from ``--seed`` (one root ``SeedSequence``; one child per generated instance and
+one for the training loop), numpy only (no torch needed: the network is a three-layer
+perceptron and its gradients are written out below), a few minutes on 2 CPU cores with the
+defaults.
+
+1. Instances: procedurally generated grids, never the MovingAI benchmark maps the table
+   reports on: random maps (16-40 cells a side, 5-30 % obstacles, largest connected part
+   kept) and warehouse-like maps (blocks of shelves separated by 1-2 cell aisles), with
+   8-128 agents on distinct random starts and goals.
+2. Expert: one-shot PIBT (with swap) of :mod:`warerover_phys.planning.pibt`; where PIBT
+   does not finish within its step limit, LaCAM (:mod:`warerover_phys.planning.lacam`).
+   Instances neither solves are skipped (counted).
+3. Samples: at every step of the expert's solution, every agent's local observation
+   (:func:`warerover_phys.planning.policy.observe`) labelled with the action the expert took;
+   95 % of the "already on goal, waits" samples are dropped.
+4. Training: cross-entropy, Adam, mini-batches, each batch under a random symmetry of the
+   square (flips, transpose; actions permuted to match); 5 % of instances held out.
+4b. DAgger (``--dagger-rounds``, default 1): the trained policy, behind its shield, drives
+   new instances; every configuration it visits is labelled by one PIBT step from there;
+   the samples join the data set and training goes on (half the learning rate).
+5. Output: the weights as ``.npz`` (see :mod:`warerover_phys.planning.policy`) and a JSON
+   log next to it.
+
+    PYTHONPATH=. .venv/bin/python tools/train_learned.py                # the shipped weights
+    PYTHONPATH=. .venv/bin/python tools/train_learned.py --instances 40 --epochs 2 --out /tmp/w.npz
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+# One BLAS thread: the same float sums on every machine (reproducible weights) and no thread
+# thrashing on a shared 2-core box. Set before numpy loads; override from the shell.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+from warerover_phys.planning.graph import UNREACHABLE  # noqa: E402  (also the off-grid column)
+from warerover_phys.planning.lacam import lacam  # noqa: E402
+from warerover_phys.planning.oneshot import grid_graph  # noqa: E402
+from warerover_phys.planning.pibt import pibt_oneshot  # noqa: E402
+from warerover_phys.planning.policy import (  # noqa: E402
+    DEFAULT_WEIGHTS,
+    NUM_ACTIONS,
+    MLPPolicy,
+    ObsGrid,
+    actions_from_moves,
+    observe,
+)
+
+# Label permutations of the square's symmetries (action order: wait, up, down, left, right).
+FLIP_ROWS = np.array([0, 2, 1, 3, 4])
+FLIP_COLS = np.array([0, 1, 2, 4, 3])
+TRANSPOSE = np.array([0, 3, 4, 1, 2])
+
+
+# ----------------------------------------------------------------------------- instances
+
+def _largest_component(free: np.ndarray) -> np.ndarray:
+    from scipy.ndimage import label
+    lab, n = label(free)
+    if n == 0:
+        return free
+    sizes = np.bincount(lab.ravel())
+    sizes[0] = 0
+    return lab == sizes.argmax()
+
+
+def random_map(rng: np.random.Generator) -> np.ndarray:
+    rows, cols = rng.integers(16, 41, size=2)
+    density = rng.uniform(0.05, 0.30)
+    obstacles = rng.random((rows, cols)) < density
+    return ~_largest_component(~obstacles)
+
+
+def warehouse_map(rng: np.random.Generator) -> np.ndarray:
+    """Blocks of shelves (obstacles) with aisles, a free border band."""
+    block_w, block_h = int(rng.integers(3, 11)), int(rng.integers(1, 3))
+    aisle = int(rng.integers(1, 3))
+    nx, ny = int(rng.integers(2, 6)), int(rng.integers(2, 7))
+    border = int(rng.integers(2, 5))
+    rows = 2 * border + ny * block_h + (ny - 1) * aisle
+    cols = 2 * border + nx * block_w + (nx - 1) * aisle
+    obstacles = np.zeros((rows, cols), dtype=bool)
+    for by in range(ny):
+        for bx in range(nx):
+            r0 = border + by * (block_h + aisle)
+            c0 = border + bx * (block_w + aisle)
+            obstacles[r0:r0 + block_h, c0:c0 + block_w] = True
+    return ~_largest_component(~obstacles)
+
+
+def make_instance(rng: np.random.Generator):
+    obstacles = random_map(rng) if rng.random() < 0.6 else warehouse_map(rng)
+    free = np.flatnonzero(~obstacles.ravel())
+    n = int(rng.integers(8, max(9, min(129, len(free) // 4))))
+    cells = rng.permutation(free)
+    cols = obstacles.shape[1]
+    starts = [divmod(int(v), cols) for v in cells[:n]]
+    goals = [divmod(int(v), cols) for v in rng.permutation(free)[:n]]
+    return obstacles, starts, goals
+
+
+def expert(obstacles, starts, goals, seed: int):
+    graph = grid_graph(obstacles)
+    paths, _ = pibt_oneshot(graph, starts, goals, time.monotonic() + 60, seed,
+                            max_steps=4 * (graph.rows + graph.cols) + 50)
+    if paths is not None:
+        return graph, paths, "pibt"
+    paths, _ = lacam(graph, starts, goals, time.monotonic() + 30, seed)
+    return graph, paths, "lacam"
+
+
+def samples(graph, paths, goals, radius: int, rng: np.random.Generator, keep_idle: float):
+    """(obs as int8 = round(obs * r), labels) of one solved instance."""
+    grid = ObsGrid(~graph.enterable, radius)
+    cols = graph.cols
+    g = np.array([graph.node(c) for c in goals])
+    dists = np.stack([np.append(graph.dist_to(c), UNREACHABLE) for c in goals])
+    configs = np.array([[r * cols + c for r, c in p] for p in paths]).T  # (T+1, N)
+    xs, ys = [], []
+    for t in range(len(configs) - 1):
+        here, there = configs[t], configs[t + 1]
+        labels = actions_from_moves(here, there, cols)
+        idle = (here == g) & (labels == 0)
+        keep = ~idle | (rng.random(len(here)) < keep_idle)
+        if not keep.any():
+            continue
+        obs = observe(grid, here[keep], g[keep], dists[keep])
+        xs.append(np.rint(obs * radius).astype(np.int8))
+        ys.append(labels[keep].astype(np.int8))
+    return np.concatenate(xs), np.concatenate(ys)
+
+
+def build_dataset(root: np.random.SeedSequence, count: int, radius: int, keep_idle: float):
+    xs, ys, group = [], [], []
+    stats = {"pibt": 0, "lacam": 0, "unsolved": 0}
+    t0 = time.perf_counter()
+    for i, child in enumerate(root.spawn(count)):
+        rng = np.random.default_rng(child)
+        obstacles, starts, goals = make_instance(rng)
+        graph, paths, who = expert(obstacles, starts, goals, int(rng.integers(2**31)))
+        if paths is None:
+            stats["unsolved"] += 1
+            continue
+        stats[who] += 1
+        x, y = samples(graph, paths, goals, radius, rng, keep_idle)
+        xs.append(x)
+        ys.append(y)
+        group.append(np.full(len(y), i, dtype=np.int32))
+        if (i + 1) % 25 == 0:
+            print(f"  instance {i + 1}/{count}: {sum(len(a) for a in ys)} samples, "
+                  f"{time.perf_counter() - t0:.0f} s", flush=True)
+    return np.concatenate(xs), np.concatenate(ys), np.concatenate(group), stats
+
+
+# ----------------------------------------------------------------------------- network
+
+def init_params(rng: np.random.Generator, sizes: list[int]) -> dict[str, np.ndarray]:
+    params = {}
+    for i, (a, b) in enumerate(zip(sizes[:-1], sizes[1:], strict=True), start=1):
+        params[f"W{i}"] = (rng.standard_normal((a, b)) * np.sqrt(2.0 / a)).astype(np.float32)
+        params[f"b{i}"] = np.zeros(b, dtype=np.float32)
+    return params
+
+
+def forward_backward(p: dict, x: np.ndarray, y: np.ndarray):
+    z1 = x @ p["W1"] + p["b1"]
+    h1 = np.maximum(z1, 0)
+    z2 = h1 @ p["W2"] + p["b2"]
+    h2 = np.maximum(z2, 0)
+    z3 = h2 @ p["W3"] + p["b3"]
+    z3 = z3 - z3.max(axis=1, keepdims=True)
+    e = np.exp(z3)
+    prob = e / e.sum(axis=1, keepdims=True)
+    n = len(y)
+    loss = float(-np.log(prob[np.arange(n), y] + 1e-12).mean())
+    d3 = prob
+    d3[np.arange(n), y] -= 1.0
+    d3 /= n
+    grads = {"W3": h2.T @ d3, "b3": d3.sum(0)}
+    d2 = (d3 @ p["W3"].T) * (z2 > 0)
+    grads["W2"], grads["b2"] = h1.T @ d2, d2.sum(0)
+    d1 = (d2 @ p["W2"].T) * (z1 > 0)
+    grads["W1"], grads["b1"] = x.T @ d1, d1.sum(0)
+    return loss, grads
+
+
+def augment(x: np.ndarray, y: np.ndarray, code: int):
+    """One of the 8 symmetries of the square on (B, C, W, W) observations and labels."""
+    if code & 4:
+        x, y = x.transpose(0, 1, 3, 2), TRANSPOSE[y]
+    if code & 1:
+        x, y = x[:, :, ::-1, :], FLIP_ROWS[y]
+    if code & 2:
+        x, y = x[:, :, :, ::-1], FLIP_COLS[y]
+    return x, y
+
+
+def accuracy(p: dict, x8: np.ndarray, y: np.ndarray, radius: int) -> float:
+    policy = MLPPolicy(p, radius)
+    hits = 0
+    for i in range(0, len(y), 8192):
+        xb = x8[i:i + 8192].astype(np.float32) / radius
+        hits += int((policy.logits(xb).argmax(1) == y[i:i + 8192]).sum())
+    return hits / max(1, len(y))
+
+
+def dagger_dataset(root: np.random.SeedSequence, count: int, policy: MLPPolicy,
+                   keep_idle: float, group0: int):
+    """DAgger (Ross et al., AISTATS 2011) with a one-step PIBT expert: the current policy
+    (behind its shield) drives new instances; at every configuration it visits, every agent
+    is labelled with the move one PIBT step (with swap, the controller's priorities) would
+    make from there."""
+    from warerover_phys.planning.learned import LearnedController
+    from warerover_phys.planning.pibt import pibt_step
+
+    radius = policy.fov_radius
+    xs, ys, group = [], [], []
+    t0 = time.perf_counter()
+    for i, child in enumerate(root.spawn(count)):
+        rng = np.random.default_rng(child)
+        obstacles, starts, goals = make_instance(rng)
+        graph = grid_graph(obstacles)
+        grid = ObsGrid(~graph.enterable, radius)
+        s = [graph.node(c) for c in starts]
+        g = [graph.node(c) for c in goals]
+        ctrl = LearnedController(policy, graph, seed=int(rng.integers(2**31)))
+        ctrl.reset(s, g)
+        g_arr = np.array(g)
+        dists2 = np.stack([np.append(d, UNREACHABLE) for d in ctrl.dists])
+        config = s
+        for _ in range(2 * (graph.rows + graph.cols)):
+            if config == g:
+                break
+            tie = rng.random(graph.num_nodes) * 0.5
+            best = pibt_step(graph, config, ctrl.dists, ctrl.prio, tie, goals=g)
+            here = np.array(config)
+            labels = actions_from_moves(here, best, graph.cols)
+            keep = ~((here == g_arr) & (labels == 0)) | (rng.random(len(here)) < keep_idle)
+            obs = observe(grid, here[keep], g_arr[keep], dists2[keep])
+            xs.append(np.rint(obs * radius).astype(np.int8))
+            ys.append(labels[keep].astype(np.int8))
+            group.append(np.full(int(keep.sum()), group0 + i, dtype=np.int32))
+            config = ctrl.step(config)
+        if (i + 1) % 25 == 0:
+            print(f"  dagger instance {i + 1}/{count}: {sum(len(a) for a in ys)} samples, "
+                  f"{time.perf_counter() - t0:.0f} s", flush=True)
+    return np.concatenate(xs), np.concatenate(ys), np.concatenate(group)
+
+
+def train(x8, y, groups, *, rng, radius, hidden, epochs, batch, lr, init=None):
+    held = np.unique(groups)
+    held = set(rng.choice(held, size=max(1, len(held) // 20), replace=False).tolist())
+    val = np.isin(groups, list(held))
+    xt, yt, xv, yv = x8[~val], y[~val].astype(np.int64), x8[val], y[val].astype(np.int64)
+    features = x8[0].size
+    p = init if init is not None else init_params(rng, [features, hidden, hidden // 2,
+                                                         NUM_ACTIONS])
+    m = {k: np.zeros_like(v) for k, v in p.items()}
+    v = {k: np.zeros_like(v) for k, v in p.items()}
+    b1, b2, eps = 0.9, 0.999, 1e-8
+    steps_per_epoch = len(yt) // batch
+    total = steps_per_epoch * epochs
+    step = 0
+    log = []
+    for epoch in range(epochs):
+        t0 = time.perf_counter()
+        order = rng.permutation(len(yt))
+        losses = []
+        for s in range(steps_per_epoch):
+            idx = np.sort(order[s * batch:(s + 1) * batch])
+            xb, yb = augment(xt[idx], yt[idx], int(rng.integers(8)))
+            xb = np.ascontiguousarray(xb, dtype=np.float32).reshape(len(yb), -1) / radius
+            loss, grads = forward_backward(p, xb, yb)
+            losses.append(loss)
+            step += 1
+            rate = lr * 0.5 * (1 + np.cos(np.pi * step / total))
+            for k in p:
+                m[k] = b1 * m[k] + (1 - b1) * grads[k]
+                v[k] = b2 * v[k] + (1 - b2) * grads[k] ** 2
+                mh = m[k] / (1 - b1 ** step)
+                vh = v[k] / (1 - b2 ** step)
+                p[k] -= (rate * mh / (np.sqrt(vh) + eps)).astype(np.float32)
+        acc = accuracy(p, xv, yv, radius)
+        log.append({"epoch": epoch + 1, "loss": float(np.mean(losses)), "val_acc": acc,
+                    "s": time.perf_counter() - t0})
+        print(f"  epoch {epoch + 1}/{epochs}: loss {np.mean(losses):.4f}  "
+              f"held-out accuracy {acc:.3f}  ({time.perf_counter() - t0:.0f} s)", flush=True)
+    return p, log, {"train": int(len(yt)), "val": int(len(yv))}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--instances", type=int, default=1000)
+    ap.add_argument("--radius", type=int, default=5, help="field-of-view radius (cells)")
+    ap.add_argument("--hidden", type=int, default=256)
+    ap.add_argument("--epochs", type=int, default=8)
+    ap.add_argument("--batch", type=int, default=512)
+    ap.add_argument("--lr", type=float, default=2e-3)
+    ap.add_argument("--keep-idle", type=float, default=0.05,
+                    help="share of 'on goal, waits' samples kept")
+    ap.add_argument("--dagger-rounds", type=int, default=1)
+    ap.add_argument("--dagger-instances", type=int, default=300)
+    ap.add_argument("--dagger-epochs", type=int, default=4)
+    ap.add_argument("--out", type=Path, default=DEFAULT_WEIGHTS)
+    args = ap.parse_args()
+    t_start = time.perf_counter()
+    root = np.random.SeedSequence(args.seed)
+    data_seed, train_seed, *dagger_seeds = root.spawn(2 + args.dagger_rounds)
+    print(f"generating {args.instances} instances and expert solutions (seed {args.seed})")
+    x8, y, groups, stats = build_dataset(data_seed, args.instances, args.radius, args.keep_idle)
+    t_data = time.perf_counter() - t_start
+    counts = np.bincount(y.astype(np.int64), minlength=NUM_ACTIONS).tolist()
+    print(f"{len(y)} samples (actions wait/up/down/left/right: {counts}), experts {stats}, "
+          f"{t_data:.0f} s")
+    train_rng = np.random.default_rng(train_seed)
+    p, log, split = train(x8, y, groups, rng=train_rng, radius=args.radius, hidden=args.hidden,
+                          epochs=args.epochs, batch=args.batch, lr=args.lr)
+    for k, seed in enumerate(dagger_seeds):
+        print(f"DAgger round {k + 1}: rolling out the policy on {args.dagger_instances} new "
+              "instances")
+        dx, dy, dg = dagger_dataset(seed, args.dagger_instances, MLPPolicy(p, args.radius),
+                                    args.keep_idle, int(groups.max()) + 1)
+        print(f"  {len(dy)} new samples")
+        x8, y, groups = (np.concatenate([x8, dx]), np.concatenate([y, dy]),
+                         np.concatenate([groups, dg]))
+        p, more, split = train(x8, y, groups, rng=train_rng, radius=args.radius,
+                               hidden=args.hidden, epochs=args.dagger_epochs,
+                               batch=args.batch, lr=args.lr / 2, init=p)
+        log += [{**e, "dagger_round": k + 1} for e in more]
+    policy = MLPPolicy(p, args.radius)
+    policy.save(args.out)
+    wall = time.perf_counter() - t_start
+    info = {"seed": args.seed, "args": {k: str(v) for k, v in vars(args).items()},
+            "samples": split, "action_counts": counts, "experts": stats,
+            "data_s": round(t_data, 1), "total_s": round(wall, 1), "epochs": log,
+            "params": policy.num_params, "machine": platform.platform(),
+            "unreachable": int(UNREACHABLE)}
+    args.out.with_suffix(".json").write_text(json.dumps(info, indent=2) + "\n")
+    print(f"wrote {args.out} ({policy.num_params} parameters, "
+          f"{args.out.stat().st_size / 1e3:.0f} kB) in {wall:.0f} s")
+
+
+if __name__ == "__main__":
+    main()

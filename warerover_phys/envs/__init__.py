@@ -1,0 +1,45 @@
+"""Gymnasium and PettingZoo environments over the project's grids (scenario layouts and
+MovingAI maps), with the local observations the ``learned`` planner uses.
+
+- :class:`~warerover_phys.envs.core.GridMAPF`: the numpy world (all agents per call);
+- :func:`parallel_env`: a PettingZoo ``ParallelEnv``, one agent per AGV;
+- :class:`MAPFGymEnv` (registered as ``warerover/MAPF-v0``): the Gymnasium single-agent
+  view (agent 0 acts; the others follow the learned policy, or wait).
+
+Gymnasium and PettingZoo are optional (``pip install warerover-phys[envs]``); they are
+imported when a class that needs them is first used.
+
+>>> from warerover_phys.envs import EnvConfig, GridMAPF, Instance
+>>> import numpy as np
+>>> core = GridMAPF(Instance(np.zeros((4, 4), dtype=bool)), EnvConfig(num_agents=2))
+>>> core.reset(np.random.default_rng(0)).shape
+(2, 4, 11, 11)
+"""
+
+from __future__ import annotations
+
+from .core import EnvConfig, GridMAPF, Instance, LearnedDriver
+
+__all__ = ["EnvConfig", "GridMAPF", "Instance", "LearnedDriver", "parallel_env",
+           "MAPFParallelEnv", "MAPFGymEnv"]
+
+
+def __getattr__(name: str):
+    if name in ("MAPFParallelEnv", "parallel_env"):
+        from . import parallel
+        return getattr(parallel, name)
+    if name == "MAPFGymEnv":
+        from .single import MAPFGymEnv
+        return MAPFGymEnv
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def _require(module: str) -> None:
+    """Import ``module`` or raise an ImportError that names the install command."""
+    import importlib
+
+    try:
+        importlib.import_module(module)
+    except ImportError as err:
+        raise ImportError(f"{module} is needed for warerover_phys.envs: "
+                          "pip install 'warerover-phys[envs]'") from err

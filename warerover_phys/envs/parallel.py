@@ -1,0 +1,109 @@
+"""PettingZoo parallel environment: one agent (``agv_0`` ... ``agv_{N-1}``) per AGV.
+
+Every agent observes its ``(4, 2r+1, 2r+1)`` window (see
+:mod:`warerover_phys.planning.policy`) and picks one of five actions (wait, up, down, left,
+right); rules and rewards are those of :mod:`warerover_phys.envs.core`. Agents stay in the
+episode until it ends: a one-shot episode terminates for everybody when all stand on their
+goals; any episode is truncated after ``max_steps``. ``infos[agent]`` holds ``on_goal`` and
+``blocked`` (its move was cancelled). Seeding as in Gymnasium: ``reset(seed=s)`` seeds the
+episode generator, later resets without a seed continue it.
+
+>>> from warerover_phys.envs import parallel_env, Instance
+>>> import numpy as np
+>>> env = parallel_env(Instance(np.zeros((5, 5), dtype=bool)), num_agents=3)
+>>> obs, infos = env.reset(seed=1)
+>>> sorted(obs)
+['agv_0', 'agv_1', 'agv_2']
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import _require
+
+_require("pettingzoo")
+
+from gymnasium import spaces  # noqa: E402
+from gymnasium.utils import seeding  # noqa: E402
+from pettingzoo import ParallelEnv  # noqa: E402
+
+from ..planning.policy import NUM_ACTIONS  # noqa: E402
+from .core import EnvConfig, GridMAPF, Instance, render_ansi, render_rgb  # noqa: E402
+
+__all__ = ["MAPFParallelEnv", "parallel_env"]
+
+
+class MAPFParallelEnv(ParallelEnv):
+    metadata = {"name": "warerover_mapf_v0", "render_modes": ["ansi", "rgb_array"],
+                "is_parallelizable": True}
+
+    def __init__(self, instance: Instance, config: EnvConfig | None = None,
+                 render_mode: str | None = None) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} "
+                             f"(got {render_mode!r})")
+        self.core = GridMAPF(instance, config or EnvConfig())
+        self.render_mode = render_mode
+        self.possible_agents = [f"agv_{i}" for i in range(config.num_agents)]
+        self.agents: list[str] = []
+        self._np_random: np.random.Generator | None = None
+        self._obs_space = spaces.Box(-1.0, 1.0, self.core.obs_shape, dtype=np.float32)
+        self._act_space = spaces.Discrete(NUM_ACTIONS)
+
+    def observation_space(self, agent: str) -> spaces.Box:  # one object for all agents
+        return self._obs_space
+
+    def action_space(self, agent: str) -> spaces.Discrete:
+        return self._act_space
+
+    def _infos(self, blocked: np.ndarray | None = None) -> dict[str, dict]:
+        on = self.core.on_goal()
+        return {a: {"on_goal": bool(on[i]),
+                    "blocked": bool(blocked[i]) if blocked is not None else False}
+                for i, a in enumerate(self.possible_agents)}
+
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        if seed is not None or self._np_random is None:
+            self._np_random, _ = seeding.np_random(seed)
+        obs = self.core.reset(self._np_random)
+        self.agents = list(self.possible_agents)
+        return dict(zip(self.agents, obs, strict=True)), self._infos()
+
+    def step(self, actions: dict[str, int]):
+        if not self.agents:
+            raise RuntimeError("step() after the episode ended: call reset()")
+        arr = np.array([int(actions.get(a, 0)) for a in self.possible_agents], dtype=np.int64)
+        obs, rewards, blocked, terminated, truncated = self.core.step(arr)
+        names = self.possible_agents
+        out = (dict(zip(names, obs, strict=True)),
+               {a: float(r) for a, r in zip(names, rewards, strict=True)},
+               {a: terminated for a in names}, {a: truncated for a in names},
+               self._infos(blocked))
+        if terminated or truncated:
+            self.agents = []
+        return out
+
+    def render(self):
+        if self.render_mode == "ansi":
+            return render_ansi(self.core)
+        if self.render_mode == "rgb_array":
+            return render_rgb(self.core)
+        return None
+
+    def close(self) -> None:
+        pass
+
+    def state(self) -> np.ndarray:
+        """Global state: ``(3, rows, cols)`` float32 (obstacles, agents, goals)."""
+        c = self.core
+        out = np.zeros((3, c.rows, c.cols), dtype=np.float32)
+        out[0] = ~c.free
+        out[1].flat[c.pos] = 1.0
+        out[2].flat[c.goal] = 1.0
+        return out
+
+
+def parallel_env(instance: Instance, render_mode: str | None = None, **config) -> MAPFParallelEnv:
+    """A :class:`MAPFParallelEnv`; keyword arguments are :class:`EnvConfig` fields."""
+    return MAPFParallelEnv(instance, EnvConfig(**config), render_mode)
