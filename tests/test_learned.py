@@ -13,10 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from warerover_phys.config import load_scenario
+from warerover_phys.config import PlannerSpec, load_scenario
 from warerover_phys.errors import PlanningError
 from warerover_phys.movingai import read_map, read_scen
-from warerover_phys.planning import PLANNERS
+from warerover_phys.planning import make_planner
 from warerover_phys.planning.base import AgentRequest, PlanRequest
 from warerover_phys.planning.learned import LearnedPlanner, learned_oneshot
 from warerover_phys.planning.oneshot import grid_graph
@@ -37,7 +37,7 @@ def test_shipped_weights_load_and_are_small():
     policy = MLPPolicy.load()
     assert policy.fov_radius == 5
     assert DEFAULT_WEIGHTS.stat().st_size < 5_000_000
-    assert PLANNERS["learned"] is LearnedPlanner
+    assert isinstance(make_planner(PlannerSpec(name="learned")), LearnedPlanner)
 
 
 def _resave(tmp_path: Path, **change) -> Path:
