@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from ..config import Scenario
-from ..errors import WareroverError
+from ..errors import ScenarioError, WareroverError
 from .lock import sweep_lock
 from .results import RESULTS_NAME, ResultsFile
 from .spec import Episode, SweepSpec, compile_scenarios, expand
@@ -109,6 +109,10 @@ def run_task(task: Task) -> dict[str, Any]:
     try:
         metrics = run_episode(task.scenario, seed=task.seed).metrics
     except Exception as err:  # noqa: BLE001 - every episode error is recorded, not raised
+        if isinstance(err, ScenarioError) and err.__cause__ is not None:
+            err = err.__cause__                  # a plug-in's own error, as it raised it
+        elif isinstance(err, ScenarioError):
+            err.with_file(task.file)             # name the scenario file, not <scenario>
         tb = "".join(traceback.format_exception(err)[-12:])
         return {**failed_row(task, f"{type(err).__name__}: {err}", tb),
                 "elapsed_s": time.perf_counter() - t0}
