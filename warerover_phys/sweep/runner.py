@@ -187,15 +187,15 @@ def _term_as_interrupt() -> Iterator[None]:
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-
-    def handler(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt(f"signal {signum}")
-
-    old = signal.signal(signal.SIGTERM, handler)
+    old = signal.signal(signal.SIGTERM, _interrupt)
     try:
         yield
     finally:
         signal.signal(signal.SIGTERM, old)
+
+
+def _interrupt(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt(f"signal {signum}")
 
 
 def _run_locked(spec: SweepSpec, out_dir: str | Path, *, workers: int | None,
@@ -361,6 +361,8 @@ def _run_ray(tasks: Iterable[Task], address: str, workers: int,
             raise WareroverError(f"--ray {address}: cannot connect to a Ray cluster ({first}); "
                                  "start one with `ray start --head` or use --ray local") from None
         started = True
+        if threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGTERM, _interrupt)    # ray.init installed its own
     remote = ray.remote(num_cpus=1, max_retries=1)(run_task)
     capacity = max(2, 2 * int(ray.cluster_resources().get("CPU", workers)))
     pending = deque(tasks)
