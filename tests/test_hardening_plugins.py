@@ -165,3 +165,17 @@ def test_sweep_grid_with_mapping_values_runs(procs):
     rows = [json.loads(line) for line in (root / "sw2" / "results.jsonl").read_text().splitlines()]
     assert sorted(r["scheduler"] for r in rows) == ["rd", "ta"]
     assert all(r["status"] == "ok" for r in rows)
+
+
+@pytest.mark.parametrize("line,needle", [
+    ("repetitions: 1000000000000", "repetitions"), ("repetitions: true", "repetitions"),
+    ("seeds: [1.5]", "seeds[0]"),
+    ("repetitions: 600000\ngrid: {planner.name: [astar, cbs]}", "1,200,000 episodes")])
+def test_sweep_sizes_are_bounded(tmp_path, line, needle):
+    from warerover_phys.sweep import load_sweep
+    from warerover_phys.sweep.spec import SweepError
+
+    path = tmp_path / "s.yaml"
+    path.write_text(f"scenarios: {{Ho: {PAPER}}}\n{line}\n")
+    with pytest.raises(SweepError, match=needle.replace("[", r"\[")):
+        load_sweep(path)

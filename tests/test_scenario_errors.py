@@ -431,7 +431,7 @@ def test_failed_run_keeps_earlier_outputs(tmp_path: Path) -> None:
         assert proc.returncode == 2, proc.stderr
         assert bad.name in proc.stderr
         assert {n: (out / n).read_bytes() for n in names} == before
-        assert sorted(p.name for p in out.iterdir()) == sorted(names)
+        assert sorted(p.name for p in out.iterdir()) == sorted((*names, "manifest.json"))
 
 
 def test_too_big_map_is_valid_for_1x1(tmp_path: Path) -> None:

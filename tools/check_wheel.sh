@@ -7,6 +7,9 @@
 # Needs package-index access (the wheel's dependencies are installed from it). Exit 0 and a
 # last line "wheel ok: ..." when everything works; the wheel is left in dist/.
 set -euo pipefail
+# The wheel on its own: nothing from the caller's environment may supply the package.
+unset PYTHONPATH PYTHONHOME PYTHONUSERBASE PIP_TARGET PIP_PREFIX
+export PYTHONNOUSERSITE=1
 
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 py="${1:-python3}"

@@ -9,6 +9,8 @@ a run's output files as one set.
   puts that folder in place of the output folder in one step (Linux ``renameat2`` with
   ``RENAME_EXCHANGE``; elsewhere two renames, recovered from on the next write). Files in
   the old folder that are not run outputs (a video, notes) are carried over as hard links.
+  A folder that is more than a run folder (subfolders, many files, the working folder) is
+  written in place instead, behind a manifest marked incomplete until the set is whole.
 - :func:`check_set` is what readers call: a folder whose files are not the ones its manifest
   lists (a mixed or half-written set) is refused with a :class:`~.errors.WareroverError`.
 
@@ -26,6 +28,7 @@ import ctypes
 import ctypes.util
 import datetime as _dt
 import hashlib
+import itertools
 import json
 import os
 import shutil
@@ -161,40 +164,94 @@ def _recover(out: Path) -> None:
             shutil.rmtree(entry, ignore_errors=True)
 
 
+SWAP_MAX_ENTRIES = 64
+"""A folder with more entries than this is written in place, not swapped (see
+:func:`write_set`)."""
+
+
+def _swappable(out: Path) -> bool:
+    """Whether the set may replace ``out`` whole: it is missing, or holds only a few regular
+    files (a run folder, maybe with a video beside) and is not the working folder or above it.
+    """
+    if not out.exists():
+        return True
+    if out.is_symlink() or Path.cwd().resolve().is_relative_to(out.resolve()):
+        return False
+    entries = list(itertools.islice(out.iterdir(), SWAP_MAX_ENTRIES + 1))
+    return len(entries) <= SWAP_MAX_ENTRIES and all(
+        e.is_file() and not e.is_symlink() for e in entries)
+
+
 def write_set(out_dir: str | Path, writers: dict[str, Callable[[Path], Any]],
               meta: dict[str, Any] | None = None) -> dict[str, Path]:
     """Write files as one set: ``writers`` maps a file name to a function that writes that
-    file at the path it is given. Returns name -> final path. See the module docstring."""
+    file at the path it is given. Returns name -> final path.
+
+    A missing folder, or one holding only a few regular files, is replaced whole (a new
+    folder swapped in; its other files carried over as hard links). Any other folder (one
+    with subfolders, the working folder, ``.``) is written in place: first a manifest marked
+    incomplete (readers refuse the folder from then on), then every file through a
+    temporary file and a rename, then the complete manifest.
+    """
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise WareroverError(f"{out}: output folder is a file")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    _recover(out)
-    run_id = uuid.uuid4().hex
-    new = out.with_name(f".{out.name}.new-{run_id[:12]}")
+    target = Path(os.path.abspath(out))
     try:
-        new.mkdir()
+        target.parent.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise WareroverError(f"{out}: cannot write the output folder here "
                              f"({err.strerror or err})") from None
+    _recover(target)
+    run_id = uuid.uuid4().hex
+    base = {"run_id": run_id, **(meta or {})}
+    if _swappable(target):
+        _swap_in(target, writers, base, out)
+    else:
+        _write_in_place(target, writers, base)
+    return {name: out / name for name in writers}
+
+
+def _manifest(base: dict[str, Any], files: dict[str, Any], complete: bool) -> str:
+    data = {**base, "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+            "files": files, "complete": complete}
+    return json.dumps(data, indent=2, sort_keys=True) + "\n"
+
+
+def _write_files(folder: Path, writers: dict[str, Callable[[Path], Any]],
+                 atomic: bool) -> dict[str, Any]:
+    files: dict[str, Any] = {}
+    for name, write in writers.items():
+        if atomic:
+            with replacing(folder / name) as tmp:
+                write(tmp)
+        else:
+            write(folder / name)
+        files[name] = {"bytes": (folder / name).stat().st_size,
+                       "sha256": _digest(folder / name)}
+    return files
+
+
+def _swap_in(out: Path, writers: dict[str, Callable[[Path], Any]], base: dict[str, Any],
+             shown: Path) -> None:
+    new = out.with_name(f".{out.name}.new-{base['run_id'][:12]}")
     try:
-        files: dict[str, Any] = {}
-        for name, write in writers.items():
-            write(new / name)
-            files[name] = {"bytes": (new / name).stat().st_size, "sha256": _digest(new / name)}
+        new.mkdir()
+    except OSError as err:
+        raise WareroverError(f"{shown}: cannot write the output folder here "
+                             f"({err.strerror or err})") from None
+    try:
+        files = _write_files(new, writers, atomic=False)
         if out.is_dir():
             _carry_over(out, new, set(writers) | set(RUN_FILES))
-        manifest = {"run_id": run_id, "created": _dt.datetime.now(_dt.UTC).isoformat(
-            timespec="seconds"), "files": files, **(meta or {})}
-        (new / MANIFEST).write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n",
-                                    encoding="utf-8")
+        (new / MANIFEST).write_text(_manifest(base, files, True), encoding="utf-8")
         _fsync_dir(new)
         if not out.exists():
             os.rename(new, out)
         elif _exchange(new, out):
             shutil.rmtree(new, ignore_errors=True)       # ``new`` now holds the old folder
         else:
-            old = out.with_name(f".{out.name}.old-{run_id[:12]}")
+            old = out.with_name(f".{out.name}.old-{base['run_id'][:12]}")
             os.rename(out, old)
             os.rename(new, out)
             shutil.rmtree(old, ignore_errors=True)
@@ -202,7 +259,17 @@ def write_set(out_dir: str | Path, writers: dict[str, Callable[[Path], Any]],
     except BaseException:
         shutil.rmtree(new, ignore_errors=True)
         raise
-    return {name: out / name for name in writers}
+
+
+def _write_in_place(out: Path, writers: dict[str, Callable[[Path], Any]],
+                    base: dict[str, Any]) -> None:
+    write_text(out / MANIFEST, _manifest(base, {}, False))   # readers refuse from here on
+    for name in RUN_FILES:
+        if name not in writers:
+            with contextlib.suppress(FileNotFoundError):
+                (out / name).unlink()                        # a file of an older set
+    files = _write_files(out, writers, atomic=True)
+    write_text(out / MANIFEST, _manifest(base, files, True))
 
 
 def _fsync_dir(path: Path) -> None:
@@ -237,6 +304,9 @@ def check_set(folder: str | Path) -> dict[str, Any] | None:
             raise TypeError
     except (ValueError, KeyError, TypeError, UnicodeDecodeError):
         raise WareroverError(f"{path}: not a run manifest (corrupt or truncated)") from None
+    if manifest.get("complete") is False:
+        raise WareroverError(f"{folder}: incomplete run outputs: run {run_id[:12]} was "
+                             "interrupted while writing them; run the episode again")
     for name, info in files.items():
         f = folder / name
         if not f.is_file():

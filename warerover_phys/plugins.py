@@ -47,7 +47,7 @@ class Guarded:
             raise
         except Exception as err:  # noqa: BLE001 - the plug-in's bug, one line for the user
             raise self._error(f"plugin {method}() raised {_first_line(err)} at tick "
-                              f"{tick}") from None
+                              f"{tick}") from err     # chained: sweeps keep its traceback
 
     def plan(self, request: Any) -> Any:
         from .planning.base import PlanResult

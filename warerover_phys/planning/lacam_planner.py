@@ -15,7 +15,9 @@ If LaCAM does not finish within ``max_iterations`` high-level iterations (a work
 same result on any machine), the fleet takes one PIBT step instead and the budget hit is
 counted (``PlanResult.budget_hits``), never silently. ``time_budget_s`` is a wall-clock
 safety stop only: when it ends a search first (so the result depends on the machine), the
-hit is counted too and a warning is logged.
+hit is counted too and a warning is logged. When no solution exists (an AGV cannot reach its
+goal, e.g. behind a closed safety corridor, or the search space is exhausted) the same PIBT
+step is taken without a search and without a budget hit.
 
 A fleet of 1x1 AGVs that move one cell per tick takes the fast path (:func:`lacam_nodes`).
 Any other fleet is solved by :func:`footprint_lacam` over poses (an AGV in the middle of a
@@ -90,7 +92,7 @@ class LaCAMPlanner:
                                      max_iterations=self.max_iterations)
         _report_stop(stats, self.time_budget_s)
         if configs is None:
-            result.budget_hits += 1
+            result.budget_hits += not stats.get("exhausted", False)
             nxt = pibt_step(unloaded, starts, dists, prio, rng.random(unloaded.num_nodes) * 0.5,
                             forced=[(i, starts[i]) for i in held], goals=goals, tables=tables)
             configs = [starts, nxt if nxt is not None else starts]
@@ -116,8 +118,8 @@ def solve_footprints(request: PlanRequest, agents: list[AgentRequest], deadline:
                      keep: bool, max_iterations: int | None = None) -> PlanResult:
     """Footprint-aware LaCAM for the whole fleet towards its effective goals; commit every
     AGV's full path. With ``keep``, nothing is planned while every committed path still
-    leads to its effective goal. Past ``deadline``, one footprint-aware PIBT step (counted
-    as a budget hit)."""
+    leads to its effective goal. Past ``max_iterations`` or ``deadline``, one footprint-aware
+    PIBT step (counted as a budget hit); the same step, uncounted, when no solution exists."""
     res, tick = request.reservations, request.tick
     graphs = [request.graphs.get(a.k, a.loaded, a.shelf) for a in agents]
     goals = effective_goals(agents, graphs, request.keep_clear)
@@ -133,7 +135,7 @@ def solve_footprints(request: PlanRequest, agents: list[AgentRequest], deadline:
                                      prio=prio, max_iterations=max_iterations)
     _report_stop(stats, deadline - time.monotonic())
     if configs is None:
-        result.budget_hits += 1
+        result.budget_hits += not stats.get("exhausted", False)
         nxt = footprint_step(movers, poses, prio, rng.random(len(movers[0].dist)) * 0.5,
                              res.cols, forced={i: poses[i][1] for i in held})
         configs = [tuple(poses), tuple(nxt if nxt is not None else poses)]

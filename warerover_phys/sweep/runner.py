@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from ..config import Scenario
-from ..errors import WareroverError
+from ..errors import ScenarioError, WareroverError
 from .lock import sweep_lock
 from .results import RESULTS_NAME, ResultsFile
 from .spec import Episode, SweepSpec, compile_scenarios, expand
@@ -109,6 +109,10 @@ def run_task(task: Task) -> dict[str, Any]:
     try:
         metrics = run_episode(task.scenario, seed=task.seed).metrics
     except Exception as err:  # noqa: BLE001 - every episode error is recorded, not raised
+        if isinstance(err, ScenarioError) and err.__cause__ is not None:
+            err = err.__cause__                  # a plug-in's own error, as it raised it
+        elif isinstance(err, ScenarioError):
+            err.with_file(task.file)             # name the scenario file, not <scenario>
         tb = "".join(traceback.format_exception(err)[-12:])
         return {**failed_row(task, f"{type(err).__name__}: {err}", tb),
                 "elapsed_s": time.perf_counter() - t0}
@@ -183,15 +187,15 @@ def _term_as_interrupt() -> Iterator[None]:
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-
-    def handler(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt(f"signal {signum}")
-
-    old = signal.signal(signal.SIGTERM, handler)
+    old = signal.signal(signal.SIGTERM, _interrupt)
     try:
         yield
     finally:
         signal.signal(signal.SIGTERM, old)
+
+
+def _interrupt(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt(f"signal {signum}")
 
 
 def _run_locked(spec: SweepSpec, out_dir: str | Path, *, workers: int | None,
@@ -357,6 +361,8 @@ def _run_ray(tasks: Iterable[Task], address: str, workers: int,
             raise WareroverError(f"--ray {address}: cannot connect to a Ray cluster ({first}); "
                                  "start one with `ray start --head` or use --ray local") from None
         started = True
+        if threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGTERM, _interrupt)    # ray.init installed its own
     remote = ray.remote(num_cpus=1, max_retries=1)(run_task)
     capacity = max(2, 2 * int(ray.cluster_resources().get("CPU", workers)))
     pending = deque(tasks)

@@ -49,8 +49,10 @@ from ..registry import check_plugins
 __all__ = ["SweepSpec", "ScenarioEntry", "Episode", "SweepError", "load_sweep", "expand",
            "episode_key", "compile_scenarios", "narrow"]
 
-PosInt = Annotated[int, Field(ge=1)]
-NonNegInt = Annotated[int, Field(ge=0)]
+MAX_EPISODES = 1_000_000
+"""Most episodes one sweep may hold (scenarios x grid combinations x seeds)."""
+PosInt = Annotated[int, Field(ge=1, le=MAX_EPISODES, strict=True)]
+NonNegInt = Annotated[int, Field(ge=0, le=2**62, strict=True)]
 
 DIMENSIONS = {"scheduler.name": "scheduler", "scheduler": "scheduler",
               "planner.name": "planner", "planner": "planner",
@@ -137,6 +139,13 @@ class SweepSpec(_Model):
             raise ValueError("give exactly one of repetitions (with seed_start) or seeds")
         if self.seeds is not None and len(set(self.seeds)) != len(self.seeds):
             raise ValueError("seeds lists a seed twice")
+        combos = len(self.scenarios)
+        for values in self.grid.values():
+            combos *= len(values)
+        seeds = len(self.seeds) if self.seeds is not None else self.repetitions or 0
+        if combos * seeds > MAX_EPISODES:
+            raise ValueError(f"the sweep would hold {combos * seeds:,} episodes (at most "
+                             f"{MAX_EPISODES:,}: fewer grid values or repetitions)")
         both = sorted(set(self.grid) & set(self.set))
         if both:
             raise ValueError(f"{both[0]!r} is both in grid and in set")
