@@ -23,24 +23,34 @@ PLUGIN = textwrap.dedent('''
             return []
 
     class BoomPlanner:
+        replans_all = False
         def __init__(self, spec):
             raise KeyError("gpu")
         def plan(self, request):
             return None
 
     class SilentBoom:
+        replans_all = False
         def __init__(self, spec):
             raise ValueError()
         def plan(self, request):
             return None
 
     class PlanRaises:
+        replans_all = False
         def __init__(self, spec):
             pass
         def plan(self, request):
             raise ZeroDivisionError("oops")
 
     class PlanReturnsNone:
+        replans_all = False
+        def __init__(self, spec):
+            pass
+        def plan(self, request):
+            return None
+
+    class NoReplansAll:
         def __init__(self, spec):
             pass
         def plan(self, request):
@@ -121,6 +131,7 @@ def procs(tmp_path_factory):
         "gap": ("gap", PAPER, "--planner", "boom_plugins:BoomPlanner", "--json"),
         "plan-raises": ("run", PAPER, "--planner", "boom_plugins:PlanRaises", "--json"),
         "plan-none": ("run", PAPER, "--planner", "boom_plugins:PlanReturnsNone", "--json"),
+        "no-replans-all": ("run", PAPER, "--planner", "boom_plugins:NoReplansAll", "--json"),
         "assign-junk": ("run", PAPER, "--scheduler", "boom_plugins:AssignJunk", "--json"),
         "assign-twice": ("run", PAPER, "--scheduler", "boom_plugins:AssignTwice", "--json"),
         "assign-order": ("run", PAPER, "--scheduler", "boom_plugins:AssignBadOrder", "--json"),
@@ -144,6 +155,7 @@ def procs(tmp_path_factory):
     ("walled", ["walled.yaml", "corridor"]),
     ("plan-raises", ["paper_homogeneous.yaml", "plan() raised ZeroDivisionError", "tick 0"]),
     ("plan-none", ["paper_homogeneous.yaml", "PlanResult", "NoneType"]),
+    ("no-replans-all", ["paper_homogeneous.yaml", "planner.name", "replans_all"]),
     ("assign-junk", ["scheduler.name", "assign()", "int"]),
     ("assign-twice", ["scheduler.name", "AGV 0"]),
     ("assign-order", ["scheduler.name", "order 1000000"]),

@@ -23,8 +23,9 @@ Keys (units in the name or below):
   a corridor opened across their path);
 - ``wall_s``: wall seconds of the whole episode.
 
-CT keys are the only ones that change between two runs with the same scenario and seed;
-:data:`TIMING_KEYS` lists every such key.
+CT keys, wall seconds and the physics executor's ``real_time_factor`` are the only ones that
+change between two runs with the same scenario and seed; :data:`TIMING_KEYS` lists every
+such key.
 """
 
 from __future__ import annotations
@@ -41,7 +42,8 @@ if TYPE_CHECKING:
 __all__ = ["MetricsRecorder", "TIMING_KEYS"]
 
 TIMING_KEYS = ("ct_total_s", "ct_mean_ms", "ct_p99_ms", "ct_sched_mean_ms", "ct_sched_p99_ms",
-               "ct_plan_mean_ms", "ct_plan_p99_ms", "wall_s")
+               "ct_plan_mean_ms", "ct_plan_p99_ms", "wall_s", "real_time_factor",
+               "execute_wall_s")
 
 
 class MetricsRecorder:

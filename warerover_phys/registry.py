@@ -157,6 +157,10 @@ def _checked_class(cls: Any, field: str, name: str) -> type:
         what = "a class" if not isinstance(cls, type) else \
             f"a {kind} class (missing {', '.join(m + '()' for m in missing)})"
         raise ScenarioError(f"plugin is not {what}", field=field, value=name)
+    if kind == "planner" and not isinstance(getattr(cls, "replans_all", None), bool):
+        raise ScenarioError("plugin planner must declare replans_all = True (every AGV every "
+                            "tick) or False (only AGVs that need a path) as a class attribute",
+                            field=field, value=name)
     params = getattr(cls, "Params", None)
     if params is not None and not (isinstance(params, type) and issubclass(params, BaseModel)):
         raise ScenarioError("plugin's Params must be a pydantic BaseModel", field=field,
