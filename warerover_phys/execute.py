@@ -318,61 +318,84 @@ def repair_cycles(plan: Plan, layout: Layout, sizes: list[int], *, strict: bool 
 
 def _replan_cycle(plan: Plan, layout: Layout, sizes: list[int], cyc: Cycle,
                   source: str | None) -> tuple[Plan, Repair]:
+    """Re-plan the cycle's agents (prioritized space-time A*, from the timestep before the
+    cycle to their own goals) around every other agent's fixed path. If no order of them
+    finds a way, the agents standing within 2, then 4 cells of the cycle are re-planned
+    with them: the change stays local to the few agents around the rotation."""
+    cols = layout.cols
+    t0 = cyc.timestep - 1
+    pos = _dense(plan)[min(t0, plan.makespan)]
+    ring = np.asarray(cyc.cells)
+    dist = np.abs(pos[:, None, :] - ring[None, :, :]).sum(axis=2).min(axis=1)
+    for radius in (0, 2, 4):
+        near = [int(i) for i in np.argsort(dist, kind="stable")
+                if dist[i] <= radius and int(i) not in cyc.agents][:16]
+        found = _replan_agents(plan, layout, sizes, list(cyc.agents), near, t0)
+        if found is not None:
+            break
+    else:
+        raise PlanError(f"cannot repair the rotation of agents {list(cyc.agents)}: no detour "
+                        "around the other agents' fixed paths, even re-planning the agents "
+                        "within 4 cells (run with --strict to see it, or fix the plan)",
+                        file=source, agent=cyc.agents[0], timestep=cyc.timestep)
+    paths = list(plan.paths)
+    added = 0
+    for i, tp in found.items():
+        head = list(plan.paths[i][:t0])
+        tail = [divmod(s[1], cols) for s in tp.states]
+        new = tuple(head + tail)
+        added += (len(Plan((new,)).paths[0]) - 1) - (len(plan.paths[i]) - 1)
+        paths[i] = new
+    touched = tuple(sorted(found))
+    return Plan(tuple(paths), rows=plan.rows, cols=plan.cols, map_name=plan.map_name,
+                meta=plan.meta, fmt=plan.fmt), Repair(cyc.timestep, touched, cyc.cells, added)
+
+
+def _replan_agents(plan: Plan, layout: Layout, sizes: list[int], ring: list[int],
+                   near: list[int], t0: int) -> dict[int, TimedPath] | None:
+    """New paths from ``t0`` to their goals for ``ring + near`` around everyone else's
+    fixed path, or None. Tries each rotation of the ring (and its reverse) first, then the
+    nearby agents, farthest from their goals first."""
     from .planning.astar import AStarPlanner
     from .planning.base import AgentRequest, PlanRequest
     from .planning.graph import GraphSet
     from .planning.reservation import ReservationTable
 
     cols = layout.cols
-    t0 = cyc.timestep - 1
+    members = set(ring) | set(near)
     base = ReservationTable(cols)
-    members = set(cyc.agents)
     for i, path in enumerate(plan.paths):
         if i not in members:
             nodes = [r * cols + c for r, c in path]
             base.commit(TimedPath(i, 0, tuple((v, v) for v in nodes)), sizes[i])
-    agents = []
-    for i in cyc.agents:
-        path = plan.paths[i]
-        start = path[min(t0, len(path) - 1)]
-        goal = path[-1]
-        agents.append(AgentRequest(i, start[0] * cols + start[1], goal[0] * cols + goal[1],
-                                   k=sizes[i]))
-    # Prioritized A* from t0 over the cycle's agents, around everyone else's fixed path;
-    # the order matters, so try each rotation of the cycle and its reverse.
     graphs = GraphSet(layout)
-    orders = [agents[j:] + agents[:j] for j in range(len(agents))]
+    graph = graphs.get(1, False)
+
+    def request(i: int) -> AgentRequest:
+        path = plan.paths[i]
+        start, goal = path[min(t0, len(path) - 1)], path[-1]
+        return AgentRequest(i, start[0] * cols + start[1], goal[0] * cols + goal[1],
+                            k=sizes[i])
+
+    ring_req = [request(i) for i in ring]
+    near_req = sorted((request(i) for i in near), key=lambda a: -graph.distance(
+        divmod(a.start, cols), divmod(a.goal, cols)))
+    orders = [ring_req[j:] + ring_req[:j] for j in range(len(ring_req))]
     orders += [list(reversed(o)) for o in orders]
-    result = None
+    orders = [o + near_req for o in orders] + [near_req + o for o in orders[:2]]
     planner = AStarPlanner(max_expansions=200_000, budget_per_move=None)
     for order in orders:
         table, found = base.copy(), {}
         for a in order:  # one at a time: each is held on the cell it leaves for a tick
-            got = planner.plan(PlanRequest(t0, [a], graphs, table.copy()))
+            got = planner.plan(PlanRequest(t0, [a], graphs, table))
             path = got.paths.get(a.agv)
             if got.failed or got.detours or path is None or path.goal != a.goal:
                 break
             found[a.agv] = path
             table.commit(_no_following(path), a.k)
         if len(found) == len(order):
-            result = found
-            break
-    if result is None:
-        raise PlanError(f"cannot repair the rotation of agents {list(cyc.agents)}: no detour "
-                        "around the other agents' fixed paths (run with --strict to see it, "
-                        "or fix the plan)", file=source, agent=cyc.agents[0],
-                        timestep=cyc.timestep)
-    paths = list(plan.paths)
-    added = 0
-    for i, tp in result.items():
-        head = list(plan.paths[i][:t0])
-        tail = [divmod(s[1], cols) for s in tp.states]
-        new = tuple(head + tail)
-        added += (len(Plan((new,)).paths[0]) - 1) - (len(plan.paths[i]) - 1)
-        paths[i] = new
-    return Plan(tuple(paths), rows=plan.rows, cols=plan.cols, map_name=plan.map_name,
-                meta=plan.meta, fmt=plan.fmt), Repair(cyc.timestep, cyc.agents, cyc.cells,
-                                                      added)
+            return found
+    return None
 
 
 def _no_following(path: TimedPath) -> TimedPath:
