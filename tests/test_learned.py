@@ -185,3 +185,23 @@ def test_learned_in_the_loop_is_conflict_free(seed):
     assert validate_states(result.actual, w.layout.obstacles) == []
     again = run_episode(load_scenario(PAPER, [("planner.name", PLUGIN)]), seed=seed)
     assert again.actual == result.actual
+
+
+def test_learned_by_name_in_solve_and_weights_field(tmp_path):
+    """``--planner learned`` works by name in solve; ``planner.weights`` picks weights and a
+    bad file is one clean line with exit 2."""
+    from typer.testing import CliRunner
+
+    from warerover_phys.cli import app
+
+    data = Path(__file__).parent / "data"
+    r = CliRunner().invoke(app, ["solve", str(data / "random-32-32-10.map"),
+                                 str(data / "random-32-32-10-random-1.scen"), "--agents", "20",
+                                 "--planner", "learned", "--json"])
+    assert r.exit_code == 0, r.output
+    bad = tmp_path / "w.npz"
+    bad.write_bytes(b"not weights")
+    r = CliRunner().invoke(app, ["run", str(Path(__file__).parent.parent / "layouts" /
+                                            "paper_homogeneous.yaml"), "--planner", "learned",
+                                 "--set", f"planner.weights={bad}", "--json"])
+    assert r.exit_code == 2 and str(bad) in r.output and "Traceback" not in r.output

@@ -34,8 +34,8 @@ SetOpt = Annotated[list[str] | None, typer.Option(
     "--set", help="Override any scenario field: --set orders.pattern=burst (repeatable).")]
 SeedOpt = Annotated[int | None, typer.Option(help="Episode seed (overrides the file's).")]
 SchedOpt = Annotated[str | None, typer.Option(help="Scheduler: ta | rd.")]
-PlanOpt = Annotated[str | None, typer.Option(help="Planner: astar | pibt | lacam.")]
-ExecOpt = Annotated[str | None, typer.Option(help="Executor: grid | physics.")]
+PlanOpt = Annotated[str | None, typer.Option(help="Planner: astar | cbs | pibt | lacam | learned | plug-in.")]
+ExecOpt = Annotated[str | None, typer.Option(help="Executor: grid | physics | plug-in.")]
 OrdersOpt = Annotated[str | None, typer.Option(
     help="Order pattern: oneshot | constant | wave | hotspot | burst.")]
 FpsOpt = Annotated[float, typer.Option(help="Video frames per second.")]
@@ -350,7 +350,7 @@ def solve(map_file: Annotated[Path, typer.Argument(metavar="MAP.map", help="Movi
           scen_file: Annotated[Path, typer.Argument(metavar="SCEN.scen",
                                                     help="MovingAI scenario.")],
           agents: Annotated[int, typer.Option(help="Use the first N agents.")] = 100,
-          planner: Annotated[str, typer.Option(help="lacam | pibt | astar.")] = "lacam",
+          planner: Annotated[str, typer.Option(help="lacam | pibt | astar | learned.")] = "lacam",
           time_limit: Annotated[float, typer.Option(help="Seconds before giving up.")] = 60.0,
           seed: Annotated[int, typer.Option(help="Tie-breaking seed.")] = 0,
           json_out: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,

@@ -363,6 +363,8 @@ class PlannerSpec(_Model):
     ``package.module:ClassName``."""
     params: Params = {}
     """Parameters of a plug-in planner (its ``Params`` model)."""
+    weights: str | None = None
+    """``learned``: path of its weights (``.npz``); default the shipped ones."""
     replan_blocked_ticks: Ticks = 3
     """Replan an AGV that could not follow its plan for this many ticks."""
     max_expansions: Budget = 50_000

@@ -76,7 +76,7 @@ def _lacam(spec):
 def _learned(spec):  # numpy inference only: the shipped weights, no PyTorch
     from .planning.learned import LearnedPlanner
 
-    return LearnedPlanner(spec)
+    return LearnedPlanner(spec, weights=spec.weights)
 
 
 def _ta(spec):

@@ -62,7 +62,7 @@ def _costs(paths: list[list[Cell]], goals: list[Cell]) -> tuple[int, int]:
     return soc, max((len(p) - 1 for p in paths), default=0)
 
 
-ONESHOT_PLANNERS = ("lacam", "pibt", "astar")
+ONESHOT_PLANNERS = ("lacam", "pibt", "astar", "learned")
 
 
 def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner: str = "lacam",
@@ -86,6 +86,9 @@ def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner:
         paths, stats = lacam(graph, starts, goals, deadline, seed)
     elif planner == "astar":
         paths, stats = _prioritized(graph, starts, goals, deadline)
+    elif planner == "learned":
+        from .learned import learned_oneshot
+        paths, stats = learned_oneshot(graph, starts, goals, deadline, seed)
     else:
         raise PlanningError(f"unknown one-shot planner {planner!r} "
                             f"(choose from {', '.join(ONESHOT_PLANNERS)})")

@@ -1,0 +1,110 @@
+"""Pose samples streamed to disk: memory stays bounded however long the episode runs.
+
+At 1,000 AGVs one sample is ~26 kB (``x``, ``y``, ``heading`` float64, ``state`` int8,
+``loaded`` bool per AGV); kept in memory at 10 Hz that is ~0.94 GB per simulated hour.
+:class:`TrajectoryStore` fills a fixed buffer of :data:`CHUNK` samples and appends it to one
+raw file per field in a temporary folder when full. :meth:`TrajectoryStore.arrays` gives
+read-only :class:`numpy.memmap` s over those files (a short run that never filled a chunk
+gets in-memory copies and never touches the disk). The folder goes when the store is
+garbage collected (the mapped arrays stay readable on POSIX systems until dropped).
+
+Example::
+
+    >>> import numpy as np
+    >>> s = TrajectoryStore(2, chunk=2)
+    >>> for t in range(3):
+    ...     s.append(float(t), np.zeros((2, 2)), np.zeros(2), np.zeros(2, np.int8),
+    ...              np.zeros(2, bool))
+    >>> a = s.arrays()
+    >>> a["t"].tolist(), a["x"].shape, a["state"].dtype
+    ([0.0, 1.0, 2.0], (3, 2), dtype('int8'))
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+import weakref
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["CHUNK", "TrajectoryStore"]
+
+CHUNK = 256
+"""Samples buffered in memory before they are appended to the files."""
+
+_FIELDS = (("t", np.float64), ("x", np.float64), ("y", np.float64), ("heading", np.float64),
+           ("state", np.int8), ("loaded", np.bool_))
+
+
+class TrajectoryStore:
+    """Append-only ``t`` (T,), ``x``, ``y``, ``heading``, ``state``, ``loaded`` (T, N)."""
+
+    def __init__(self, n: int, chunk: int = CHUNK) -> None:
+        self.n = n
+        self.chunk = max(1, chunk)
+        self._buf = {name: np.zeros((self.chunk,) if name == "t" else (self.chunk, n), dtype)
+                     for name, dtype in _FIELDS}
+        self._fill = 0
+        """Samples in the buffer."""
+        self._on_disk = 0
+        """Samples already in the files."""
+        self._dir: Path | None = None
+        self._cleanup: weakref.finalize | None = None
+
+    def __len__(self) -> int:
+        return self._on_disk + self._fill
+
+    @property
+    def folder(self) -> Path | None:
+        """The temporary folder (None until the first chunk is written)."""
+        return self._dir
+
+    def append(self, t: float, pos: np.ndarray, ang: np.ndarray, state: np.ndarray,
+               loaded: np.ndarray) -> None:
+        """One sample: time, positions (N, 2), headings, task states and loaded flags."""
+        b, r = self._buf, self._fill
+        b["t"][r] = t
+        b["x"][r] = pos[:, 0]
+        b["y"][r] = pos[:, 1]
+        b["heading"][r] = ang
+        b["state"][r] = state
+        b["loaded"][r] = loaded
+        self._fill = r + 1
+        if self._fill == self.chunk:
+            self._flush()
+
+    def _flush(self) -> None:
+        if self._fill == 0:
+            return
+        if self._dir is None:
+            self._dir = Path(tempfile.mkdtemp(prefix="warerover-traj-"))
+            self._cleanup = weakref.finalize(self, shutil.rmtree, str(self._dir), True)
+        for name, _ in _FIELDS:
+            with (self._dir / f"{name}.raw").open("ab") as f:
+                f.write(self._buf[name][:self._fill].tobytes())
+        self._on_disk += self._fill
+        self._fill = 0
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Every sample so far, by field: memory maps of the files, or in-memory copies if
+        nothing has been written yet. Recording may go on afterwards."""
+        if self._on_disk == 0:
+            return {name: self._buf[name][:self._fill].copy() for name, _ in _FIELDS}
+        self._flush()
+        total = self._on_disk
+        out: dict[str, np.ndarray] = {}
+        for name, dtype in _FIELDS:
+            shape = (total,) if name == "t" else (total, self.n)
+            if self.n == 0 and name != "t":
+                out[name] = np.zeros(shape, dtype)
+            else:
+                out[name] = np.memmap(self._dir / f"{name}.raw", dtype=dtype, mode="r",
+                                      shape=shape)
+        return out
+
+    def close(self) -> None:
+        """Remove the temporary folder now (arrays already mapped stay readable on POSIX)."""
+        if self._cleanup is not None:
+            self._cleanup()
