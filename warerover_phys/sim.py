@@ -78,6 +78,9 @@ class Simulation:
         self.executor.bind(executor_setup(self.world))
         self.metrics = MetricsRecorder(scenario)
         self.faults = FaultModel(scenario.faults, self.world.rngs["faults"])
+        self.last_report: StepReport | None = None
+        """What the executor reported for the last tick (read-only for observers such as
+        the live view: ``poses`` holds continuous poses on physics)."""
         self.planned: list[dict] = []
         self.actual: dict[int, list[tuple[int, int]]] = {a.id: [a.pos] for a in self.world.agvs}
 
@@ -94,6 +97,11 @@ class Simulation:
         if repair_ticks is not None and repair_ticks < 1:
             raise ValueError(f"repair_ticks must be >= 1 (got {repair_ticks})")
         open_failure(self.world, agv_id, repair_ticks, self.executor, self._view())
+
+    def add_orders(self, orders: list) -> None:
+        """Add orders now (on demand, e.g. from the live view); they are pending from this
+        tick on, like the stream's own arrivals."""
+        self.world.add_orders(list(orders))
 
     def repair(self, agv_id: int) -> None:
         """Repair a failed AGV now; its corridor closes."""
@@ -112,6 +120,7 @@ class Simulation:
         t2 = time.perf_counter()
         report = self.executor.step(self._view())
         self._apply_report(report)
+        self.last_report = report
         w.tick += 1
         self._follow_up(report.blocked)
         self._replan_now(report.replan)

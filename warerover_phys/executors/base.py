@@ -100,6 +100,11 @@ class StepReport:
     depth)`` hits (the failed AGV of a corridor is never listed for its own corridor)."""
     intrusion_unit: str = "m"
     """Unit of the depths: ``m`` (physics) or ``cells`` (grid)."""
+    poses: np.ndarray | None = None
+    """Continuous poses at the end of the tick, (N, 3): x, y (metres), heading (radians);
+    None for executors without continuous bodies (grid)."""
+    speeds: np.ndarray | None = None
+    """Body speeds at the end of the tick, (N,) m/s (None on the grid)."""
 
 
 @runtime_checkable

@@ -8,11 +8,10 @@ interface, this module is the only one to adapt.
 
 What it reads of the core (the list to check when the core changes): ``Simulation(scenario,
 seed)``, ``.step()``, ``.done``, ``.fail()`` / ``.repair()``, ``.planned``, ``.actual``,
-``.executor`` (``.io.read()`` and ``._bound`` of the physics executor for live poses and
-speeds, ``.trajectory()``); ``world.agvs`` (``id``, ``type_name``, ``spec``, ``k``, ``pos``,
+``.last_report.poses`` (continuous poses on physics), ``.executor.trajectory()``; ``world.agvs`` (``id``, ``type_name``, ``spec``, ``k``, ``pos``,
 ``state``, ``loaded``, ``trip``, ``standing``, ``node``, ``ticks_per_move``,
 ``blocked_ticks``), ``world.layout``, ``world.tick``, ``world.status``,
-``world.completed_tick``, ``world.orders``, ``world.add_orders()``, ``world.corridors``,
+``world.completed_tick``, ``world.orders``, ``Simulation.add_orders()``, ``world.corridors``,
 ``world.corridor_log``, ``world.fault_stats``, ``world.events``, ``world.goal_of()``,
 ``world.cell()``, ``world.reservations.paths``; ``config.load_scenario`` /
 ``scenario_from_dict``; ``render.trajectory`` (``recording_from_episode``, ``_centres``).
@@ -32,7 +31,6 @@ True
 from __future__ import annotations
 
 import logging
-import math
 import threading
 import time
 from dataclasses import dataclass
@@ -240,7 +238,7 @@ class LiveSession:
                 s = int(rng.integers(len(sizes))) if sku is None else sku
                 st = int(rng.integers(len(lay.stations))) if station is None else station
                 orders.append(Order(first + i, w.tick, s, st, int(sizes[s])))
-            w.add_orders(orders)
+            self.sim.add_orders(orders)
             self.version += 1
             return [o.id for o in orders]
 
@@ -269,10 +267,10 @@ class LiveSession:
 
     def _poses(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         w = self.sim.world
-        io = getattr(self.sim.executor, "io", None)
-        if io is not None and getattr(self.sim.executor, "_bound", True):
-            pos, ang, _, _ = io.read()
-            return pos[:, 0].copy(), pos[:, 1].copy(), np.asarray(ang, dtype=float).copy()
+        report = self.sim.last_report
+        if report is not None and report.poses is not None:
+            poses = report.poses
+            return poses[:, 0].copy(), poses[:, 1].copy(), poses[:, 2].copy()
         a = np.array([g.pos[0] for g in w.agvs], dtype=np.int64)
         b = np.array([g.pos[1] for g in w.agvs], dtype=np.int64)
         xy = 0.5 * (_centres(a, self.k, self.cols, self.cell_m)
@@ -352,11 +350,10 @@ class LiveSession:
             self._check_agv(agv_id)
             w = self.sim.world
             agv = w.agvs[agv_id]
-            ex = self.sim.executor
+            report = self.sim.last_report
             speed = 0.0
-            if hasattr(ex, "io") and getattr(ex, "_bound", True):
-                _, _, vel, _ = ex.io.read()
-                speed = float(math.hypot(*np.asarray(vel)[agv_id][:2]))
+            if report is not None and report.speeds is not None:
+                speed = float(report.speeds[agv_id])
             elif not agv.standing:
                 speed = self.cell_m / float(self.scenario.tick_s) / max(1, agv.ticks_per_move)
             trip = None
@@ -401,12 +398,10 @@ class LiveSession:
 
         with self.lock:
             sim = self.sim
-            traj = getattr(sim.executor, "trajectory", None)
-            bound = getattr(sim.executor, "_bound", True)
             result = EpisodeResult(
                 metrics={}, events=list(sim.world.events), planned=list(sim.planned),
                 actual={k: list(v) for k, v in sim.actual.items()}, world=sim.world,
-                trajectory=traj() if traj is not None and bound else None)
+                trajectory=sim.executor.trajectory())
             return recording_from_episode(result)
 
     def agv_at(self, x: float, y: float) -> int | None:

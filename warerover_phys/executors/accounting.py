@@ -1,0 +1,270 @@
+"""The physics executor's contact and clearance accounting, and its recordings.
+
+- contacts come from pymunk collision handlers: AGV-AGV, AGV-obstacle, and a loaded AGV
+  against a shelf other than its own (shelves are sensors);
+- the minimum centre-to-edge separation between AGVs is sampled every tick, over the pairs
+  a k-d tree finds near each other;
+- a swept segment query catches any body that moves farther than half its width in one
+  physics step (tunnelling);
+- open safety corridors are checked with fcl every step;
+- delay shares (dependency waits, injected delays, turns, kinematic lag) are summed per step;
+- poses are recorded at ``trajectory_hz`` into a :class:`~.recording.TrajectoryStore`.
+
+:meth:`Accounting.summary` gives the figures for ``metrics.json`` and
+:meth:`Accounting.trajectory` the recorded poses.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .bodies import AGV, OBSTACLE, SHELF
+from .fleet_state import DRIVE, HOLD, TURN, FleetState
+from .recording import TrajectoryStore
+
+if TYPE_CHECKING:
+    import pymunk
+
+    from ..layout import Layout
+    from .adg import Action, ActionGraph
+    from .base import TickView
+    from .bodies import BodyIO, PhysicalFleet
+
+__all__ = ["Accounting"]
+
+
+def _point_to_box(p: np.ndarray, centre: np.ndarray, angle: np.ndarray,
+                  half: np.ndarray) -> np.ndarray:
+    """Signed distance from points ``p`` (M, 2) to boxes (centre, angle, half sizes):
+    positive outside, negative inside (minus the depth to the nearest edge)."""
+    rel = p - centre
+    c, s = np.cos(angle), np.sin(angle)
+    local = np.abs(np.stack([c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1]],
+                            axis=1)) - half
+    outside = np.linalg.norm(np.maximum(local, 0.0), axis=1)
+    inside = np.minimum(local.max(axis=1), 0.0)
+    return outside + inside
+
+
+class Accounting:
+    """Counters, per-tick outputs (events, intrusion checks) and the pose recording."""
+
+    def __init__(self, st: FleetState, space: pymunk.Space, fleet: PhysicalFleet, io: BodyIO,
+                 adg: ActionGraph, layout: Layout, shelf_of: dict[int, int],
+                 trajectory_hz: float) -> None:
+        n = st.n
+        self.st, self.space, self.fleet, self.io, self.adg = st, space, fleet, io, adg
+        self.layout = layout
+        self._shelf_of = shelf_of
+        self._agv_of_shape = {id(s): i for i, s in enumerate(fleet.shapes)}
+        self.view: TickView | None = None
+        # per tick
+        self.events: list[tuple[str, dict]] = []
+        self.intrusion_checks: list[list[tuple[int, int, float]]] = []
+        self.tick_agv_contacts = 0
+        # corridors
+        self._corridor_keys: tuple[int, ...] = ()
+        self._checker = None
+        # figures
+        self.wall_s = 0.0
+        self.steps = 0
+        self.agv_contacts = 0
+        self.static_contacts = 0
+        self.min_sep = math.inf
+        self.deadlocks = 0
+        self.replans_asked = 0
+        self.deviations = 0
+        self.swept_checks = 0
+        self.swept_hits = 0
+        self.dep_wait = np.zeros(n)
+        self.injected = np.zeros(n)
+        self.turn_time = np.zeros(n)
+        self.kin_lag: list[float] = []
+        self._act_start = np.zeros(n)
+        self._act_planned = np.zeros(n)
+        self._act_injected = np.zeros(n)
+        self.actions_done = 0
+        self._active = 0
+        # trajectories
+        self._traj_every = max(1, round(1.0 / (trajectory_hz * st.dt)))
+        self._traj = TrajectoryStore(n)
+        self._install_handlers()
+
+    def _install_handlers(self) -> None:
+        def agv_agv(arbiter, space, data) -> None:
+            self.agv_contacts += 1
+            self.tick_agv_contacts += 1
+            a, b = (self._agv_of_shape[id(s)] for s in arbiter.shapes)
+            self.events.append(("contact", {
+                "agvs": sorted((a, b)), "t_s": round(self.st.sim_s, 3),
+                "states": [list(self.adg.state(a)), list(self.adg.state(b))]}))
+
+        def agv_static(arbiter, space, data) -> None:
+            self.static_contacts += 1
+            shape = next(s for s in arbiter.shapes if s.collision_type == AGV)
+            self.events.append(("static_contact", {
+                "agv": self._agv_of_shape[id(shape)], "t_s": round(self.st.sim_s, 3)}))
+
+        def agv_shelf(arbiter, space, data) -> None:
+            a, b = arbiter.shapes
+            agv_shape, shelf_shape = (a, b) if a.collision_type == AGV else (b, a)
+            i = self._agv_of_shape[id(agv_shape)]
+            shelf = self._shelf_of.get(id(shelf_shape))
+            carried = self.view.carried[i] if self.view is not None else None
+            if carried is not None and shelf != carried:
+                self.static_contacts += 1
+
+        self.space.on_collision(AGV, AGV, begin=agv_agv)
+        self.space.on_collision(AGV, OBSTACLE, begin=agv_static)
+        self.space.on_collision(AGV, SHELF, begin=agv_shelf)
+
+    # ------------------------------------------------------------------------- per tick
+
+    def begin_tick(self, view: TickView) -> None:
+        self.view = view
+        self.events, self.intrusion_checks = [], []
+        self.tick_agv_contacts = 0
+
+    def sync_corridors(self, corridors: dict) -> None:
+        """Open corridors go to the fcl checker (built on the first one)."""
+        keys = tuple(sorted(corridors))
+        if keys != self._corridor_keys:
+            self._corridor_keys = keys
+            if keys:
+                if self._checker is None:
+                    from ..faults.intrusion import IntrusionChecker
+
+                    self._checker = IntrusionChecker(self.fleet.half_size)
+                self._checker.set_corridors([corridors[k] for k in keys])
+
+    # ------------------------------------------------------------------------- actions
+
+    def action_begun(self, i: int, a: Action, t: float) -> None:
+        self._act_start[i] = t
+        self._act_planned[i] = a.ticks * self.st.tick_s
+        self._act_injected[i] = 0.0
+
+    def action_done(self, i: int, t: float) -> None:
+        self.actions_done += 1
+        self.kin_lag.append(t - self._act_start[i] - self._act_injected[i] - self._act_planned[i])
+
+    # ------------------------------------------------------------------------- per step
+
+    def after_step(self, raw: np.ndarray, raw_ang: np.ndarray, injected: np.ndarray) -> None:
+        """Sum the step's delay shares, run the swept and corridor checks (on the poses
+        before the step) and record poses when due."""
+        st = self.st
+        self.steps += 1
+        busy = (st.mode != HOLD) | st.waiting
+        self.dep_wait += st.waiting * st.dt
+        self.injected += (injected & (busy | st.pending)) * st.dt
+        self.turn_time += (st.mode == TURN) * st.dt
+        self._active += int(np.count_nonzero(st.mode != HOLD))
+        self._act_injected += (injected & (st.mode == DRIVE)) * st.dt
+        self._swept_check(raw)
+        if self._corridor_keys:
+            self._check_corridors(raw, raw_ang)
+        if self.steps % self._traj_every == 0:
+            self._record()
+
+    def _swept_check(self, prev: np.ndarray) -> None:
+        """Bodies that moved farther than half their width in one step: look along the
+        swept segment for anything they may have passed through."""
+        if not self._need_swept():
+            return
+        pos = np.array([b.position for b in self.fleet.bodies])
+        step = np.linalg.norm(pos - prev, axis=1)
+        import pymunk
+
+        for i in np.flatnonzero(step > self.fleet.half_size.min(axis=1)):
+            self.swept_checks += 1
+            me = self.fleet.shapes[i]
+            hits = self.space.segment_query(tuple(prev[i]), tuple(pos[i]), 0.0,
+                                            pymunk.ShapeFilter())
+            if any(h.shape is not me and h.shape is not None and not h.shape.sensor
+                   for h in hits):
+                self.swept_hits += 1
+
+    def _need_swept(self) -> bool:
+        """Cheap bound: no body can move farther than v_max x headroom x dt."""
+        return bool((self.st.vmax * 2.0 * self.st.dt > self.fleet.half_size.min(axis=1)).any())
+
+    def _check_corridors(self, pos: np.ndarray, ang: np.ndarray) -> None:
+        """fcl check of every AGV body against the open corridors' protected zones."""
+        poses = np.column_stack([pos, ang])
+        skip = {c.agv for c in self.view.corridors.values()}
+        self.intrusion_checks.append(
+            [(h.agv, h.corridor, h.depth_m) for h in self._checker.check(poses, skip)])
+
+    def min_separation(self, pos: np.ndarray, ang: np.ndarray) -> None:
+        """Smallest centre-to-edge distance between two AGVs (negative: overlap), over the
+        pairs a k-d tree finds near each other, in closed form for rotated boxes."""
+        if self.st.n < 2:
+            return
+        from scipy.spatial import cKDTree
+
+        half = self.fleet.half_size
+        reach = float(np.linalg.norm(half, axis=1).max()) * 2 + 0.5
+        pairs = cKDTree(pos).query_pairs(reach, output_type="ndarray")
+        if len(pairs) == 0:
+            return
+        i, j = pairs[:, 0], pairs[:, 1]
+        d = np.minimum(_point_to_box(pos[i], pos[j], ang[j], half[j]),
+                       _point_to_box(pos[j], pos[i], ang[i], half[i]))
+        self.min_sep = min(self.min_sep, float(d.min()))
+
+    def _record(self) -> None:
+        pos, ang, _, _ = self.io.read()
+        view, n = self.view, self.st.n
+        if view is None:
+            state, loaded = np.zeros(n, dtype=np.int8), np.zeros(n, dtype=bool)
+        else:
+            state = np.array(view.task_state, dtype=np.int8)
+            loaded = np.array(view.loaded, dtype=bool)
+        self._traj.append(self.st.sim_s, pos, ang, state, loaded)
+
+    # ------------------------------------------------------------------------- results
+
+    def summary(self) -> dict[str, Any]:
+        """Executor figures for ``metrics.json`` (seconds of simulated time unless noted)."""
+        st = self.st
+        lag = np.array(self.kin_lag) if self.kin_lag else np.zeros(1)
+        return {
+            "agv_contacts": self.agv_contacts,
+            "static_contacts": self.static_contacts,
+            "min_separation_m": float(self.min_sep) if math.isfinite(self.min_sep) else None,
+            "deadlocks": self.deadlocks,
+            "executor_replans": self.replans_asked,
+            "deviations": self.deviations,
+            "swept_checks": self.swept_checks,
+            "swept_hits": self.swept_hits,
+            "actions_executed": self.actions_done,
+            "delay_dependency_wait_s": float(self.dep_wait.sum()),
+            "delay_kinematic_s": float(lag.sum() + self.turn_time.sum()),
+            "delay_turns_s": float(self.turn_time.sum()),
+            "delay_injected_s": float(self.injected.sum()),
+            "kinematic_lag_mean_s": float(lag.mean()),
+            "physics_dt_s": st.dt,
+            "physics_steps": self.steps,
+            "moving_share": self._active / max(1, self.steps * st.n),
+            "real_time_factor": st.sim_s / self.wall_s if self.wall_s > 0 else 0.0,
+        }
+
+    def trajectory(self) -> dict[str, np.ndarray]:
+        """Recorded poses (see :meth:`.physics.PhysicsExecutor.trajectory`); long recordings
+        come back as read-only memory maps of the files they were streamed to."""
+        if len(self._traj) == 0:
+            self._record()
+        out = self._traj.arrays()
+        st = self.st
+        out.update({
+            "footprint": st.k.copy(),
+            "body_m": self.fleet.half_size * 2,
+            "cell_m": np.array(st.cell_m),
+            "tick_s": np.array(st.tick_s),
+            "grid": self.layout.grid.copy(),
+        })
+        return out

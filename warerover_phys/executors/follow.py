@@ -1,0 +1,322 @@
+"""Following the dependency graph: which action each AGV drives, and when it may start.
+
+:class:`PlanFollower` hands every new or changed committed plan to the
+:class:`~.adg.ActionGraph` (commit cut: the AGV keeps the action it is driving, the rest is
+replaced), draws the tick's random delays, and per physics step
+
+- finishes actions whose reference and body have reached the target cell;
+- looks ahead of driving AGVs and pushes their stop point to the end of the released
+  collinear run (claiming those actions in the ADG);
+- turns standing differential-drive AGVs towards their next move, and starts it once the
+  ADG says its cells are free (or, with ``adg: false``, at its planned tick: naive
+  time-indexed following, for comparison).
+
+At the end of a tick it reports each AGV's discrete state, how far behind it is, blocked
+AGVs and AGVs to replan (dependency deadlock, deviation from the path, a plan that did not
+fit the commit cut).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..planning.base import TimedPath
+from .bodies import cell_centre
+from .control import ALIGN_EPS_RAD, ARRIVE_EPS_M, TURN_EPS_RAD, wrap
+from .fleet_state import DRIVE, HOLD, TURN, FleetState
+
+if TYPE_CHECKING:
+    from ..config import ExecutorSpec
+    from .accounting import Accounting
+    from .adg import Action, ActionGraph
+    from .base import StepReport, TickView
+
+__all__ = ["LOOKAHEAD", "DECIDE_EVERY", "PlanFollower"]
+
+LOOKAHEAD = 8
+"""Actions looked at (and claimed) ahead of a driving AGV."""
+DECIDE_EVERY = 5
+"""Physics steps between checks of standing AGVs (may they start their next action?)."""
+
+
+class PlanFollower:
+    """Drives the fleet's references through the ADG's actions (see the module docstring)."""
+
+    def __init__(self, st: FleetState, adg: ActionGraph, spec: ExecutorSpec,
+                 rng: np.random.Generator, acc: Accounting) -> None:
+        self.st, self.adg, self.spec, self.rng, self.acc = st, adg, spec, rng, acc
+        self._synced: dict[int, TimedPath | None] = {i: None for i in range(st.n)}
+        self._resync: set[int] = set()
+        """AGVs whose new plan did not fit their commit cut: replanned once they stand."""
+        self._cycles_seen: set[frozenset[int]] = set()
+
+    # ------------------------------------------------------------------------- per tick
+
+    def sync_plans(self, view: TickView) -> None:
+        paths = view.plans
+        for i in range(self.st.n):
+            path = paths.get(i)
+            if path is None or path is self._synced[i]:
+                continue
+            self._synced[i] = path
+            cut = self._cut(i, path)
+            node = cut.states[0][0]
+            if all(a == b == node for a, b in cut.states) and self.synced_once(i) \
+                    and self.adg.next_action(i) is None:
+                continue  # a plan to stay where it will stop anyway: nothing changes
+            self.adg.set_plan(i, cut)
+            self.st.has_next[i] = self.adg.next_action(i) is not None
+
+    def _cut(self, i: int, path: TimedPath) -> TimedPath:
+        """The part of ``path`` from where the AGV will stand after its current action."""
+        if self.synced_once(i):
+            node = self.adg.cut_node(i)
+        else:
+            node = path.states[0][0]
+        for j, (a, b) in enumerate(path.states):
+            if a == b == node:
+                return TimedPath(i, path.start_tick + j, path.states[j:])
+        # The plan does not pass where the AGV will stop (it was made from a stale view):
+        # stop there and ask for a new plan.
+        self._resync.add(i)
+        return TimedPath(i, path.start_tick, ((node, node),))
+
+    def synced_once(self, i: int) -> bool:
+        """Whether AGV ``i`` has had a plan handed to the ADG."""
+        try:
+            self.adg.state(i)
+        except KeyError:
+            return False
+        return True
+
+    def draw_delays(self) -> list[tuple[str, dict]]:
+        """Start this tick's random delays (``executor.delays``); returns their events."""
+        d = self.spec.delays
+        if d.model == "none" or d.prob <= 0:
+            return []
+        st, rng = self.st, self.rng
+        if d.model == "bernoulli":
+            events = rng.random(st.n) < d.prob
+        else:
+            events = rng.poisson(d.prob, st.n) > 0
+        if d.duration == "uniform":
+            ticks = rng.integers(d.min_ticks, d.max_ticks + 1, st.n)
+        else:
+            ticks = np.clip(np.rint(rng.normal(d.mean_ticks, d.std_ticks, st.n)),
+                            d.min_ticks, d.max_ticks)
+        start = events & (st.delayed_until <= st.sim_s)
+        st.delayed_until[start] = st.sim_s + ticks[start] * st.tick_s
+        return [("delay", {"agv": int(i), "ticks": int(ticks[i])}) for i in np.flatnonzero(start)]
+
+    def sync_failed(self, failed: frozenset[int]) -> None:
+        """Failed AGVs brake and start nothing."""
+        self.st.failed = np.zeros(self.st.n, dtype=bool)
+        self.st.failed[list(failed)] = True
+
+    # ------------------------------------------------------------------------- per step
+
+    def advance(self, pos: np.ndarray, ang: np.ndarray, delayed: np.ndarray,
+                decide: bool) -> None:
+        """Finish, extend, turn and start actions for bodies at ``pos`` / ``ang`` (the poses
+        they will have after this step's move); ``decide`` on every
+        :data:`DECIDE_EVERY` th step."""
+        st = self.st
+        t = st.sim_s
+        along = st.along(pos)
+        driving = st.mode == DRIVE
+        # Arrived at the action's target: the reference has reached it and the body is
+        # within ARRIVE_EPS_M of it (or past it).
+        for i in np.flatnonzero(driving & (st.s_ref >= st.cur_end - 1e-9)
+                                & (along >= st.cur_end - ARRIVE_EPS_M)):
+            self._arrive(int(i), t)
+        if decide:
+            # Look further ahead for AGVs that would otherwise start braking before the
+            # next look (the margin covers two decision intervals).
+            driving = st.mode == DRIVE
+            brake = st.speed ** 2 / (2 * st.amax) + 2 * st.vmax * st.dt * DECIDE_EVERY
+            for i in np.flatnonzero(driving & ~delayed & (st.stop_s - along < brake + 0.05)):
+                self._extend(int(i))
+            st.waiting[:] = False
+            for i in np.flatnonzero((st.mode != DRIVE) & st.has_next):
+                self._decide(int(i), t, bool(delayed[i]), float(ang[i]))
+        turning = st.mode == TURN
+        if turning.any():
+            aligned = turning & (st.ang_ref == st.heading) & (
+                np.abs(wrap(st.heading - ang)) < ALIGN_EPS_RAD)
+            for i in np.flatnonzero(aligned):
+                st.mode[i] = HOLD
+                self._decide(int(i), t, bool(delayed[i]), float(ang[i]))
+
+    def _decide(self, i: int, t: float, delayed: bool, angle: float) -> None:
+        """A standing (or turning) AGV: turn towards its next move, then start it once the
+        ADG allows it (or its planned tick has come, without the ADG)."""
+        st = self.st
+        nxt = self.adg.next_action(i)
+        if nxt is None:
+            return
+        if not st.omni[i]:
+            want = math.atan2(nxt.direction[0], nxt.direction[1])
+            if abs(wrap(want - angle)) >= TURN_EPS_RAD:
+                if not delayed:
+                    st.heading[i] = want
+                    st.mode[i] = TURN
+                else:
+                    st.mode[i] = HOLD
+                return
+        if delayed:
+            return
+        if self.spec.adg:
+            if not self.adg.ready(i):
+                st.waiting[i] = True
+                return
+        elif t + 1e-9 < nxt.tick * st.tick_s:
+            return
+        self._start(i, t)
+
+    def _start(self, i: int, t: float) -> None:
+        st = self.st
+        a = self.adg.start(i) if self.spec.adg else self._force_start(i)
+        x, y = cell_centre(a.src, st.k[i], st.cols, st.cell_m)
+        st.origin[i] = (x, y)
+        st.direction[i] = (a.direction[1], a.direction[0])
+        st.cur_end[i] = st.cell_m
+        st.stop_s[i] = st.cell_m
+        st.mode[i] = DRIVE
+        st.speed[i] = 0.0
+        st.s_ref[i] = 0.0
+        self._begin_action(i, a, t)
+        self._extend(i)
+
+    def _force_start(self, i: int) -> Action:
+        """Naive following: start the next action whatever its dependencies say."""
+        return self.adg.start(i, force=True)
+
+    def _begin_action(self, i: int, a: Action, t: float) -> None:
+        self.st.has_next[i] = self.adg.next_action(i) is not None
+        self.acc.action_begun(i, a, t)
+
+    def _extend(self, i: int) -> None:
+        """Push the stop point to the end of the released collinear run ahead."""
+        st = self.st
+        cur = self.adg.current(i)
+        if cur is None:
+            return
+        run = 0
+        if self.spec.adg:
+            ahead = self.adg.released(i, LOOKAHEAD)
+        else:
+            limit = (st.sim_s / st.tick_s) + 1
+            ahead = [a for a in self.adg.upcoming(i, LOOKAHEAD) if a.tick <= limit]
+        for a in ahead:
+            if a.direction != cur.direction:
+                break
+            run += 1
+        if self.spec.adg and run:
+            # Committed: no later plan may put another AGV ahead of it on these cells.
+            self.adg.claim(i, run)
+        st.stop_s[i] = st.cur_end[i] + run * st.cell_m
+
+    def _arrive(self, i: int, t: float) -> None:
+        st = self.st
+        done = self.adg.finish(i)
+        st.last_finish[i] = t
+        self.acc.action_done(i, t)
+        nxt = self.adg.next_action(i)
+        if nxt is not None and nxt.direction == done.direction and not st.failed[i] and \
+                st.stop_s[i] > st.cur_end[i] + ARRIVE_EPS_M:
+            a = self.adg.start(i) if self.spec.adg and self.adg.ready(i) else (
+                None if self.spec.adg else self._force_start(i))
+            if a is not None:
+                st.cur_end[i] += st.cell_m
+                self._begin_action(i, a, t)
+                return
+        st.mode[i] = HOLD
+        self.adg.unclaim(i)  # it stops here: claims further on are stale
+        st.hold_xy[i] = cell_centre(done.dst, st.k[i], st.cols, st.cell_m)
+        st.stop_s[i] = st.cur_end[i]
+
+    # ------------------------------------------------------------------------- back to the grid
+
+    def write_back(self, view: TickView, pos: np.ndarray, report: StepReport) -> None:
+        """Fill ``report`` with every AGV's discrete state, lateness, blocked AGVs and AGVs
+        to replan (deviation from the path line, stale plans, dependency deadlocks)."""
+        st, acc = self.st, self.acc
+        tick_next = view.tick + 1
+        pending = np.zeros(st.n, dtype=bool)
+        for i in range(st.n):
+            report.states[i] = self.adg.state(i)
+            nxt = self.adg.next_action(i)
+            cur = self.adg.current(i)
+            pending[i] = nxt is not None
+            late = (nxt is not None and cur is None and nxt.tick < tick_next) or (
+                cur is not None and cur.tick + cur.ticks < tick_next)
+            report.behind[i] = 1 if late else 0
+            if st.waiting[i]:
+                report.blocked.append(i)
+            if st.mode[i] == DRIVE:
+                rel = pos[i] - st.origin[i]
+                normal = (-st.direction[i, 1], st.direction[i, 0])
+                if abs(rel[0] * normal[0] + rel[1] * normal[1]) > self.spec.deviation_m:
+                    acc.deviations += 1
+                    report.replan.append(i)
+        st.pending = pending
+        for i in sorted(self._resync):
+            if i not in report.replan:
+                report.replan.append(i)
+        self._resync.clear()
+        cycles = self.adg.deadlock_cycles() if self.spec.adg else []
+        seen = set()
+        for cyc in cycles:
+            key = frozenset(cyc)
+            seen.add(key)
+            if key not in self._cycles_seen:
+                acc.deadlocks += 1
+                report.events.append(("deadlock", {"agvs": sorted(cyc)}))
+            report.replan.extend(i for i in cyc if i not in report.replan)
+        self._cycles_seen = seen
+        acc.replans_asked += len(report.replan)
+        report.replan.sort()
+
+    # ------------------------------------------------------------------------- fault hooks
+
+    def remaining(self, i: int) -> list[tuple[int, int]]:
+        """What AGV ``i`` still has to drive, as states (running action, then the rest)."""
+        if not self.synced_once(i):
+            return []
+        out = []
+        cur = self.adg.current(i)
+        if cur is not None:
+            out.append((cur.src, cur.dst))
+        out += [(a.src, a.dst) for a in self.adg.upcoming(i)]
+        return out
+
+    def stop_short(self, i: int, cells: frozenset[int], view: TickView) -> tuple[bool, bool]:
+        """A corridor opened over ``cells``: stop AGV ``i`` as soon as its braking distance
+        allows (its later claims are given back). Returns ``(True, enters)``: enters is True
+        if the part it can no longer drop (running and still claimed actions) enters
+        ``cells``. Before its first plan reaches it, the loop cuts the path instead."""
+        if not self.synced_once(i):
+            return False, False
+        st = self.st
+        committed = []
+        cur = self.adg.current(i)
+        if cur is not None:
+            committed.append(cur)
+            keep = 0
+            if st.mode[i] == DRIVE:
+                brake = st.speed[i] ** 2 / (2 * st.amax[i])
+                over = st.s_ref[i] + brake - st.cur_end[i]
+                keep = max(0, math.ceil(over / st.cell_m - 1e-9))
+            claimed = self.adg.claimed(i)
+            kept = claimed[:keep]
+            self.adg.unclaim(i, len(kept))
+            committed += kept
+            st.stop_s[i] = min(st.stop_s[i], st.cur_end[i] + len(kept) * st.cell_m)
+        # Drop everything after the stop (a new plan comes once it stands there).
+        node = self.adg.cut_node(i)
+        self.adg.set_plan(i, TimedPath(i, view.tick, ((node, node),)))
+        st.has_next[i] = self.adg.next_action(i) is not None
+        return True, any(cells.intersection(a.enters) for a in committed)
