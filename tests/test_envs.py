@@ -201,3 +201,131 @@ def test_docstring_examples(module):
 
     result = doctest.testmod(importlib.import_module(module))
     assert result.attempted > 0 and result.failed == 0
+
+
+# ----------------------------------------------------------------------------- executors
+# The same environments on a real executor (issue 19): the rules choose the intended next
+# cells, the executor's report decides what happened. Kept small: 8 agents, few steps.
+
+
+def test_physics_check_env_and_parallel_api_test():
+    check_env(MAPFGymEnv(small(), num_agents=8, max_steps=20, executor="physics"),
+              skip_render_check=True)
+    check_env(MAPFGymEnv(small(), num_agents=8, others="wait", max_steps=20,
+                         executor="physics"), skip_render_check=True)
+    parallel_api_test(parallel_env(small(), num_agents=8, max_steps=20, executor="physics"),
+                      num_cycles=25)
+
+
+def _physics_episode(seed: int, steps: int = 30):
+    env = parallel_env(small(), num_agents=8, max_steps=steps, executor="physics")
+    obs, _ = env.reset(seed=seed)
+    rng = np.random.default_rng(7)
+    record = [np.stack(list(obs.values()))]
+    states = [env.core.states()]
+    while env.agents:
+        acts = {a: int(rng.integers(5)) for a in env.agents}
+        obs, rew, term, trunc, info = env.step(acts)
+        record += [np.stack(list(obs.values())), np.array(list(rew.values())),
+                   np.array([[i["blocked"], i["in_transit"], i["on_goal"]]
+                             for i in info.values()])]
+        states.append(env.core.states())
+        assert env.core.report is not None and env.core.report.states == states[-1]
+    return record, states, env
+
+
+def test_physics_same_seed_same_episode():
+    (a, sa, _), (b, sb, _) = _physics_episode(5), _physics_episode(5)
+    assert sa == sb and len(a) == len(b)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+    _, sc, _ = _physics_episode(6)
+    assert sc != sa
+
+
+def test_physics_moves_are_executed_safely_and_never_faster_than_a_cell_per_step():
+    _, states, env = _physics_episode(3, steps=60)
+    core = env.core
+    cols = core.cols
+    traj = {i: [s[i] for s in states] for i in range(core.num_agents)}
+    conflicts = [c for c in validate_states(traj, ~core.free) if c.kind != "move"]
+    assert conflicts == []
+    assert core.collisions == 0
+    moves = transit = 0
+    for seq in traj.values():
+        for (a0, b0), (a1, b1) in zip(seq, seq[1:], strict=False):
+            for u, v in ((a0, a1), (b0, b1), (a0, b1)):  # at most one cell per step
+                (ru, cu), (rv, cv) = divmod(u, cols), divmod(v, cols)
+                assert abs(ru - rv) + abs(cu - cv) <= 1
+            assert a1 in (a0, b0)  # it stands, or leaves, the cell it stood on / moved to
+            if a0 == b0 and a1 == b1 != a0:
+                raise AssertionError("a 1 m/s AGV crossed a 1 m cell within one 1 s step")
+            moves += a1 != a0
+            transit += a1 != b1
+    assert moves > 10 and transit > 10  # the agents did move, and moves take > 1 step
+
+
+def test_physics_in_transit_actions_wait_and_rotations_are_cancelled():
+    obstacles = np.zeros((3, 4), dtype=bool)
+    inst = Instance(obstacles, ((1, 0),), ((1, 3),))
+    env = parallel_env(inst, num_agents=1, max_steps=20, executor="physics")
+    env.reset(seed=0)
+    _, _, _, _, info = env.step({"agv_0": 4})  # right: it starts, 1 m takes over 1 s
+    assert info["agv_0"]["in_transit"] and env.core.states()[0] == (4, 5)
+    assert env.core.paths() == [(1, 0)]  # observed at the cell it leaves
+    _, _, _, _, info = env.step({"agv_0": 3})  # left: ignored while in transit
+    assert not info["agv_0"]["blocked"]
+    assert env.core.states()[0] == (5, 5) and env.core.paths() == [(1, 1)]
+    # Four agents turning a 2x2 block: the grid rules allow it, a real executor cannot.
+    starts, goals = ((0, 0), (0, 1), (1, 1), (1, 0)), ((0, 1), (1, 1), (1, 0), (0, 0))
+    turn = np.array([4, 2, 3, 1])
+    grid = GridMAPF(Instance(obstacles, starts, goals), EnvConfig(num_agents=4))
+    grid.reset(np.random.default_rng(0))
+    grid.step(turn)
+    assert grid.paths() == list(goals)
+    phys = GridMAPF(Instance(obstacles, starts, goals),
+                    EnvConfig(num_agents=4, executor="physics"))
+    phys.reset(np.random.default_rng(0))
+    _, _, blocked, _, _ = phys.step(turn)
+    assert phys.paths() == list(starts) and blocked.all()
+    # An open chain is allowed (following): the executor starts each agent once the one
+    # ahead has left its cell; the others wait (blocked) and ask again.
+    chain = np.array([4, 2, 3, 2])
+    _, _, blocked, _, _ = phys.step(chain)
+    assert blocked.tolist() == [True, True, True, False]
+    assert phys.states()[3] == (4, 8)
+    want = [1, 5, 4, 8]
+    for _ in range(16):
+        if phys.states() == {i: (v, v) for i, v in enumerate(want)}:
+            break
+        phys.step(np.where(phys.pos == want, 0, chain))
+    assert phys.states() == {i: (v, v) for i, v in enumerate(want)}
+
+
+def test_grid_executor_through_the_protocol_matches_the_rules():
+    """The registry's grid executor, driven through the Executor Protocol, moves every agent
+    exactly as the built-in rules (no rotation happens in this episode)."""
+    def run(executor):
+        env = parallel_env(small(), num_agents=6, max_steps=40, executor=executor)
+        env.reset(seed=2)
+        rng = np.random.default_rng(11)
+        out = [env.core.paths()]
+        while env.agents:
+            env.step({a: int(rng.integers(5)) for a in env.agents})
+            out.append(env.core.paths())
+        return out
+
+    assert run("grid") == run("warerover_phys.executors.grid:GridExecutor")
+
+
+def test_executor_option_errors():
+    with pytest.raises(ValueError, match="executor"):
+        EnvConfig(executor="")
+    from warerover_phys.errors import ScenarioError
+
+    with pytest.raises(ScenarioError, match="unknown executor"):
+        GridMAPF(small(), EnvConfig(num_agents=2, executor="nosuch"))
+    from warerover_phys.config import ExecutorSpec
+
+    core = GridMAPF(small(), EnvConfig(num_agents=2, executor=ExecutorSpec(name="physics")))
+    core.reset(np.random.default_rng(0))
+    assert core.executor.name == "physics"

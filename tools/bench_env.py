@@ -5,8 +5,13 @@ out, observations included) with random actions; the PettingZoo parallel API (di
 random actions; and the learned policy + PIBT shield choosing every action
 (:class:`warerover_phys.envs.LearnedDriver`, inference included). One BLAS thread.
 
+``--executor physics`` (or any executor name) runs the same three on that executor: the
+rules pick the intended cells, the executor carries them out (one 1 s tick per step, pymunk
+bodies for ``physics``); the figures then include the executor's time.
+
     PYTHONPATH=. .venv/bin/python tools/bench_env.py
     PYTHONPATH=. .venv/bin/python tools/bench_env.py --agents 64 --steps 200
+    PYTHONPATH=. .venv/bin/python tools/bench_env.py --executor physics --agents 16 --steps 200
 """
 
 from __future__ import annotations
@@ -28,8 +33,9 @@ ROOT = Path(__file__).resolve().parents[1]
 MAP = ROOT / "tests" / "data" / "random-32-32-10.map"
 
 
-def bench_core(inst, n, steps, lifelong=True):
-    core = GridMAPF(inst, EnvConfig(num_agents=n, max_steps=10**9, lifelong=lifelong))
+def bench_core(inst, n, steps, lifelong=True, executor="grid"):
+    core = GridMAPF(inst, EnvConfig(num_agents=n, max_steps=10**9, lifelong=lifelong,
+                                    executor=executor))
     rng = np.random.default_rng(0)
     core.reset(rng)
     acts = rng.integers(0, 5, size=(steps, n))
@@ -39,10 +45,10 @@ def bench_core(inst, n, steps, lifelong=True):
     return steps / (time.perf_counter() - t0)
 
 
-def bench_parallel(inst, n, steps):
+def bench_parallel(inst, n, steps, executor="grid"):
     from warerover_phys.envs import parallel_env
 
-    env = parallel_env(inst, num_agents=n, max_steps=10**9, lifelong=True)
+    env = parallel_env(inst, num_agents=n, max_steps=10**9, lifelong=True, executor=executor)
     env.reset(seed=0)
     rng = np.random.default_rng(0)
     t0 = time.perf_counter()
@@ -51,8 +57,9 @@ def bench_parallel(inst, n, steps):
     return steps / (time.perf_counter() - t0)
 
 
-def bench_learned(inst, n, steps):
-    core = GridMAPF(inst, EnvConfig(num_agents=n, max_steps=10**9, lifelong=True))
+def bench_learned(inst, n, steps, executor="grid"):
+    core = GridMAPF(inst, EnvConfig(num_agents=n, max_steps=10**9, lifelong=True,
+                                    executor=executor))
     core.reset(np.random.default_rng(0))
     driver = LearnedDriver(core, seed=0)
     driver.reset()
@@ -67,15 +74,19 @@ def main() -> None:
     ap.add_argument("--agents", nargs="+", type=int, default=[16, 64, 256])
     ap.add_argument("--steps", type=int, default=300)
     ap.add_argument("--map", type=Path, default=MAP)
+    ap.add_argument("--executor", default="grid",
+                    help="grid (the step rules alone, default), physics, or any executor name")
     args = ap.parse_args()
     inst = Instance.from_movingai(args.map)
-    print(f"map {args.map.name}, {args.steps} steps per run, lifelong goals, one BLAS thread")
+    ex = args.executor
+    print(f"map {args.map.name}, executor {ex}, {args.steps} steps per run, lifelong goals, "
+          "one BLAS thread")
     print(f"{'agents':>6} | {'core steps/s':>12} {'agent-steps/s':>13} | "
           f"{'PettingZoo steps/s':>18} | {'learned steps/s':>15} {'agent-steps/s':>13}")
     for n in args.agents:
-        core = bench_core(inst, n, args.steps)
-        pz = bench_parallel(inst, n, args.steps)
-        learned = bench_learned(inst, n, max(20, args.steps // 3))
+        core = bench_core(inst, n, args.steps, executor=ex)
+        pz = bench_parallel(inst, n, args.steps, executor=ex)
+        learned = bench_learned(inst, n, max(20, args.steps // 3), executor=ex)
         print(f"{n:>6} | {core:>12.0f} {core * n:>13.0f} | {pz:>18.0f} | "
               f"{learned:>15.0f} {learned * n:>13.0f}", flush=True)
 

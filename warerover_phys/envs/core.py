@@ -22,12 +22,41 @@ earns nothing), ``step_penalty`` (-0.01) for ending the step off its goal, and
 Episodes: one-shot (default) ends (``terminated``) when every agent stands on its goal;
 lifelong (``lifelong=True``) gives an agent a new random goal the step it arrives and never
 terminates. Both are truncated after ``max_steps`` steps.
+
+Executors (``EnvConfig.executor``). With ``"grid"`` (the default) the rules above *are* the
+step: every move they keep happens. With ``"physics"`` or any other executor the registry
+knows (a built-in name, an entry point, ``package.module:ClassName``, or an
+:class:`~warerover_phys.config.ExecutorSpec` for its settings), the rules only turn the joint
+action into the intended next cells; those are handed to a real executor through its
+Protocol (:mod:`warerover_phys.executors.base`) as one-move committed plans, one tick
+(``tick_s`` = 1 s, 1 m cells) per step, and the executor's :class:`StepReport` decides what
+happened:
+
+- an agent standing at ``a`` (state ``(a, a)``) is at ``a``;
+- an agent moving from ``a`` to ``b`` (state ``(a, b)``) is *in transit*: it occupies both
+  cells, observations show it at ``a``, and its actions are treated as wait until it stands
+  again (``info["in_transit"]``). No other agent may enter ``b`` meanwhile (following it out
+  of ``a`` is allowed; the executor orders it);
+- rotations (agents moving round a cycle, each into the cell the next one leaves) are
+  cancelled too: a real executor has no order for them;
+- ``blocked`` (and its penalty): the agent asked to move and still stands on its cell after
+  the step, whether the rules cancelled the move or the executor did not start it (waiting
+  for a cell, turning towards the move);
+- rewards and termination use the executor's states: an agent is on its goal only while it
+  stands there.
+
+Each reset builds and binds a fresh executor; its random generator is drawn from the
+episode's, so one seed gives one episode on any executor. The default AGV is a 1x1,
+0.7 m, 1 m/s differential-drive body (``EnvConfig.agv_type`` to change it); on ``physics``
+such an AGV needs about two steps per cell.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -35,7 +64,14 @@ from ..planning.graph import UNREACHABLE, MotionGraph
 from ..planning.oneshot import grid_graph
 from ..planning.policy import ACTIONS, NUM_ACTIONS, NUM_CHANNELS, ObsGrid, observe
 
+if TYPE_CHECKING:
+    from ..config import AgvTypeSpec, ExecutorSpec
+    from ..executors.base import StepReport
+
 __all__ = ["EnvConfig", "GridMAPF", "Instance"]
+
+TICK_S = 1.0
+"""Seconds of simulated time per environment step on a real executor."""
 
 
 @dataclass(frozen=True)
@@ -51,6 +87,12 @@ class EnvConfig:
     goal_reward: float = 1.0
     step_penalty: float = -0.01
     blocked_penalty: float = -0.05
+    executor: str | ExecutorSpec = "grid"
+    """Who carries out the moves: ``"grid"`` (the step rules, applied directly), or an
+    executor of the registry (``"physics"``, an entry point, ``package.module:ClassName``),
+    by name or as an :class:`~warerover_phys.config.ExecutorSpec` (see the module doc)."""
+    agv_type: AgvTypeSpec | None = None
+    """Every agent's AGV on a real executor (default: 1x1, 0.7 m body, 1 m/s, diff drive)."""
 
     def __post_init__(self) -> None:
         if self.num_agents < 1:
@@ -59,6 +101,31 @@ class EnvConfig:
             raise ValueError(f"fov_radius must be in 1..32 (got {self.fov_radius})")
         if self.max_steps < 1:
             raise ValueError(f"max_steps must be >= 1 (got {self.max_steps})")
+        if isinstance(self.executor, str):
+            if not self.executor:
+                raise ValueError("executor must be a name (got '')")
+        else:
+            from ..config import ExecutorSpec
+
+            if not isinstance(self.executor, ExecutorSpec):
+                raise ValueError(f"executor must be a name or an ExecutorSpec (got "
+                                 f"{self.executor!r})")
+        if self.agv_type is not None:
+            from ..config import AgvTypeSpec
+
+            if not isinstance(self.agv_type, AgvTypeSpec) or self.agv_type.footprint != 1:
+                raise ValueError(f"agv_type must be an AgvTypeSpec of footprint 1 (got "
+                                 f"{self.agv_type!r})")
+
+    @property
+    def executor_spec(self) -> ExecutorSpec | None:
+        """The executor to build, or None for the step rules alone (``"grid"``)."""
+        from ..config import ExecutorSpec
+
+        spec = self.executor
+        if isinstance(spec, str):
+            return None if spec == "grid" else ExecutorSpec(name=spec)
+        return None if spec.name == "grid" else spec
 
 
 @dataclass(frozen=True, eq=False)
@@ -136,11 +203,31 @@ class GridMAPF:
             raise ValueError(f"{n} agents do not fit the {len(self.sample_nodes)} connected "
                              f"free cells of {instance.name!r}")
         self.pos = np.zeros(n, dtype=np.int64)
+        """Each agent's cell (the cell it leaves, while in transit)."""
+        self.dest = self.pos
+        """Each agent's cell after its move under way (``pos`` when standing)."""
         self.goal = np.zeros(n, dtype=np.int64)
         self.dist = np.full((n, self.rows * self.cols + 1), UNREACHABLE, dtype=np.int32)
         """Per agent, distance to its goal from every node; last column: off the grid."""
         self.t = 0
         self._rng: np.random.Generator | None = None
+        # A real executor (None: the step rules alone).
+        self.executor_spec = config.executor_spec
+        self.executor: Any = None
+        """The executor of the current episode (rebuilt by every reset)."""
+        self.report: StepReport | None = None
+        """The executor's report of the last step (None on the grid rules)."""
+        self.collisions = 0
+        """Collisions the executor reported this episode."""
+        self._plans: dict = {}
+        if self.executor_spec is not None:
+            from ..layout import CellType, Layout
+            from ..registry import resolve
+
+            resolve("executor", self.executor_spec.name)  # unknown names fail here
+            grid = np.where(obstacles, CellType.OBSTACLE, CellType.FLOOR).astype(np.int8)
+            self.layout = Layout(grid=grid, cell_m=1.0, shelves=(), stations=(), parking=(),
+                                 access_points=(), num_skus=0, name=instance.name)
 
     @property
     def num_agents(self) -> int:
@@ -170,13 +257,46 @@ class GridMAPF:
         if (self.dist[np.arange(n), self.pos] >= UNREACHABLE).any():
             raise ValueError(f"instance {inst.name!r}: a goal cannot be reached from its start")
         self.t = 0
+        self.dest = self.pos if self.executor_spec is None else self.pos.copy()
+        if self.executor_spec is not None:
+            self._bind(np.random.default_rng(int(rng.integers(2**62))))
         return self.observe()
+
+    def _bind(self, rng: np.random.Generator) -> None:
+        """Build and bind a fresh executor for the episode (every agent standing)."""
+        from ..config import AgvTypeSpec
+        from ..executors.base import AgvBody, ExecutorSetup
+        from ..planning.paths import TimedPath
+        from ..registry import build
+
+        spec = self.config.agv_type or AgvTypeSpec(body_m=(0.7, 0.7), max_speed_mps=1.0)
+        self.executor = build("executor", self.executor_spec)
+        self.executor.bind(ExecutorSetup(
+            layout=self.layout, tick_s=TICK_S, rng=rng,
+            agvs=tuple(AgvBody(i, 1, spec, (int(v), int(v))) for i, v in enumerate(self.pos))))
+        self._plans = {i: TimedPath(i, 0, ((int(v), int(v)),)) for i, v in enumerate(self.pos)}
+        self.report = None
+        self.collisions = 0
 
     def observe(self) -> np.ndarray:
         return observe(self.obs_grid, self.pos, self.goal, self.dist)
 
     def on_goal(self) -> np.ndarray:
-        return self.pos == self.goal
+        """Agents standing on their goals."""
+        if self.dest is self.pos:
+            return self.pos == self.goal
+        return (self.pos == self.goal) & (self.dest == self.pos)
+
+    def in_transit(self) -> np.ndarray:
+        """Agents moving between two cells (only on a real executor)."""
+        if self.dest is self.pos:
+            return np.zeros(self.num_agents, dtype=bool)
+        return self.dest != self.pos
+
+    def states(self) -> dict[int, tuple[int, int]]:
+        """Every agent's discrete state ``(pos, dest)``: standing at ``a`` is ``(a, a)``."""
+        return {i: (int(a), int(b)) for i, (a, b) in enumerate(zip(self.pos, self.dest,
+                                                                     strict=True))}
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool, bool]:
         """Apply one action per agent: ``(obs, rewards, blocked, terminated, truncated)``."""
@@ -187,9 +307,15 @@ class GridMAPF:
             raise ValueError(f"expected {self.num_agents} actions in 0..{NUM_ACTIONS - 1}, "
                              f"got {actions!r}")
         was_on = self.on_goal()
-        target = self._resolve(actions)
-        blocked = (actions != 0) & (target == self.pos)
-        self.pos = target
+        if self.executor is None:
+            target = self._resolve(actions)
+            blocked = (actions != 0) & (target == self.pos)
+            self.pos = self.dest = target
+        else:
+            actions = np.where(self.in_transit(), 0, actions)  # in transit: waits
+            before = self.pos
+            self._execute(self._resolve(actions))
+            blocked = (actions != 0) & (self.pos == before) & (self.dest == before)
         self.t += 1
         now_on = self.on_goal()
         rewards = (cfg.goal_reward * (now_on & ~was_on) - cfg.goal_reward * (was_on & ~now_on)
@@ -218,15 +344,60 @@ class GridMAPF:
         owner = np.full(self.rows * self.cols, -1, dtype=np.int64)
         idx = np.arange(len(target))
         owner[self.pos] = idx
+        real = self.executor is not None
+        if real:  # agents in transit keep their move; nobody else may enter its cell
+            fixed = self.in_transit()
+            target = np.where(fixed, self.dest, target)
         while True:
             moving = target != self.pos
             count = np.bincount(target, minlength=self.rows * self.cols)
             bad = moving & (count[target] > 1)
             j = owner[target]
             bad |= moving & (j >= 0) & (target[np.maximum(j, 0)] == self.pos)
+            if real:
+                bad &= ~fixed
+                if not bad.any():
+                    bad = self._rotations(target, owner, moving & ~fixed)
             if not bad.any():
                 return target
             target = np.where(bad, self.pos, target)
+
+    def _rotations(self, target: np.ndarray, owner: np.ndarray,
+                   moving: np.ndarray) -> np.ndarray:
+        """Moving agents on a cycle of moves (each enters the cell the next one leaves)."""
+        n = len(target)
+        succ = owner[target]  # the agent standing on the cell each agent enters
+        follows = moving & (succ >= 0)
+        follows &= moving[np.where(follows, succ, 0)]
+        far = np.append(np.where(follows, succ, n), n)  # no moving successor: a sink
+        for _ in range(max(1, int(n).bit_length())):  # far = next^(2^k), 2^k > n
+            far = far[far]
+        on = np.zeros(n + 1, dtype=bool)
+        on[far] = True  # what n steps reach: only cycle members (and the sink)
+        return on[:-1] & moving
+
+    def _execute(self, target: np.ndarray) -> None:
+        """Hand the intended next cells to the executor as one-move plans; take every
+        agent's state from its report."""
+        from ..executors.base import TickView
+        from ..planning.paths import TimedPath
+
+        n, t = self.num_agents, self.t
+        plans = self._plans
+        for i in np.flatnonzero(self.dest == self.pos):  # in transit: keeps its plan
+            cur, nxt = int(self.pos[i]), int(target[i])
+            plans[int(i)] = TimedPath(int(i), t, ((cur, cur), (nxt, nxt)))
+        # Plans are committed afresh every step: nobody is behind them.
+        view = TickView(tick=t, plans=MappingProxyType(dict(plans)), behind=(0,) * n,
+                        failed=frozenset(), loaded=(False,) * n, carried=(None,) * n,
+                        task_state=(0,) * n)
+        report = self.executor.step(view)
+        pos, dest = self.pos.copy(), self.dest.copy()
+        for i, (a, b) in report.states.items():
+            pos[i], dest[i] = a, b
+        self.pos, self.dest = pos, dest
+        self.collisions += int(report.collisions)
+        self.report = report
 
     def paths(self) -> list[tuple[int, int]]:
         """Current (row, col) of every agent."""

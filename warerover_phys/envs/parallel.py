@@ -4,8 +4,10 @@ Every agent observes its ``(4, 2r+1, 2r+1)`` window (see
 :mod:`warerover_phys.planning.policy`) and picks one of five actions (wait, up, down, left,
 right); rules and rewards are those of :mod:`warerover_phys.envs.core`. Agents stay in the
 episode until it ends: a one-shot episode terminates for everybody when all stand on their
-goals; any episode is truncated after ``max_steps``. ``infos[agent]`` holds ``on_goal`` and
-``blocked`` (its move was cancelled). Seeding as in Gymnasium: ``reset(seed=s)`` seeds the
+goals; any episode is truncated after ``max_steps``. ``infos[agent]`` holds ``on_goal``,
+``blocked`` (it asked to move and did not leave its cell) and ``in_transit`` (on a real
+executor, ``executor="physics"``: it is still moving between two cells, and its action is
+treated as wait until it stands). Seeding as in Gymnasium: ``reset(seed=s)`` seeds the
 episode generator, later resets without a seed continue it.
 
 >>> from warerover_phys.envs import parallel_env, Instance
@@ -58,9 +60,10 @@ class MAPFParallelEnv(ParallelEnv):
         return self._act_space
 
     def _infos(self, blocked: np.ndarray | None = None) -> dict[str, dict]:
-        on = self.core.on_goal()
+        on, moving = self.core.on_goal(), self.core.in_transit()
         return {a: {"on_goal": bool(on[i]),
-                    "blocked": bool(blocked[i]) if blocked is not None else False}
+                    "blocked": bool(blocked[i]) if blocked is not None else False,
+                    "in_transit": bool(moving[i])}
                 for i, a in enumerate(self.possible_agents)}
 
     def reset(self, seed: int | None = None, options: dict | None = None):
@@ -95,11 +98,13 @@ class MAPFParallelEnv(ParallelEnv):
         pass
 
     def state(self) -> np.ndarray:
-        """Global state: ``(3, rows, cols)`` float32 (obstacles, agents, goals)."""
+        """Global state: ``(3, rows, cols)`` float32 (obstacles, cells held by agents (both
+        cells of an agent in transit), goals)."""
         c = self.core
         out = np.zeros((3, c.rows, c.cols), dtype=np.float32)
         out[0] = ~c.free
         out[1].flat[c.pos] = 1.0
+        out[1].flat[c.dest] = 1.0
         out[2].flat[c.goal] = 1.0
         return out
 
