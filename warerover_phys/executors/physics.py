@@ -103,9 +103,11 @@ class PhysicsExecutor:
         acc.sync_corridors(view.corridors)
         for s in range(self.steps_per_tick):
             self._physics_step(decide=(s % DECIDE_EVERY == 0))
-        pos, ang, _, _ = self.io.read()
+        pos, ang, vel, _ = self.io.read()
         acc.min_separation(pos, ang)
-        report = StepReport(collisions=acc.tick_agv_contacts)
+        report = StepReport(collisions=acc.tick_agv_contacts,
+                            poses=np.column_stack([pos, ang]).astype(float),
+                            speeds=np.hypot(vel[:, 0], vel[:, 1]).astype(float))
         follow.write_back(view, pos, report)
         report.events = acc.events + report.events
         report.intrusion_checks = acc.intrusion_checks
