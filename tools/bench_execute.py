@@ -7,7 +7,7 @@ makes it instead), read, validated (conflicts and rotations, rotations repaired)
 on physics, and the executed per-tick states are checked by the independent validator.
 Each count runs in its own process so that its peak memory (max RSS) is its own.
 
-    python tools/bench_execute.py --agents 100 500 1000 --json bench_execute.json
+    python tools/bench_execute.py --agents 100 500 1000 [--dt 0.02 0.05] --json out.json
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ def make_plan(n: int, lacam3: Path | None, out: Path) -> str:
     return "warerover lacam"
 
 
-def one(n: int, plan_file: Path, solver: str) -> dict:
+def one(n: int, plan_file: Path, solver: str, dt_s: float = 0.02) -> dict:
     import numpy as np
 
     from warerover_phys.execute import (execute_plan, find_cycles, load_fleet, load_floor,
@@ -88,13 +88,14 @@ def one(n: int, plan_file: Path, solver: str) -> dict:
     t_repair = time.perf_counter() - t0
     types = load_fleet(None, plan.num_agents, None, [])
     t0 = time.perf_counter()
-    result = execute_plan(plan, layout, types, executor="physics", seed=0, repairs=repairs)
+    result = execute_plan(plan, layout, types, executor="physics", seed=0, repairs=repairs,
+                          dt_s=dt_s)
     t_exec = time.perf_counter() - t0
     blocked = np.asarray(layout.grid) == 1
     conflicts = [c for c in validate_states(result.executed, blocked) if c.kind != "move"]
     m = result.metrics
     return {
-        "agents": n, "solver": solver, "plan_makespan": m["planned_makespan_ticks"],
+        "agents": n, "solver": solver, "dt_s": dt_s, "plan_makespan": m["planned_makespan_ticks"],
         "read_s": round(t_read, 3), "validate_s": round(t_validate, 3),
         "rotations": len(cycles), "repairs": len(repairs), "repair_s": round(t_repair, 3),
         "execute_wall_s": round(t_exec, 2), "real_time_factor": round(m["real_time_factor"], 1),
@@ -113,11 +114,13 @@ def main() -> int:
     ap.add_argument("--lacam3", type=Path, help="lacam3 binary (default: build the reference)")
     ap.add_argument("--own", action="store_true", help="plan with the project's own LaCAM")
     ap.add_argument("--json", type=Path, help="write the figures here")
-    ap.add_argument("--_one", nargs=3, help=argparse.SUPPRESS)
+    ap.add_argument("--dt", type=float, nargs="+", default=[0.02],
+                    help="physics steps (s) to measure at (default 0.02)")
+    ap.add_argument("--_one", nargs=4, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args._one:
-        n, plan, solver = args._one
-        print(json.dumps(one(int(n), Path(plan), solver)))
+        n, plan, solver, dt = args._one
+        print(json.dumps(one(int(n), Path(plan), solver, float(dt))))
         return 0
     lacam3 = None if args.own else (args.lacam3 or build_lacam3())
     rows = []
@@ -125,16 +128,17 @@ def main() -> int:
         for n in args.agents:
             plan = Path(tmp) / f"plan{n}.txt"
             solver = make_plan(n, lacam3, plan)
-            proc = subprocess.run([sys.executable, __file__, "--_one", str(n), str(plan),
-                                   solver], capture_output=True, text=True,
-                                  env={**os.environ, "PYTHONPATH": str(ROOT)})
-            if proc.returncode != 0:
-                print(proc.stderr, file=sys.stderr)
-                return 1
-            row = json.loads(proc.stdout.strip().splitlines()[-1])
-            rows.append(row)
-            print(json.dumps(row), flush=True)
-    keys = ["agents", "validate_s", "rotations", "repairs", "execute_wall_s",
+            for dt in args.dt:
+                proc = subprocess.run([sys.executable, __file__, "--_one", str(n), str(plan),
+                                       solver, str(dt)], capture_output=True, text=True,
+                                      env={**os.environ, "PYTHONPATH": str(ROOT)})
+                if proc.returncode != 0:
+                    print(proc.stderr, file=sys.stderr)
+                    return 1
+                row = json.loads(proc.stdout.strip().splitlines()[-1])
+                rows.append(row)
+                print(json.dumps(row), flush=True)
+    keys = ["agents", "dt_s", "validate_s", "rotations", "repairs", "execute_wall_s",
             "real_time_factor", "makespan_ratio", "agv_contacts", "validator_conflicts",
             "peak_rss_mb"]
     print("| " + " | ".join(keys) + " |")

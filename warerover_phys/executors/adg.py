@@ -180,6 +180,11 @@ class ActionGraph:
         self._agents: dict[int, _Agent] = {}
         self._queues: dict[int, list[_Visit]] = {}
         self._order = 0
+        self._waiters: dict[int, list[int]] = {}
+        """Cell -> AGVs whose next action waits for that cell's queue head to change."""
+        self.woken: set[int] = set()
+        """AGVs registered with :meth:`wait_on` whose blocking queue head has changed (or
+        whose plan changed) since; the executor clears it after it has looked at them."""
 
     # ----------------------------------------------------------------- building
 
@@ -229,6 +234,7 @@ class ActionGraph:
             for step in gone:
                 for v in step.enter_visits:
                     self._queues[v.cell].remove(v)
+                    self._touch(v.cell)
             for step in [rec.running, *kept]:
                 if step is None:
                     continue
@@ -263,6 +269,7 @@ class ActionGraph:
                 open_visits[c] = v
                 enter_visits.append(v)
             rec.pending.append(_Step(action, enter_visits, leave_visits))
+        self.woken.add(agv)
 
     def _new_visit(self, cell: int, agv: int, enter: Action | None, tick: int,
                    entered: bool) -> _Visit:
@@ -279,7 +286,28 @@ class ActionGraph:
                     and (q[i - 1].tick, q[i - 1].order) > key:
                 i -= 1
         q.insert(i, v)
+        if i == 0:
+            self._touch(cell)
         return v
+
+    def _touch(self, cell: int) -> None:
+        """The head of ``cell``'s queue may have changed: wake the AGVs waiting on it."""
+        waiting = self._waiters.pop(cell, None)
+        if waiting:
+            self.woken.update(waiting)
+
+    def wait_on(self, agv: int) -> bool:
+        """The AGV's next action is not ready: register it on the first cell whose queue
+        head is not its own visit, so that :attr:`woken` names it once that head changes.
+        Returns False (nothing registered) if it is not waiting on a queue."""
+        rec = self._rec(agv)
+        if rec.running is not None or not rec.pending:
+            return False
+        for v in rec.pending[0].enter_visits:
+            if self._queues[v.cell][0] is not v:
+                self._waiters.setdefault(v.cell, []).append(agv)
+                return True
+        return False
 
     # ----------------------------------------------------------------- queries
 
@@ -432,6 +460,7 @@ class ActionGraph:
             else:  # cannot happen while the invariants hold; stay safe
                 q.remove(v)
             del rec.held[v.cell]
+            self._touch(v.cell)
         rec.running = None
         rec.node = step.action.dst
         return step.action

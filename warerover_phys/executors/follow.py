@@ -52,6 +52,8 @@ class PlanFollower:
         self._resync: set[int] = set()
         """AGVs whose new plan did not fit their commit cut: replanned once they stand."""
         self._cycles_seen: set[frozenset[int]] = set()
+        self._asleep = np.zeros(st.n, dtype=bool)
+        """AGVs waiting on the dependency graph that need no decision until woken."""
 
     # ------------------------------------------------------------------------- per tick
 
@@ -140,8 +142,18 @@ class PlanFollower:
             for i in np.flatnonzero(driving & ~delayed & (st.stop_s - along < brake + 0.05)):
                 self._extend(int(i))
             st.waiting[:] = False
+            # An AGV found waiting on the dependency graph sleeps until the queue head it
+            # waits for changes (adg.woken), it is delayed, or its plan changes: deciding
+            # for it again before then would find it waiting again.
+            asleep, woken = self._asleep, self.adg.woken
             for i in np.flatnonzero((st.mode != DRIVE) & st.has_next):
-                self._decide(int(i), t, bool(delayed[i]), float(ang[i]))
+                i = int(i)
+                if asleep[i] and not delayed[i] and i not in woken:
+                    st.waiting[i] = True
+                    continue
+                asleep[i] = False
+                self._decide(i, t, bool(delayed[i]), float(ang[i]))
+            woken.clear()
         turning = st.mode == TURN
         if turning.any():
             aligned = turning & (st.ang_ref == st.heading) & (
@@ -171,6 +183,7 @@ class PlanFollower:
         if self.spec.adg:
             if not self.adg.ready(i):
                 st.waiting[i] = True
+                self._asleep[i] = self.adg.wait_on(i)
                 return
         elif t + 1e-9 < nxt.tick * st.tick_s:
             return
