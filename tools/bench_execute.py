@@ -67,8 +67,14 @@ def make_plan(n: int, lacam3: Path | None, out: Path) -> str:
 def one(n: int, plan_file: Path, solver: str, dt_s: float = 0.02) -> dict:
     import numpy as np
 
-    from warerover_phys.execute import (execute_plan, find_cycles, load_fleet, load_floor,
-                                        repair_cycles, validate_plan)
+    from warerover_phys.execute import (
+        execute_plan,
+        find_cycles,
+        load_fleet,
+        load_floor,
+        repair_cycles,
+        validate_plan,
+    )
     from warerover_phys.plans import read_plan
     from warerover_phys.validate import validate_states
 
