@@ -26,6 +26,10 @@ echo "$wheel"
     || { echo "the wheel holds no packaged layouts"; exit 1; }
 "$py" -m zipfile -l "$wheel" | grep -q "warerover_phys/_layouts/maps/paper_20x15.yaml" \
     || { echo "the wheel holds no packaged layout maps"; exit 1; }
+"$py" -m zipfile -l "$wheel" | grep -q "warerover_phys/planning/weights/learned_v1.npz" \
+    || { echo "the wheel holds no learned-planner weights"; exit 1; }
+"$py" -m zipfile -l "$wheel" | grep -q "warerover_phys/serve/static/index.html" \
+    || { echo "the wheel holds no browser page"; exit 1; }
 
 echo "== install into a fresh venv"
 "$py" -m venv "$work/venv"
@@ -42,6 +46,9 @@ m = json.load(open(sys.argv[1]))
 assert m["success_rate"] == 1.0 and m["orders_completed"] == 20, m
 print(f"paper_homogeneous: SR {m['success_rate']}, TP {m['throughput']:.3f}, {m['ticks']} ticks")
 PY
+"$work/venv/bin/warerover" run paper_homogeneous --planner learned --json --quiet \
+    --out "$work/run-learned" > /dev/null
+echo "paper_homogeneous with the learned planner (packaged weights): ok"
 "$work/venv/bin/python" -c "import warerover_phys, sys; \
     assert 'site-packages' in warerover_phys.__file__, warerover_phys.__file__"
 set +e
