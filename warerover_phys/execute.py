@@ -316,27 +316,39 @@ def repair_cycles(plan: Plan, layout: Layout, sizes: list[int], *, strict: bool 
     raise PlanError(f"rotations remain after {max_rounds} repairs", file=source)
 
 
+WINDOW = 10
+"""Timesteps after a rotation in which agents near it count as its neighbours (repairs)."""
+REPAIR_EXPANSIONS = 1_000_000
+"""A* node budget of one re-planned agent in a repair (long paths through dense plans)."""
+
+
 def _replan_cycle(plan: Plan, layout: Layout, sizes: list[int], cyc: Cycle,
                   source: str | None) -> tuple[Plan, Repair]:
     """Re-plan the cycle's agents (prioritized space-time A*, from the timestep before the
     cycle to their own goals) around every other agent's fixed path. If no order of them
-    finds a way, the agents standing within 2, then 4 cells of the cycle are re-planned
-    with them: the change stays local to the few agents around the rotation."""
+    finds a way, the agents that come within 2, 4, then 6 cells of the cycle's cells
+    during the next :data:`WINDOW` timesteps are re-planned with them (at most 12, 24, 40):
+    the change stays local to the agents around the rotation."""
     cols = layout.cols
     t0 = cyc.timestep - 1
-    pos = _dense(plan)[min(t0, plan.makespan)]
+    dense = _dense(plan)
+    window = dense[min(t0, plan.makespan):min(t0 + WINDOW, plan.makespan) + 1]
     ring = np.asarray(cyc.cells)
-    dist = np.abs(pos[:, None, :] - ring[None, :, :]).sum(axis=2).min(axis=1)
-    for radius in (0, 2, 4):
+    # Each agent's closest approach to the cycle's cells during the next WINDOW timesteps:
+    # the agents that follow or cross the cycle's agents soon are the ones a detour moves.
+    dist = np.abs(window[:, :, None, :] - ring[None, None, :, :]).sum(axis=3).min(axis=(0, 2))
+    for radius, cap in ((0, 0), (2, 12), (4, 24), (6, 40)):
         near = [int(i) for i in np.argsort(dist, kind="stable")
-                if dist[i] <= radius and int(i) not in cyc.agents][:16]
-        found = _replan_agents(plan, layout, sizes, list(cyc.agents), near, t0)
+                if dist[i] <= radius and int(i) not in cyc.agents][:cap]
+        found = _replan_agents(plan, layout, sizes, list(cyc.agents), near, t0,
+                               few_orders=radius > 0)
         if found is not None:
             break
     else:
         raise PlanError(f"cannot repair the rotation of agents {list(cyc.agents)}: no detour "
-                        "around the other agents' fixed paths, even re-planning the agents "
-                        "within 4 cells (run with --strict to see it, or fix the plan)",
+                        "around the other agents' fixed paths, even re-planning the 40 "
+                        f"agents that come within 6 cells of it in the next {WINDOW} "
+                        "timesteps (run with --strict to see it, or fix the plan)",
                         file=source, agent=cyc.agents[0], timestep=cyc.timestep)
     paths = list(plan.paths)
     added = 0
@@ -352,7 +364,8 @@ def _replan_cycle(plan: Plan, layout: Layout, sizes: list[int], cyc: Cycle,
 
 
 def _replan_agents(plan: Plan, layout: Layout, sizes: list[int], ring: list[int],
-                   near: list[int], t0: int) -> dict[int, TimedPath] | None:
+                   near: list[int], t0: int, few_orders: bool = False,
+                   ) -> dict[int, TimedPath] | None:
     """New paths from ``t0`` to their goals for ``ring + near`` around everyone else's
     fixed path, or None. Tries each rotation of the ring (and its reverse) first, then the
     nearby agents, farthest from their goals first."""
@@ -382,8 +395,10 @@ def _replan_agents(plan: Plan, layout: Layout, sizes: list[int], ring: list[int]
         divmod(a.start, cols), divmod(a.goal, cols)))
     orders = [ring_req[j:] + ring_req[:j] for j in range(len(ring_req))]
     orders += [list(reversed(o)) for o in orders]
+    if few_orders:
+        orders = orders[:1] + orders[len(ring_req):len(ring_req) + 1]
     orders = [o + near_req for o in orders] + [near_req + o for o in orders[:2]]
-    planner = AStarPlanner(max_expansions=200_000, budget_per_move=None)
+    planner = AStarPlanner(max_expansions=REPAIR_EXPANSIONS, budget_per_move=None)
     for order in orders:
         table, found = base.copy(), {}
         for a in order:  # one at a time: each is held on the cell it leaves for a tick
