@@ -18,7 +18,7 @@ from warerover_phys.planning.graph import UNREACHABLE
 from warerover_phys.planning.oneshot import grid_graph, solve
 from warerover_phys.validate import validate_states
 
-DATA = Path(__file__).parent / "data"
+DATA = Path(__file__).resolve().parents[1] / "data"
 MAP = DATA / "warehouse-10-20-10-2-1.map"
 SCEN = DATA / "warehouse-10-20-10-2-1-random-1.scen"
 CLI = str(Path(sys.executable).parent / "warerover")

@@ -42,7 +42,7 @@ from warerover_phys.sweep import (
 )
 from warerover_phys.sweep.spec import narrow
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 HOMOGENEOUS = REPO / "layouts" / "paper_homogeneous.yaml"
 HETEROGENEOUS = REPO / "layouts" / "paper_heterogeneous.yaml"
 

@@ -27,7 +27,7 @@ from warerover_phys.planning.cbs import CBSPlanner, find_conflicts
 from warerover_phys.validate import validate_states
 
 # --------------------------------------------------------------------------- helpers
-# (the same pattern as tests/test_planning.py)
+# (the same pattern as tests/planning/test_planning.py)
 
 
 def make_layout(rows: list[str]):

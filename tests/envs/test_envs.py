@@ -28,7 +28,7 @@ from warerover_phys.planning.oneshot import grid_graph  # noqa: E402
 from warerover_phys.planning.policy import NUM_CHANNELS  # noqa: E402
 from warerover_phys.validate import validate_states  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT / "tests" / "data"
 MAP = DATA / "random-32-32-10.map"
 SCEN = DATA / "random-32-32-10-random-1.scen"

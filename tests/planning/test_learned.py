@@ -25,7 +25,7 @@ from warerover_phys.sim import run_episode
 from warerover_phys.validate import validate_states
 from warerover_phys.world import World
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT / "tests" / "data"
 PAPER = ROOT / "layouts" / "paper_homogeneous.yaml"
 PLUGIN = "warerover_phys.planning.learned:LearnedPlanner"
@@ -194,14 +194,14 @@ def test_learned_by_name_in_solve_and_weights_field(tmp_path):
 
     from warerover_phys.cli import app
 
-    data = Path(__file__).parent / "data"
+    data = Path(__file__).resolve().parents[1] / "data"
     r = CliRunner().invoke(app, ["solve", str(data / "random-32-32-10.map"),
                                  str(data / "random-32-32-10-random-1.scen"), "--agents", "20",
                                  "--planner", "learned", "--json"])
     assert r.exit_code == 0, r.output
     bad = tmp_path / "w.npz"
     bad.write_bytes(b"not weights")
-    r = CliRunner().invoke(app, ["run", str(Path(__file__).parent.parent / "layouts" /
+    r = CliRunner().invoke(app, ["run", str(Path(__file__).resolve().parents[2] / "layouts" /
                                             "paper_homogeneous.yaml"), "--planner", "learned",
                                  "--set", f"planner.weights={bad}", "--json"])
     assert r.exit_code == 2 and str(bad) in r.output and "Traceback" not in r.output

@@ -38,7 +38,7 @@ from warerover_phys.render import (
 )
 from warerover_phys.sim import Simulation
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 HETERO = REPO / "layouts" / "paper_heterogeneous.yaml"
 FAILED_AGV = 7
 """A 2x2 AGV (1.6 m body) of paper_heterogeneous, failed at tick ``FAIL_TICK``."""
