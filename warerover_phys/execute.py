@@ -590,30 +590,18 @@ def write_execution(result: ExecutionResult, plan: Plan, layout: Layout,
 
 def _grid_trajectory(result: ExecutionResult, layout: Layout, types: list[AgvTypeSpec],
                      tick_s: float) -> dict[str, np.ndarray]:
-    """One sample per tick of the executed states (half-way while moving)."""
-    cols, cell_m = layout.cols, float(layout.cell_m)
-    n = len(types)
-    ticks = max(len(s) for s in result.executed.values()) if n else 1
+    """One sample per tick of the executed states (the renderer's grid poses)."""
+    from .poses import states_poses
+
     k = np.array([t.footprint for t in types], dtype=np.int64)
-    pos = np.zeros((ticks, n, 2))
-    for i, states in result.executed.items():
-        arr = np.asarray(states, dtype=np.int64)
-        arr = np.vstack([arr, np.repeat(arr[-1:], ticks - len(arr), axis=0)])
-        for j in (0, 1):
-            r, c = np.divmod(arr[:, j], cols)
-            pos[:, i, 0] += 0.5 * (c + k[i] / 2) * cell_m
-            pos[:, i, 1] += 0.5 * (r + k[i] / 2) * cell_m
-    step = np.diff(pos, axis=0, prepend=pos[:1])
-    heading = np.arctan2(step[..., 1], step[..., 0])
-    moving = np.abs(step).sum(axis=2) > 1e-9
-    for t in range(1, ticks):
-        heading[t] = np.where(moving[t], heading[t], heading[t - 1])
+    pos, heading = states_poses(result.executed, k, layout.cols, float(layout.cell_m))
+    ticks, n = heading.shape
     return {"t": np.arange(ticks, dtype=np.float64) * tick_s, "x": pos[..., 0],
             "y": pos[..., 1], "heading": heading,
             "state": np.zeros((ticks, n), dtype=np.int8),
             "loaded": np.zeros((ticks, n), dtype=bool), "footprint": k,
             "body_m": np.array([t.body_m for t in types], dtype=np.float64),
-            "cell_m": np.array(cell_m), "tick_s": np.array(float(tick_s)),
+            "cell_m": np.array(float(layout.cell_m)), "tick_s": np.array(float(tick_s)),
             "grid": np.asarray(layout.grid).copy()}
 
 

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import WareroverError
+from ..poses import _centres, states_poses
 
 if TYPE_CHECKING:
     from ..sim import EpisodeResult
@@ -155,12 +156,6 @@ class Recording:
 
 
 # ------------------------------------------------------------------------------ building
-
-
-def _centres(nodes: np.ndarray, k: int, cols: int, cell_m: float) -> np.ndarray:
-    """Body centres (metres) of a ``k x k`` AGV anchored at flat ``nodes``."""
-    r, c = np.divmod(np.asarray(nodes, dtype=np.int64), cols)
-    return np.stack([(c + k / 2) * cell_m, (r + k / 2) * cell_m], axis=-1)
 
 
 def _plans(planned: list[dict], footprint: np.ndarray, cols: int, cell_m: float,
@@ -332,33 +327,16 @@ def load_trajectory(path: str | Path) -> Recording:
 
 def grid_trajectory(result: EpisodeResult) -> dict[str, np.ndarray]:
     """The ``trajectories.npz`` arrays of a grid-executor episode: one sample per tick, body
-    centres of the executed states (a state between two cells is half-way), headings from
-    the move direction (kept while standing), task states and cargo from the events."""
+    centres of the executed states (see :func:`states_poses`), task states and cargo from
+    the events."""
     world = result.world
     lay = world.layout
     cols, cell_m = lay.cols, float(lay.cell_m)
     agvs = world.agvs
     n = len(agvs)
-    ticks = max(len(v) for v in result.actual.values())
     footprint = np.array([a.k for a in agvs], dtype=np.int64)
-    pos = np.zeros((ticks, n, 2))
-    for a in agvs:
-        states = np.asarray(result.actual[a.id], dtype=np.int64)
-        states = np.vstack([states, np.repeat(states[-1:], ticks - len(states), axis=0)])
-        pos[:, a.id] = 0.5 * (_centres(states[:, 0], a.k, cols, cell_m)
-                              + _centres(states[:, 1], a.k, cols, cell_m))
-    # Heading at a sample: the direction of the last move that ended there or earlier
-    # (before its first move an AGV faces that move).
-    step = np.diff(pos, axis=0)
-    moving = np.abs(step).sum(axis=2) > 1e-9
-    ang = np.arctan2(step[..., 1], step[..., 0])
-    last = np.where(moving.any(axis=0), ang[moving.argmax(axis=0), np.arange(n)], 0.0) \
-        if ticks > 1 else np.zeros(n)
-    heading = np.zeros((ticks, n))
-    heading[0] = last
-    for t in range(1, ticks):
-        last = np.where(moving[t - 1], ang[t - 1], last)
-        heading[t] = last
+    pos, heading = states_poses(result.actual, footprint, cols, cell_m)
+    ticks = len(pos)
     state = np.zeros((ticks, n), dtype=np.int8)
     loaded = np.zeros((ticks, n), dtype=bool)
     before: dict[int, int] = {}
