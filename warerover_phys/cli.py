@@ -478,14 +478,15 @@ def execute(floor: Annotated[Path, typer.Argument(
         types = load_fleet(fleet, the_plan.num_agents, types_by_name, kinds)
         sizes = [t.footprint for t in types]
         validate_plan(the_plan, layout, sizes, source=str(plan))
+        given = the_plan
         the_plan, repairs = repair_cycles(the_plan, layout, sizes, strict=strict,
                                           source=str(plan))
         if repairs:
             validate_plan(the_plan, layout, sizes, source=str(plan))
             for r in repairs:
-                err_console.print(f"repaired a rotation at timestep {r.timestep}: agents "
-                                  f"{list(r.agents)} re-planned (+{r.added_ticks} ticks)",
-                                  highlight=False)
+                err_console.print(f"repaired a rotation at timestep {r.timestep}: cells "
+                                  f"{[list(c) for c in r.cells]} by a detour of {r.moves} "
+                                  f"single moves (agents {list(r.agents)})", highlight=False)
         show = not quiet and not json_out and err_console.is_terminal
         if show:
             from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
@@ -496,11 +497,12 @@ def execute(floor: Annotated[Path, typer.Argument(
                 task = bar.add_task("execute", total=the_plan.makespan)
                 result = execute_plan(the_plan, layout, types, executor=executor, seed=seed,
                                       delays=delay_spec, tick_s=tick_s, dt_s=dt_s,
-                                      repairs=repairs,
+                                      repairs=repairs, given=given,
                                       progress=lambda t, h: bar.update(task, completed=t))
         else:
             result = execute_plan(the_plan, layout, types, executor=executor, seed=seed,
-                                  delays=delay_spec, tick_s=tick_s, dt_s=dt_s, repairs=repairs)
+                                  delays=delay_spec, tick_s=tick_s, dt_s=dt_s, repairs=repairs,
+                                  given=given)
         out_dir = out or Path("runs") / f"execute-{plan.stem}"
         files = write_execution(result, the_plan, layout, types, out_dir, tick_s)
         if export is not None:
