@@ -15,8 +15,10 @@ holds ``n`` (the *occupants' own extents* are taken into account):
   rectangle it sweeps while driving one cell) that lies in ``n``'s square. Every point of
   such a body lies in one of the cells it holds, so one of those cells is held by the turn;
 - a differential-drive body that may itself turn at anchor ``a``: if the two discs overlap,
-  the cells of its footprint at ``a`` that lie in the turner's ring are included (the two
-  turns, and the turn and anything standing at ``a``, then exclude each other).
+  the two turns must not happen at once. That is no cell: a body standing still at ``a`` is
+  not hit. :func:`turn_locks` gives these anchors; a turn *locks* its own anchor and each of
+  them (two overlapping turns then share a lock and are ordered), nothing else waits on a
+  lock.
 
 Placements that would overlap the turner's own footprint are ignored (the turner holds those
 cells). Touching is not overlapping: with 0.7 m bodies on 1 m cells two neighbours turning at
@@ -31,8 +33,10 @@ AGV's previous move), :func:`sweep_conflicts` checks a whole plan against them (
 independent validator's sweep check).
 
 >>> small = BodyShape(k=1, length_m=0.8, width_m=0.8, turns=True)
->>> sweep_offsets(small, (small,), 1.0)
-((-1, 0), (0, -1), (0, 1), (1, 0))
+>>> sweep_offsets(small, (small,), 1.0)  # a neighbour standing aligned is not reached
+()
+>>> turn_locks(small, (small,), 1.0)  # but two neighbours turning at once collide
+((-1, 0), (0, -1), (0, 0), (0, 1), (1, 0))
 >>> default = BodyShape(k=1, length_m=0.7, width_m=0.7, turns=True)
 >>> sweep_offsets(default, (default,), 1.0)
 ()
@@ -44,9 +48,10 @@ import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import NamedTuple
 
-__all__ = ["BodyShape", "SweepError", "disc_overlaps_rect", "discs_overlap", "sweep_offsets",
-           "fleet_sweeps", "check_fleet_sweeps", "turn_sweeps", "sweep_cells",
+__all__ = ["turn_locks", "BodyShape", "SweepError", "disc_overlaps_rect", "discs_overlap", "sweep_offsets",
+           "fleet_sweeps", "agv_sweeps", "Sweep", "check_fleet_sweeps", "turn_sweeps", "sweep_cells",
            "sweep_conflicts", "SweepConflict", "EAST"]
 
 EAST = (0, 1)
@@ -134,12 +139,6 @@ def sweep_offsets(turner: BodyShape, fleet: tuple[BodyShape, ...], cell_m: float
                 if fa & own:
                     continue
                 qx, qy = _centre(ar, ac, kb, m)
-                if b.turns and discs_overlap(cx, cy, r_a, qx, qy, b.radius_m):
-                    ring = {c for c in fa if -1 <= c[0] <= k and -1 <= c[1] <= k}
-                    if ring:
-                        out |= ring
-                    else:
-                        beyond |= fa
                 # Standing (omni: axis-aligned; a diff body standing is inside its disc,
                 # handled above) and driving one cell straight from ``a``.
                 shapes = []
@@ -172,12 +171,62 @@ def sweep_offsets(turner: BodyShape, fleet: tuple[BodyShape, ...], cell_m: float
     return tuple(sorted(out - own))
 
 
+@lru_cache(maxsize=256)
+def turn_locks(turner: BodyShape, fleet: tuple[BodyShape, ...], cell_m: float,
+               ) -> tuple[tuple[int, int], ...]:
+    """Anchors (``(drow, dcol)`` from the turner's anchor, sorted, its own ``(0, 0)``
+    included) whose turns in place the turner's turn must not overlap in time: another
+    type's swept disc there overlaps its own. Empty if no two turns can touch (then the
+    turn needs no lock at all)."""
+    if not turner.turns:
+        return ()
+    k, m, r_a = turner.k, cell_m, turner.radius_m
+    cx, cy = _centre(0, 0, k, m)
+    own = set(_fp(0, 0, k))
+    out: set[tuple[int, int]] = set()
+    for b in fleet:
+        if not b.turns:
+            continue
+        kb = b.k
+        reach = math.ceil((r_a + b.radius_m) / m) + kb + 1
+        for ar in range(-reach, k + reach):
+            for ac in range(-reach, k + reach):
+                if set(_fp(ar, ac, kb)) & own:
+                    continue
+                qx, qy = _centre(ar, ac, kb, m)
+                if discs_overlap(cx, cy, r_a, qx, qy, b.radius_m):
+                    out.add((ar, ac))
+    return tuple(sorted(out | {(0, 0)})) if out else ()
+
+
 def fleet_sweeps(types: Mapping[str, object], cell_m: float) -> dict[str, tuple]:
     """:func:`sweep_offsets` of every AGV type (``name -> AgvTypeSpec``) of a fleet."""
     shapes = {name: BodyShape.of(spec) for name, spec in types.items()}
     fleet = tuple(sorted(set(shapes.values()), key=lambda s: (s.k, s.length_m, s.width_m,
                                                                 s.turns)))
     return {name: sweep_offsets(s, fleet, cell_m) for name, s in shapes.items()}
+
+
+class Sweep(NamedTuple):
+    """What one AGV's turn in place holds: ``cells`` (offsets from its anchor, held
+    exclusively, :func:`sweep_offsets`) and ``locks`` (anchor offsets, :func:`turn_locks`)."""
+
+    cells: tuple[tuple[int, int], ...]
+    locks: tuple[tuple[int, int], ...]
+
+
+def agv_sweeps(specs: Sequence, cell_m: float) -> dict[int, Sweep]:
+    """Per AGV (index into ``specs``, one ``AgvTypeSpec`` each) what its turns hold;
+    AGVs whose turns hold nothing are left out (all of them for 0.7 m bodies on 1 m
+    cells)."""
+    shapes = [BodyShape.of(s) for s in specs]
+    fleet = tuple(sorted(set(shapes), key=lambda s: (s.k, s.length_m, s.width_m, s.turns)))
+    out = {}
+    for i, s in enumerate(shapes):
+        sw = Sweep(sweep_offsets(s, fleet, cell_m), turn_locks(s, fleet, cell_m))
+        if sw.cells or sw.locks:
+            out[i] = sw
+    return out
 
 
 def check_fleet_sweeps(types: Mapping[str, object], cell_m: float) -> list[str]:
