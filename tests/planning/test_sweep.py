@@ -279,3 +279,19 @@ def test_check_fleet_sweeps_accepts_shipped_sizes():
     from warerover_phys.config import AgvTypeSpec
     assert check_fleet_sweeps({"a": AgvTypeSpec(body_m=(0.8, 0.8)),
                                "b": AgvTypeSpec(footprint=2, body_m=(1.6, 1.6))}, 1.0) == []
+
+
+def test_check_command_rejects_a_sweep_into_the_static_world(tmp_path):
+    from typer.testing import CliRunner
+
+    from warerover_phys.cli import app
+
+    runner = CliRunner()
+    ok = runner.invoke(app, ["check", "layouts/paper_homogeneous.yaml"])
+    assert ok.exit_code == 0, ok.output
+    bad = runner.invoke(app, ["check", "layouts/paper_homogeneous.yaml", "--set",
+                              "fleet.types.agv.body_m=[0.8,0.8]"])
+    assert bad.exit_code != 0
+    text = " ".join(bad.output.split())
+    assert "fleet.types.agv" in text and "0.566 m" in text and "1.0 m cells" in text
+    assert "Traceback" not in bad.output

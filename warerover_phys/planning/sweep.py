@@ -50,8 +50,10 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import NamedTuple
 
+import numpy as np
+
 __all__ = ["turn_locks", "BodyShape", "SweepError", "disc_overlaps_rect", "discs_overlap", "sweep_offsets",
-           "fleet_sweeps", "agv_sweeps", "Sweep", "check_fleet_sweeps", "turn_sweeps", "sweep_cells",
+           "fleet_sweeps", "agv_sweeps", "Sweep", "check_fleet_sweeps", "static_sweep_hits", "turn_sweeps", "sweep_cells",
            "sweep_conflicts", "SweepConflict", "EAST"]
 
 EAST = (0, 1)
@@ -244,6 +246,47 @@ def check_fleet_sweeps(types: Mapping[str, object], cell_m: float) -> list[str]:
                        f"{s.k}x{s.k} footprint turning in place sweeps a disc of radius "
                        f"{s.radius_m:.3f} m on {cell_m} m cells; {err}, so its turns cannot "
                        "be reserved (use a smaller body, drive: omni, or larger cells)")
+    return out
+
+
+def static_sweep_hits(layout, types: Mapping[str, object]) -> list[str]:
+    """Problems, one sentence per AGV type: a differential-drive type whose swept disc
+    reaches an obstacle or the map's edge from an anchor where it can stand (no
+    reservation can clear those; a turn there hits the static world)."""
+    from ..layout import CellType
+    from .graph import MotionGraph
+
+    m = layout.cell_m
+    obstacle = layout.grid == CellType.OBSTACLE
+    out = []
+    for name, spec in types.items():
+        s = BodyShape.of(spec)
+        if not s.turns or s.radius_m <= s.k * m / 2 + 1e-12:
+            continue
+        valid = MotionGraph(layout, s.k, False).valid
+        hits = []
+        for r, c in zip(*np.nonzero(valid), strict=True):
+            cx, cy = _centre(int(r), int(c), s.k, m)
+            if cx - s.radius_m < 0 or cy - s.radius_m < 0 or \
+                    cx + s.radius_m > layout.cols * m or cy + s.radius_m > layout.rows * m:
+                hits.append((int(r), int(c)))
+                continue
+            for dr in range(-1, s.k + 1):
+                for dc in range(-1, s.k + 1):
+                    rr, cc = int(r) + dr, int(c) + dc
+                    if 0 <= rr < layout.rows and 0 <= cc < layout.cols and obstacle[rr, cc] \
+                            and disc_overlaps_rect(cx, cy, s.radius_m, cc * m, rr * m,
+                                                   (cc + 1) * m, (rr + 1) * m):
+                        hits.append((int(r), int(c)))
+        if hits:
+            hits = sorted(set(hits))
+            out.append(f"fleet.types.{name}: a {s.length_m} x {s.width_m} m body on a "
+                       f"{s.k}x{s.k} footprint turning in place sweeps a disc of radius "
+                       f"{s.radius_m:.3f} m on {m} m cells, which reaches an obstacle or "
+                       f"the map edge from {len(hits)} anchors it can stand on (first "
+                       f"{hits[0]}); no reservation can clear those, so a turn there hits "
+                       "the static world (use a body whose half-diagonal is at most "
+                       f"{s.k * m / 2} m, drive: omni, or larger cells)")
     return out
 
 
