@@ -340,6 +340,13 @@ def check(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
     except WareroverError as err:
         _fail(err)
     lay = world.layout
+    from .planning.sweep import check_fleet_sweeps, static_sweep_hits
+
+    problems = check_fleet_sweeps(sc.fleet.types, lay.cell_m) + static_sweep_hits(
+        lay, sc.fleet.types)
+    if problems:
+        _fail(ScenarioError("turning sweeps cannot be reserved: " + "; ".join(problems),
+                            file=str(scenario), field="fleet.types"))
     typer.echo(f"{scenario}: ok — {lay.rows}x{lay.cols} cells, {len(lay.shelves)} shelves, "
                f"{lay.num_skus} SKUs, {len(lay.stations)} stations, {len(lay.parking)} parking "
                f"cells, {len(world.agvs)} AGVs")

@@ -173,8 +173,17 @@ class PlanFollower:
             want = math.atan2(nxt.direction[0], nxt.direction[1])
             if abs(wrap(want - angle)) >= TURN_EPS_RAD:
                 if not delayed:
+                    if nxt.sweeps and self.spec.adg and not self.adg.ready(i):
+                        # Its turn sweeps beyond its cells: only once those are its own.
+                        st.mode[i] = HOLD
+                        st.waiting[i] = True
+                        self._asleep[i] = self.adg.wait_on(i)
+                        return
+                    if nxt.sweeps and self.spec.adg:
+                        self.adg.claim(i, 1)  # no AGV may go ahead of it mid-turn
                     st.heading[i] = want
                     st.mode[i] = TURN
+                    self.adg.set_heading(i, nxt.direction)
                 else:
                     st.mode[i] = HOLD
                 return
