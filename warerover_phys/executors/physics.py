@@ -35,10 +35,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..planning.sweep import agv_sweeps
 from .accounting import Accounting
 from .adg import ActionGraph
 from .base import ExecutorSetup, StepReport, TickView
-from ..planning.sweep import agv_sweeps
 from .bodies import BodyIO, PhysicalFleet, build_space, cell_centre, unsolved_agv_contacts
 from .control import steer
 from .fleet_state import FleetState
