@@ -561,3 +561,8 @@ _register_sweep(app)
 from .serve.cli import register as _register_serve  # noqa: E402
 
 _register_serve(app)
+
+# `warerover lorr` (League of Robot Runners problems) lives in warerover_phys/lorr_cli.py.
+from .lorr_cli import register as _register_lorr  # noqa: E402
+
+_register_lorr(app)
