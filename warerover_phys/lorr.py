@@ -323,8 +323,8 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
     heading = [0] * n
     task_of = [-1] * n
     errand = [0] * n  # errands of its task done
-    goal = list(config)
-    dists: list[np.ndarray] = [graph.dist_to(divmod(g, cols)) for g in goal]
+    goal = [-1] * n  # tables are made once robots have their first errands
+    dists: list[np.ndarray] = [None] * n  # type: ignore[list-item]
     since = [0] * n
     result = LorrResult(problem, rotations, actions=[[] for _ in range(n)],
                         positions=[[c] for c in config], headings=[[0] for _ in range(n)],
