@@ -130,7 +130,7 @@ class Simulation:
             update_exemptions(w, self.executor.remaining)
             if report.intrusion_unit == "cells":
                 self._grid_intrusions()
-        w.advance_tasks()
+        w.advance_tasks(report.settled)
         self.metrics.record_tick(sched_s=t1 - t0, plan_s=t2 - t1, blocked=len(report.blocked),
                                  collisions=report.collisions)
 

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..planning.base import TimedPath
+from ..validate import DWELL_HEADING_TOL_RAD, DWELL_POS_TOL_M
 from .bodies import cell_centre
 from .control import ALIGN_EPS_RAD, ARRIVE_EPS_M, TURN_EPS_RAD, wrap
 from .fleet_state import DRIVE, HOLD, TURN, FleetState
@@ -276,6 +277,7 @@ class PlanFollower:
                     acc.deviations += 1
                     report.replan.append(i)
         st.pending = pending
+        report.settled = self.settled(pending, report.poses)
         for i in sorted(self._resync):
             if i not in report.replan:
                 report.replan.append(i)
@@ -292,6 +294,21 @@ class PlanFollower:
         self._cycles_seen = seen
         acc.replans_asked += len(report.replan)
         report.replan.sort()
+
+    def settled(self, pending: np.ndarray, poses: np.ndarray | None) -> frozenset[int]:
+        """AGVs at rest: standing with no action running or left, not failed, within
+        :data:`~warerover_phys.validate.DWELL_POS_TOL_M` of the cell centre they hold and
+        :data:`~warerover_phys.validate.DWELL_HEADING_TOL_RAD` of the heading they hold
+        (``poses``: (N, 3) x, y, heading at the end of the tick)."""
+        st = self.st
+        if poses is None:
+            return frozenset()
+        idle = (st.mode == HOLD) & ~pending & ~st.failed
+        idle &= np.array([self.adg.current(i) is None for i in range(st.n)], dtype=bool)
+        off = np.hypot(poses[:, 0] - st.hold_xy[:, 0], poses[:, 1] - st.hold_xy[:, 1])
+        turn = np.abs(wrap(poses[:, 2] - st.heading))
+        ok = idle & (off <= DWELL_POS_TOL_M) & (turn <= DWELL_HEADING_TOL_RAD)
+        return frozenset(int(i) for i in np.flatnonzero(ok))
 
     # ------------------------------------------------------------------------- fault hooks
 
