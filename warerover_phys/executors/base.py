@@ -76,6 +76,9 @@ class TickView:
     """Each AGV's task state (``world.AgvState`` values; 7 = failed), for recordings."""
     corridors: Mapping[int, Any] = field(default_factory=dict)
     """Open safety corridors by id (``faults.corridors.Corridor``)."""
+    goals: tuple[int | None, ...] = ()
+    """Each AGV's current goal anchor (None while it works in place or is down; a yield
+    spot while it makes way), for the freeze detector (``freeze``); empty: unknown."""
 
 
 @dataclass
