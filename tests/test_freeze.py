@@ -88,15 +88,15 @@ def _run(det, ticks, nodes, goals, waits, busy=None, failed=None, start=1):
 def test_detector_cycle_and_queue():
     det = FreezeDetector(3, 10, 5)
     # 0 and 1 wait on each other; 2 waits on 0: one group, found once per 5 ticks.
-    found = _run(det, 5, [0, 1, 2], [9, 8, 7], {0: {1}, 1: {0}, 2: {0}})
+    found = _run(det, 6, [0, 1, 2], [9, 8, 7], {0: {1}, 1: {0}, 2: {0}})
     assert [f.agvs for f in found] == [(0, 1, 2)]
-    assert found[0].since_tick == 0
-    assert _run(det, 4, [0, 1, 2], [9, 8, 7], {0: {1}, 1: {0}, 2: {0}}, start=6) == []
+    assert found[0].since_tick == 1  # goals set (last progress) at tick 1, found at 6
+    assert _run(det, 4, [0, 1, 2], [9, 8, 7], {0: {1}, 1: {0}, 2: {0}}, start=7) == []
 
 
 def test_detector_waiting_on_a_mover_or_a_fault_is_no_freeze():
     det = FreezeDetector(2, 10, 3)
-    nodes, goals = [0, 50], [9, 59]
+    nodes, goals = [0, 50], [9, 99]
     found = []
     for t in range(1, 10):
         nodes[1] = 50 + t  # AGV 1 progresses towards 59
@@ -124,5 +124,5 @@ def test_detector_never_fires_while_an_agv_gets_nearer(freeze, ticks, d0):
         found += det.update(t, [node], [goal], [False], [False], {})
     assert found == []
     det = FreezeDetector(1, 100, freeze)
-    found = _run(det, freeze, [goal - d0], [goal], {})
+    found = _run(det, freeze + 1, [goal - d0], [goal], {})
     assert len(found) == 1 and found[0].agvs == (0,)

@@ -26,7 +26,7 @@ it (``freeze`` event) and replans the AGVs from where they stand.
 ...     found = det.update(tick, nodes=[0, 1], goals=[5, 9], busy=[False, False],
 ...                        failed=[False, False], waits_on={0: {1}, 1: {0}})
 >>> found
-[Freeze(agvs=(0, 1), since_tick=0, waits={0: (1,), 1: (0,)})]
+[Freeze(agvs=(0, 1), since_tick=1, waits={0: (1,), 1: (0,)})]
 """
 
 from __future__ import annotations
