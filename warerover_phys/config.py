@@ -428,6 +428,11 @@ class ExecutorSpec(_Model):
     """An AGV farther than this from its path is stopped and replanned."""
     trajectory_hz: PosFloat = 10.0
     """Rate at which executed poses are recorded (``trajectories.npz``)."""
+    freeze_s: NonNegFloat = 30.0
+    """Physics: a freeze is found when AGVs make no progress towards their goals for this
+    many simulated seconds while nothing they wait on can still move (``freeze.py``); it
+    is counted in ``deadlocks`` / ``freezes``, logged (``freeze`` event) and the AGVs are
+    replanned from where they stand. 0 turns the detector off."""
 
     @model_validator(mode="after")
     def _physics_fields(self) -> ExecutorSpec:

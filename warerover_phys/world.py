@@ -11,6 +11,7 @@ methods here, so the order and AGV life cycles are in one place:
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass, field
 from enum import IntEnum
 
@@ -24,7 +25,8 @@ from .planning.base import State, TimedPath
 from .planning.graph import UNREACHABLE, GraphSet
 from .planning.reservation import ReservationTable
 
-__all__ = ["AgvState", "OrderStatus", "Agv", "Trip", "World", "make_rngs"]
+__all__ = ["AgvState", "OrderStatus", "Agv", "Trip", "World", "make_rngs", "WORK_STATES",
+           "STAGE_OF"]
 
 Cell = tuple[int, int]
 RNG_STREAMS = ("orders", "scheduler", "planner", "faults", "delays")
@@ -48,6 +50,9 @@ class AgvState(IntEnum):
 
 
 MOVING_STATES = (AgvState.IDLE, AgvState.TO_SHELF, AgvState.TO_STATION, AgvState.RETURNING)
+WORK_STATES = (AgvState.PICKING, AgvState.HANDOVER, AgvState.PLACING)
+"""Dwells: the AGV works in place on its stage's goal."""
+STAGE_OF = {AgvState.PICKING: "pick", AgvState.HANDOVER: "handover", AgvState.PLACING: "place"}
 
 
 class OrderStatus(IntEnum):
@@ -98,6 +103,8 @@ class Agv:
     """While FAILED: the state it returns to when repaired."""
     repair_at: int | None = None
     """While FAILED: the tick it is repaired (None: only on demand)."""
+    parked: bool = False
+    """IDLE, at rest on its home spot, ``parked`` logged (until it leaves)."""
 
     @property
     def k(self) -> int:
@@ -313,19 +320,38 @@ class World:
                  orders=list(order_ids), stops=list(stations))
         return trip
 
-    def advance_tasks(self) -> None:
-        """Arrivals, work in place and hand-overs for the tick that just ended."""
+    def advance_tasks(self, settled: Collection[int] | None = None) -> None:
+        """Arrivals, work in place and hand-overs for the tick that just ended.
+
+        A stage's work (pick, hand-over, place) starts only when the AGV stands on the
+        stage's goal *and is at rest there*: its committed path has ended on the goal (a
+        path that passes the goal and comes back later does not count) and, on physics, its
+        body holds the goal pose within the executor's tolerance. ``settled`` is the set of
+        AGVs the executor reports at rest (``StepReport.settled``); None: judged from the
+        committed paths. The dwell counts down only while the AGV is at rest on its goal,
+        and its events (``shelf_picked``, ``order_completed``, ``shelf_returned``,
+        ``parked``) are logged at the tick the work completes there; ``work_started`` /
+        ``work_done`` bracket every dwell for the validator
+        (:func:`warerover_phys.validate.validate_dwells`)."""
         tasks = self.scenario.tasks
         for agv in self.agvs:
+            if agv.node != agv.home or not agv.standing:
+                agv.parked = False
             if not agv.standing:
                 continue
-            if agv.state in (AgvState.PICKING, AgvState.HANDOVER, AgvState.PLACING):
-                agv.dwell_left -= 1
-                if agv.dwell_left <= 0:
-                    self._finish_work(agv)
+            if agv.state in WORK_STATES:
+                if self.at_rest(agv, settled):
+                    agv.dwell_left -= 1
+                    if agv.dwell_left <= 0:
+                        self._finish_work(agv)
                 continue
             goal = self.goal_of(agv)
-            if goal is None or agv.node != goal or agv.state == AgvState.IDLE:
+            if goal is None or agv.node != goal or not self.at_rest(agv, settled):
+                continue
+            if agv.state == AgvState.IDLE:
+                if not agv.parked and agv.yield_goal is None:
+                    agv.parked = True
+                    self.log("parked", agv=agv.id, cell=list(self.cell(agv.node)))
                 continue
             trip = agv.trip
             assert trip is not None
@@ -335,6 +361,21 @@ class World:
                 self._begin_work(agv, AgvState.HANDOVER, tasks.handover_ticks)
             elif agv.state == AgvState.RETURNING:
                 self._begin_work(agv, AgvState.PLACING, tasks.place_ticks)
+
+    def at_rest(self, agv: Agv, settled: Collection[int] | None = None) -> bool:
+        """Whether ``agv`` stands still at the end of its committed path: per the executor's
+        report (``settled``) if it gives one, else from the path: every state from where the
+        AGV is on it now (``tick - delay``) to its end is standing on the AGV's cell."""
+        if not agv.standing:
+            return False
+        if settled is not None:
+            return agv.id in settled
+        path = self.reservations.paths.get(agv.id)
+        if path is None:
+            return True
+        here = (agv.node, agv.node)
+        i = max(0, min(self.tick - agv.delay - path.start_tick, len(path.states) - 1))
+        return all(s == here for s in path.states[i:])
 
     # ------------------------------------------------------------------------- failures
 
@@ -388,12 +429,16 @@ class World:
     def _begin_work(self, agv: Agv, state: AgvState, ticks: int) -> None:
         agv.state = state
         agv.dwell_left = ticks
+        self.log("work_started", agv=agv.id, stage=STAGE_OF[state],
+                 cell=list(self.cell(agv.node)))
         if ticks <= 0:
             self._finish_work(agv)
 
     def _finish_work(self, agv: Agv) -> None:
         trip = agv.trip
         assert trip is not None
+        self.log("work_done", agv=agv.id, stage=STAGE_OF[agv.state],
+                 cell=list(self.cell(agv.node)))
         if agv.state == AgvState.PICKING:
             agv.loaded = True
             for oid in trip.orders:
