@@ -11,8 +11,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as hst
 
 from warerover_phys import load_scenario, run_episode
-from warerover_phys.validate import (DWELL_HEADING_TOL_RAD, DWELL_POS_TOL_M, dwell_intervals,
-                                     validate_dwells)
+from warerover_phys.validate import (
+    DWELL_HEADING_TOL_RAD,
+    DWELL_POS_TOL_M,
+    dwell_intervals,
+    validate_dwells,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 LAYOUTS = ROOT / "layouts"

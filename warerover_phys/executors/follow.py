@@ -23,9 +23,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..freeze import FreezeDetector
 from ..planning.base import TimedPath
 from ..planning.paths import footprint_nodes, occupancy
-from ..freeze import FreezeDetector
 from ..validate import DWELL_HEADING_TOL_RAD, DWELL_POS_TOL_M
 from .bodies import cell_centre
 from .control import ALIGN_EPS_RAD, ARRIVE_EPS_M, TURN_EPS_RAD, wrap
