@@ -15,7 +15,6 @@ from hypothesis import strategies as st
 from warerover_phys import load_scenario, run_episode
 from warerover_phys.config import OrdersSpec
 from warerover_phys.errors import ScenarioError
-from warerover_phys.layout import CellType
 from warerover_phys.orders import OrderStream
 from warerover_phys.sim import Simulation
 from warerover_phys.world import OrderStatus, World
