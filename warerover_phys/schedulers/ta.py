@@ -49,7 +49,8 @@ class TaskAssignment:
                 if options:
                     best[(i, j)] = options
                     # Cheaper per order served: a trip for 3 orders beats one for 1.
-                    cost[i, j] = options[0][0] / min(len(groups[sku]), cap)
+                    cost[i, j] = options[0][0] if self.spec.ta_cost == "trip" else \
+                        options[0][0] / min(len(groups[sku]), cap)
         rows, cols = linear_sum_assignment(cost)
         out: list[Assignment] = []
         taken_orders: set[int] = set()
