@@ -58,10 +58,27 @@ def validate_states(trajectories: Mapping[int, Sequence[tuple[int, int]]],
                     obstacles: np.ndarray, *, sizes: Mapping[int, int] | None = None,
                     ticks_per_move: Mapping[int, int] | None = None, start_tick: int = 0,
                     max_conflicts: int = 100) -> list[Conflict]:
-    """Check per-tick states of every AGV; return at most ``max_conflicts`` conflicts."""
+    """Check per-tick states of every AGV; return at most ``max_conflicts`` conflicts.
+
+    Plans of 1x1 AGVs that stand on one cell per tick (one-shot MAPF plans, executed
+    states) are checked over numpy arrays (:func:`_validate_cells`, the same conflicts in
+    the same order); footprints, slow AGVs and moving states take the general path."""
     rows, cols = obstacles.shape
     sizes = sizes or {}
     speeds = ticks_per_move or {}
+    if all(v == 1 for v in sizes.values()) and all(v == 1 for v in speeds.values()) and \
+            trajectories and all(len(s) and all(a == b for a, b in s)
+                                 for s in trajectories.values()):
+        return _validate_cells(trajectories, obstacles, start_tick, max_conflicts)
+    return _validate_general(trajectories, obstacles, sizes, speeds, start_tick, max_conflicts)
+
+
+def _validate_general(trajectories: Mapping[int, Sequence[tuple[int, int]]],
+                      obstacles: np.ndarray, sizes: Mapping[int, int],
+                      speeds: Mapping[int, int], start_tick: int, max_conflicts: int,
+                      ) -> list[Conflict]:
+    """:func:`validate_states` for any footprints, speeds and states."""
+    rows, cols = obstacles.shape
     horizon = max((len(s) for s in trajectories.values()), default=0)
     out: list[Conflict] = []
 
@@ -128,6 +145,72 @@ def validate_states(trajectories: Mapping[int, Sequence[tuple[int, int]]],
                 if after[p] & before[q] and after[q] & before[p] \
                         and not after[p] & after[q] and not before[p] & before[q]:
                     out.append(Conflict("swap", start_tick + i, (p, q)))
+        if len(out) >= max_conflicts:
+            break
+    return out[:max_conflicts]
+
+
+def _validate_cells(trajectories: Mapping[int, Sequence[tuple[int, int]]],
+                    obstacles: np.ndarray, start_tick: int, max_conflicts: int,
+                    ) -> list[Conflict]:
+    """:func:`validate_states` for 1x1 AGVs standing on one cell per tick, vectorised."""
+    rows, cols = obstacles.shape
+    ids = sorted(trajectories)
+    horizon = max(len(trajectories[a]) for a in ids)
+    pos = np.empty((horizon, len(ids)), dtype=np.int64)
+    for j, agv in enumerate(ids):
+        cells = np.fromiter((a for a, _ in trajectories[agv]), dtype=np.int64)
+        pos[:len(cells), j] = cells
+        pos[len(cells):, j] = cells[-1]
+    r, c = np.divmod(pos, cols)
+    per_agent: list[list[Conflict]] = [[] for _ in ids]  # bounds, obstacles, moves
+    off = (pos < 0) | (r >= rows)
+    blocked = np.zeros_like(off)
+    blocked[~off] = obstacles[r[~off], c[~off]]
+    step = np.zeros_like(off)
+    step[1:] = (np.abs(r[1:] - r[:-1]) + np.abs(c[1:] - c[:-1])) > 1
+    lengths = [len(trajectories[a]) for a in ids]
+    bad = np.nonzero((off | blocked | step).T)  # agent by agent, tick by tick
+    for j, t in zip(*bad, strict=True):
+        if t >= lengths[j]:
+            continue  # past its last state (the same state again)
+        cell = (int(r[t, j]), int(c[t, j]))
+        if off[t, j]:
+            per_agent[j].append(Conflict("bounds", start_tick + int(t), (ids[j],), cell))
+        elif blocked[t, j]:
+            per_agent[j].append(Conflict("obstacle", start_tick + int(t), (ids[j],), cell))
+        if step[t, j]:
+            per_agent[j].append(Conflict("move", start_tick + int(t), (ids[j],), cell))
+    index = {agv: j for j, agv in enumerate(ids)}
+    out = [x for agv in trajectories for x in per_agent[index[agv]]]
+    for t in range(horizon):
+        row = pos[t]
+        order = np.argsort(row, kind="stable")
+        srt = row[order]
+        dup = np.flatnonzero(srt[1:] == srt[:-1]) + 1
+        if len(dup):  # each cell's first AGV owns it; the others conflict with it
+            first: dict[int, int] = {}
+            pairs = []
+            for k in dup.tolist():
+                v = int(srt[k])
+                owner = first.setdefault(v, int(order[k - 1]))
+                pairs.append((int(order[k]), owner, v))
+            for agent, owner, v in sorted(pairs):
+                out.append(Conflict("vertex", start_tick + t, (ids[owner], ids[agent]),
+                                    divmod(v, cols)))
+        if t == 0:
+            continue
+        prev = pos[t - 1]
+        moved = np.flatnonzero(row != prev)
+        if len(moved) > 1:
+            where: dict[tuple[int, int], list[int]] = {}
+            src, dst = prev[moved].tolist(), row[moved].tolist()
+            for a, u, v in zip(moved.tolist(), src, dst, strict=True):
+                where.setdefault((u, v), []).append(a)
+            pairs = sorted((a, b) for a, u, v in zip(moved.tolist(), src, dst, strict=True)
+                           for b in where.get((v, u), ()) if a < b)
+            for a, b in pairs:
+                out.append(Conflict("swap", start_tick + t, (ids[a], ids[b])))
         if len(out) >= max_conflicts:
             break
     return out[:max_conflicts]
