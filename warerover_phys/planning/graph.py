@@ -25,7 +25,6 @@ from __future__ import annotations
 from collections import OrderedDict
 
 import numpy as np
-from scipy.ndimage import distance_transform_cdt
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order
 
@@ -109,6 +108,8 @@ class MotionGraph:
         areas = [] if closed is None else [m for m in np.reshape(
             closed, (-1, self.rows, self.cols)) if m.any()]
         self._closed_areas = [~_window_all(~m, k) for m in areas]
+        if areas:
+            from scipy.ndimage import distance_transform_cdt  # slow to import; rarely needed
         self._exit_steps = [distance_transform_cdt(a, metric="taxicab")
                             for a in self._closed_areas]
         """Per closed area, moves from each anchor to the nearest anchor outside it."""
