@@ -78,6 +78,7 @@ def test_fuzz_small_sample_no_process_death():
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(3600)
 def test_fuzz_200_episodes_no_process_death():
     bad = deaths(cases(200, seed=2026, max_ticks=120, orders=6))
     assert not bad, f"{len(bad)} of 200 episodes died:\n" + "\n".join(bad[:5])
