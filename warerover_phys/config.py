@@ -475,13 +475,21 @@ class ScheduledFaultSpec(_Model):
 
 
 class FaultsSpec(_Model):
-    """Failures (schema only in this version: the fault model is not simulated yet)."""
+    """Failures, their repairs and the safety corridors around failed AGVs (see
+    ``faults/model.py``)."""
 
     random: RandomFaultsSpec = RandomFaultsSpec()
     scheduled: list[ScheduledFaultSpec] = Field(default_factory=list)
     corridor_width_m: PosFloat = 1.0
     corridor_margin_m: NonNegFloat = 0.2
     orders_of_failed: Literal["reassign", "wait"] = "reassign"
+    exit_time_s: PosFloat | None = None
+    """Seconds an AGV caught inside a corridor when it opens may take to leave it before
+    its time inside counts as intrusion. None: derived per AGV when the corridor opens
+    (cells to drive out at the plan's move time plus one move, a half turn, speeding up and
+    braking, plus ``exit_margin_s``; see ``faults/intrusion_log.py``)."""
+    exit_margin_s: NonNegFloat = 2.0
+    """Seconds added to the derived exit time (replanning waits for a tick boundary)."""
 
     @property
     def enabled(self) -> bool:

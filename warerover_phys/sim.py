@@ -131,12 +131,8 @@ class Simulation:
         self._follow_up(report.blocked)
         self._replan_now(report.replan)
         self._recover(report.freezes)
-        if w.corridors:
-            from .faults.intrusion_log import update_exemptions
-
-            update_exemptions(w, self.executor.remaining)
-            if report.intrusion_unit == "cells":
-                self._grid_intrusions()
+        if w.corridors and report.intrusion_unit == "cells":
+            self._grid_intrusions()
         w.advance_tasks(report.settled)
         self.metrics.record_tick(sched_s=t1 - t0, plan_s=t2 - t1, blocked=len(report.blocked),
                                  collisions=report.collisions)
@@ -158,7 +154,10 @@ class Simulation:
 
             import numpy as np
 
+            from .faults.records import corridor_arrays
+
             trajectory["corridors_json"] = np.array(json.dumps(self.world.corridor_log))
+            trajectory.update(corridor_arrays(self.world))
         return EpisodeResult(metrics=metrics, events=self.world.events, planned=self.planned,
                              actual=self.actual, world=self.world, trajectory=trajectory)
 
@@ -332,9 +331,9 @@ class Simulation:
                 w.log("make_way", agv=other.id, for_agv=stuck.id, spot=list(w.cell(spot)))
 
     def _grid_intrusions(self) -> None:
-        """On the grid, an AGV intrudes a corridor when one of its cells is a corridor cell
-        (AGVs inside when it opened leave first and are exempt until they are out)."""
-        from .faults.intrusion_log import record_intrusions
+        """On the grid, an AGV is inside a corridor when one of its cells is a corridor cell
+        (checked once per tick, after the move: the check covers the tick just run)."""
+        from .faults.intrusion_log import record_check
 
         w = self.world
         cols = w.layout.cols
@@ -346,7 +345,8 @@ class Simulation:
                 inside = len(corridor.cells.intersection(occupancy(agv.pos, agv.k, cols)))
                 if inside:
                     hits.append((agv.id, cid, float(inside)))
-        record_intrusions(w, hits, unit="cells")
+        tick_s = self.scenario.tick_s
+        record_check(w, hits, (w.tick - 1) * tick_s, tick_s, unit="cells")
 
     def _recover(self, freezes: list) -> None:
         """The executor found AGVs frozen (``freeze.Freeze``): count and log the freeze,
@@ -475,7 +475,7 @@ def _goal_now(world: World, agv: Agv) -> int | None:
 
 def apply_report(world: World, report: StepReport) -> None:
     """Write what the executor reports into the world (before the tick advances)."""
-    from .faults.intrusion_log import record_intrusions
+    from .faults.intrusion_log import record_checks
 
     for i, state in report.states.items():
         world.agvs[i].pos = state
@@ -483,8 +483,7 @@ def apply_report(world: World, report: StepReport) -> None:
         world.agvs[i].delay = behind
     for name, fields in report.events:
         world.log(name, **fields)
-    for hits in report.intrusion_checks:
-        record_intrusions(world, hits, unit=report.intrusion_unit)
+    record_checks(world, report.intrusion_checks, unit=report.intrusion_unit)
 
 
 def step_executor(world: World, executor) -> StepReport:

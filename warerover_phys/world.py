@@ -19,6 +19,7 @@ import numpy as np
 
 from .config import AgvTypeSpec, Scenario
 from .errors import LayoutError, ScenarioError
+from .faults.intrusion_log import CorridorBook
 from .layout import CellType, Layout, build_layout
 from .orders import Order, OrderStream
 from .planning.base import State, TimedPath
@@ -139,14 +140,15 @@ class World:
     _next_trip: int = 0
     corridors: dict = field(default_factory=dict)
     """Open safety corridors, by id (``faults.corridors.Corridor``)."""
-    corridor_exempt: dict[int, set[int]] = field(default_factory=dict)
-    """Corridor id -> AGVs that were inside (or committed to enter) when it opened: they
-    leave it and are not intruders until they are out."""
+    corridor_book: CorridorBook = field(default_factory=CorridorBook)
+    """Intrusion figures and the exit grants of AGVs caught inside corridors as they
+    opened (``faults/intrusion_log.py``)."""
     fault_stats: dict[str, int] = field(default_factory=lambda: {
         "failures": 0, "down_ticks": 0, "corridor_intrusions": 0, "failure_replans": 0})
     corridor_log: list[dict] = field(default_factory=list)
     """Every corridor of the episode: id, AGV, open / close tick, polygon and protected zone
-    (exterior rings in metres) and cells, for outputs and rendering."""
+    (exterior rings in metres), rectangles and margin (m) and cells, for outputs and
+    rendering."""
     delayed_orders: set[int] = field(default_factory=set)
     assigned_tick: dict[int, int] = field(default_factory=dict)
     """Order id -> tick of its latest assignment (``orders.requeue_after_ticks``)."""
