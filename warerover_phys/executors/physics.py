@@ -126,7 +126,7 @@ class PhysicsExecutor:
         injected = st.delayed_until > t
         delayed = injected | st.failed
         self.follow.advance(pos, ang, delayed, decide)
-        vel, w = steer(st, pos, ang, delayed)
+        vel, w = steer(st, pos, ang, delayed, v_now)
         self.io.write(vel, w)
         self.space.step(st.dt)
         st.sim_s = t + st.dt
