@@ -21,7 +21,8 @@ per-AGV arrays of one :class:`~.fleet_state.FleetState`:
 - :mod:`.follow`: following the dependency graph (decide, start, extend, arrive, delays,
   plan sync and commit cut, ``stop_short``, ``remaining``);
 - :mod:`.accounting`: contact and clearance accounting (contact handlers, minimum
-  separation, swept checks, corridor checks, delay shares), :meth:`summary` and
+  clearance and measured limits from :mod:`.measured`, swept checks, corridor checks,
+  delay shares), :meth:`summary` and
   :meth:`trajectory` (poses recorded at ``trajectory_hz``, streamed to disk by
   :mod:`.recording`).
 
@@ -104,7 +105,7 @@ class PhysicsExecutor:
         for s in range(self.steps_per_tick):
             self._physics_step(decide=(s % DECIDE_EVERY == 0))
         pos, ang, vel, _ = self.io.read()
-        acc.min_separation(pos, ang)
+        acc.measure(pos, ang, self.state.sim_s)
         report = StepReport(collisions=acc.tick_agv_contacts,
                             poses=np.column_stack([pos, ang]).astype(float),
                             speeds=np.hypot(vel[:, 0], vel[:, 1]).astype(float))
@@ -130,7 +131,7 @@ class PhysicsExecutor:
         self.io.write(vel, w)
         self.space.step(st.dt)
         st.sim_s = t + st.dt
-        self.acc.after_step(raw, raw_ang, injected)
+        self.acc.after_step(raw, raw_ang, injected, t)
 
     # ------------------------------------------------------------------------- fault hooks
 
