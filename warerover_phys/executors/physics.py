@@ -42,7 +42,7 @@ from .base import ExecutorSetup, StepReport, TickView
 from .bodies import BodyIO, PhysicalFleet, build_space, cell_centre
 from .control import steer
 from .fleet_state import FleetState
-from .follow import DECIDE_EVERY, PlanFollower
+from .follow import DECIDE_S, PlanFollower
 
 if TYPE_CHECKING:
     from ..config import ExecutorSpec
@@ -83,7 +83,8 @@ class PhysicsExecutor:
             amax=np.array([a.spec.max_accel_mps2 for a in agvs]),
             wmax=np.array([a.spec.max_turn_rate_radps for a in agvs]),
             omni=np.array([a.spec.drive == "omni" for a in agvs]),
-            origin=np.array([p[:2] for p in poses], dtype=float))
+            origin=np.array([p[:2] for p in poses], dtype=float),
+            decide_every=max(1, round(DECIDE_S / self.dt)))
         self.adg = ActionGraph(layout.cols, {a.id: a.k for a in agvs})
         self.acc = Accounting(self.state, self.space, self.fleet, self.io, self.adg, layout,
                               shelf_of, spec.trajectory_hz)
@@ -103,7 +104,7 @@ class PhysicsExecutor:
         follow.sync_failed(view.failed)
         acc.sync_corridors(view.corridors)
         for s in range(self.steps_per_tick):
-            self._physics_step(decide=(s % DECIDE_EVERY == 0))
+            self._physics_step(decide=(s % self.state.decide_every == 0))
         pos, ang, vel, _ = self.io.read()
         acc.measure(pos, ang, self.state.sim_s)
         report = StepReport(collisions=acc.tick_agv_contacts,
