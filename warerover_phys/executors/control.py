@@ -2,10 +2,12 @@
 
 Vectorised over the fleet, once per physics step. Along the current straight run a
 reference point runs a trapezoid to the stop point that is exact *in steps of dt*:
-``v = min(v_max * scale, v_prev + a dt, v_stop(d))``, where ``v_stop(d)`` (:func:`stop_speed`)
-is the highest speed from which braking by ``a dt`` per step covers exactly the distance
-``d`` left, so the reference never brakes harder than ``a`` (the former ``sqrt(2 a d)`` and
-``d / dt`` terms stopped with one step of up to ``2 a``). The body follows the reference
+``v = min(v_max * scale, v_prev + a dt, v_stop)`` with the position integrated by the
+trapezoidal rule, ``s += (v_prev + v) / 2 dt``, and ``v_stop`` the speed from which braking
+at ``a`` ends exactly at the stop point (:func:`stop_speed`): it covers the
+distance of the continuous profile whatever ``dt`` and never brakes harder than ``a`` (the
+former ``d / dt`` term and ``s += v dt`` stopped with one step of up to ``2 a``, and ran
+up to ``dt / 2`` ahead of the continuous profile). The body follows the reference
 through its pivot joint with a small proportional pull on the along-track and lateral
 errors; a delayed or failed AGV brakes at its limit. Standing AGVs hold their cell centre.
 Differential-drive AGVs hold their heading, and turn in place behind a reference heading
@@ -49,23 +51,28 @@ def wrap(a: np.ndarray | float) -> np.ndarray | float:
     return (a + math.pi) % (2 * math.pi) - math.pi
 
 
-def stop_speed(d: np.ndarray, a: np.ndarray, dt: float) -> np.ndarray:
-    """Highest speed (m/s) from which an AGV that moves ``v dt`` per step and then slows by
-    ``a dt`` per step stops within the distance ``d`` (metres).
+def stop_speed(d: np.ndarray, a: np.ndarray, dt: float, v_prev: np.ndarray) -> np.ndarray:
+    """Highest speed (m/s) at the end of this step from which braking at ``a`` still stops
+    within the distance ``d`` (metres) left at its start, for a reference integrated by the
+    trapezoidal rule (``s += (v_prev + v) / 2 dt``).
 
-    Speeds ``n a dt, (n - 1) a dt, ..., a dt`` cover ``a dt^2 n (n + 1) / 2``; solving for
-    ``n`` (real-valued) gives ``v = a dt (sqrt(1/4 + 2 d / (a dt^2)) - 1/2)``. One step at
-    this speed leaves exactly the distance of the speed ``a dt`` lower, so a profile that
-    follows it brakes by exactly ``a``; as ``dt -> 0`` it tends to ``sqrt(2 a d)``.
+    Solves ``v^2 / (2 a) = d - (v_prev + v) / 2 dt`` (what is left after the step is the
+    braking distance from ``v``): ``v = sqrt(a^2 dt^2 / 4 + 2 a d - a dt v_prev) - a dt / 2``.
+    From ``v_prev = sqrt(2 a d)`` this gives exactly ``v_prev - a dt``: the reference brakes
+    at exactly ``a`` and covers the distance of the continuous profile, whatever ``dt``
+    (``v = sqrt(2 a d)`` with ``s += v dt``, as before, ran ahead of it by up to ``dt / 2``,
+    and its ``d / dt`` last step braked at up to ``2 a``).
 
-    >>> float(stop_speed(np.array([0.0]), np.array([1.0]), 0.02)[0])
+    >>> one = np.array([1.0])
+    >>> float(stop_speed(np.array([0.0]), one, 0.02, np.array([0.0]))[0])
     0.0
-    >>> v = float(stop_speed(np.array([2.0]), np.array([1.0]), 0.02)[0])
-    >>> abs(v - 2.0) < 0.011
-    True
+    >>> v0 = np.sqrt(2 * 2.0)  # on the braking curve 2 m before the stop
+    >>> round(float(v0 - stop_speed(np.array([2.0]), one, 0.02, np.array([v0]))[0]), 12)
+    0.02
     """
-    adt2 = a * dt * dt
-    return a * dt * (np.sqrt(0.25 + 2.0 * np.maximum(d, 0.0) / adt2) - 0.5)
+    h = 0.5 * a * dt
+    r = h * h + 2.0 * a * np.maximum(d, 0.0) - a * dt * v_prev
+    return np.maximum(np.sqrt(np.maximum(r, 0.0)) - h, 0.0)
 
 
 def limit_command(cmd: np.ndarray, v_now: np.ndarray, vmax: np.ndarray, amax: np.ndarray,
@@ -101,14 +108,17 @@ def steer(st: FleetState, pos: np.ndarray, ang: np.ndarray, delayed: np.ndarray,
     # stop point, exact in steps of dt; the body follows it through the joint, with a
     # small pull on the along-track and lateral errors.
     d = np.maximum(st.stop_s - st.s_ref, 0.0)
-    v = np.minimum.reduce([st.vmax, stop_speed(d, a, dt), st.speed + a * dt])
+    v = np.minimum.reduce([st.vmax, stop_speed(d, a, dt, st.speed), st.speed + a * dt])
     v = np.where(delayed, np.maximum(st.speed - a * dt, 0.0), v)
     v = np.where(drive, v, 0.0)
+    v_prev = st.speed
     st.speed = v
     v_along = v + np.clip(ALONG_GAIN * (st.s_ref - along), -0.2, 0.2)
-    # The last step of a stop may reach a little past the stop point (real-valued steps):
-    # the reference stops on it.
-    st.s_ref = np.where(drive, np.minimum(st.s_ref + v * dt, np.maximum(st.stop_s, st.s_ref)),
+    # Trapezoidal integration: the reference covers exactly the distance of the continuous
+    # profile, whatever dt. The last step of a stop may reach a little past the stop point
+    # (less than a dt^2 / 2): the reference stops on it.
+    ds = 0.5 * (v_prev + v) * dt
+    st.s_ref = np.where(drive, np.minimum(st.s_ref + ds, np.maximum(st.stop_s, st.s_ref)),
                         st.s_ref)
     rel = pos - st.origin
     normal = np.stack([-st.direction[:, 1], st.direction[:, 0]], axis=1)
