@@ -79,19 +79,19 @@ def limit_command(cmd: np.ndarray, v_now: np.ndarray, vmax: np.ndarray, amax: np
                   dt: float) -> np.ndarray:
     """``cmd`` (N, 2) capped at speed ``vmax`` and moved to within ``amax dt`` of the
     bodies' present velocities ``v_now`` (both as vectors)."""
-    speed = np.linalg.norm(cmd, axis=1)
-    over = speed > vmax
+    speed2 = np.einsum("ij,ij->i", cmd, cmd)
+    over = speed2 > vmax * vmax
     if over.any():
         cmd = cmd.copy()
-        cmd[over] *= (vmax[over] / speed[over])[:, None]
+        cmd[over] *= (vmax[over] / np.sqrt(speed2[over]))[:, None]
     dv = cmd - v_now
-    step = np.linalg.norm(dv, axis=1)
+    step2 = np.einsum("ij,ij->i", dv, dv)
     room = amax * dt
-    far = step > room
+    far = step2 > room * room
     if not far.any():
         return cmd
     out = cmd.copy()
-    out[far] = v_now[far] + dv[far] * (room[far] / step[far])[:, None]
+    out[far] = v_now[far] + dv[far] * (room[far] / np.sqrt(step2[far]))[:, None]
     return out
 
 

@@ -121,6 +121,7 @@ class ClearanceMonitor:
         self.at_s: float | None = None
         self.agvs: tuple[int, int] | None = None
         self._pairs = np.zeros((0, 2), dtype=np.intp)
+        self._ends = np.zeros(0, dtype=np.intp)
         self._built_at: np.ndarray | None = None
         self._radius = np.zeros(self.n)
         self._t = -math.inf
@@ -140,22 +141,25 @@ class ClearanceMonitor:
         if self._built_at is None or float(
                 np.abs(pos - self._built_at).max()) > SKIN_M / 2:
             self._build(pos)
-        pairs = self._pairs
-        if len(pairs) == 0:
+        p = len(self._pairs)
+        if p == 0:
             return
-        i, j = pairs[:, 0], pairs[:, 1]
+        # One gather per array for both ends of every pair (rows 0..p-1: i, p..2p-1: j).
         ext = np.maximum(_aabb_half(ang, self.body_half), self.shelf_half)
-        g = np.abs(pos[i] - pos[j]) - ext[i] - ext[j]
+        x, e = pos[self._ends], ext[self._ends]
+        g = np.abs(x[:p] - x[p:])
+        g -= e[:p]
+        g -= e[p:]
         best = self.min_m
         if best > 0.0:
-            gp = np.maximum(g, 0.0)
-            near = (gp * gp).sum(axis=1) < best * best
+            np.maximum(g, 0.0, out=g)
+            near = np.einsum("ij,ij->i", g, g) < best * best
         else:
             near = g.max(axis=1) < best
         k = np.flatnonzero(near)
         if len(k) == 0:
             return
-        i, j = i[k], j[k]
+        i, j = self._pairs[k, 0], self._pairs[k, 1]
         d = self._exact(pos, ang, i, j)
         m = int(np.argmin(d))
         if d[m] < self.min_m:
@@ -184,14 +188,18 @@ class ClearanceMonitor:
 
         self._built_at = pos.copy()
         self._radius = np.hypot(*np.maximum(self.body_half, self.shelf_half).T)
-        reach = 2 * float(self._radius.max()) + CLEARANCE_HORIZON_M + SKIN_M
+        # Pairs farther apart than the smallest clearance so far cannot lower it: once one
+        # is known the list needs only pairs within it (plus the skin).
+        horizon = min(CLEARANCE_HORIZON_M, max(self.min_m, 0.0)) + SKIN_M
+        reach = 2 * float(self._radius.max()) + horizon
         pairs = cKDTree(pos).query_pairs(reach, output_type="ndarray")
         if len(pairs):
             # Only pairs whose circumscribed circles come within the horizon plus the skin.
             gap = np.linalg.norm(pos[pairs[:, 0]] - pos[pairs[:, 1]], axis=1) - (
                 self._radius[pairs[:, 0]] + self._radius[pairs[:, 1]])
-            pairs = pairs[gap < CLEARANCE_HORIZON_M + SKIN_M]
-        self._pairs = pairs.astype(np.intp)
+            pairs = pairs[gap < horizon]
+        self._pairs = pairs.astype(np.intp).reshape(-1, 2)
+        self._ends = np.concatenate([self._pairs[:, 0], self._pairs[:, 1]])
 
 
 class LimitMonitor:
@@ -205,9 +213,13 @@ class LimitMonitor:
         n = len(vmax)
         self.limits = {"speed": np.asarray(vmax, float), "accel": np.asarray(amax, float),
                        "turn_rate": np.asarray(wmax, float)}
-        self.peak = {k: np.zeros(n) for k in self.KINDS}
+        self._peak = {k: np.zeros(n) for k in self.KINDS}
+        """Peaks, speed and acceleration squared."""
+        self._bound = {k: (v * (1 + LIMIT_TOLERANCE)) ** (1 if k == "turn_rate" else 2)
+                       for k, v in self.limits.items()}
         self.violations = 0
         self._over = {k: np.zeros(n, dtype=bool) for k in self.KINDS}
+        self._any_over = dict.fromkeys(self.KINDS, False)
         self._pos: np.ndarray | None = None
         self._ang: np.ndarray | None = None
         self._vel: np.ndarray | None = None
@@ -226,18 +238,23 @@ class LimitMonitor:
             return []
         vel = (pos - prev_pos) / dt
         self._vel = vel
-        now = {"speed": np.hypot(vel[:, 0], vel[:, 1]),
+        # Squared speed and acceleration: no square roots per step (peaks are kept squared).
+        now = {"speed": np.einsum("ij,ij->i", vel, vel),
                "turn_rate": np.abs((ang - prev_ang + math.pi) % (2 * math.pi) - math.pi) / dt}
         if prev_vel is not None:
             dv = vel - prev_vel
-            now["accel"] = np.hypot(dv[:, 0], dv[:, 1]) / dt
+            now["accel"] = np.einsum("ij,ij->i", dv, dv) / (dt * dt)
         events: list[tuple[str, dict]] = []
         for kind, value in now.items():
-            np.maximum(self.peak[kind], value, out=self.peak[kind])
-            over = value > self.limits[kind] * (1 + LIMIT_TOLERANCE)
+            np.maximum(self._peak[kind], value, out=self._peak[kind])
+            over = value > self._bound[kind]
+            if not over.any() and not self._any_over[kind]:
+                continue
             new = over & ~self._over[kind]
             self._over[kind] = over
+            self._any_over[kind] = bool(over.any())
             if new.any():
+                value = np.sqrt(value) if kind != "turn_rate" else value
                 for i in np.flatnonzero(new):
                     self.violations += 1
                     events.append(("limit_violation", {
@@ -245,11 +262,17 @@ class LimitMonitor:
                         "limit": float(self.limits[kind][i]), "t_s": round(t, 4)}))
         return events
 
+    @property
+    def peak(self) -> dict[str, np.ndarray]:
+        """Per-AGV peaks: ``speed`` (m/s), ``accel`` (m/s^2), ``turn_rate`` (rad/s)."""
+        return {k: (v if k == "turn_rate" else np.sqrt(v)) for k, v in self._peak.items()}
+
     def ratios(self) -> dict[str, float]:
         """Highest peak / limit over the fleet, per kind (0.0 with no AGV)."""
         out = {}
+        peak = self.peak
         for kind in self.KINDS:
             lim = self.limits[kind]
-            r = np.divide(self.peak[kind], lim, out=np.zeros_like(lim), where=lim > 0)
+            r = np.divide(peak[kind], lim, out=np.zeros_like(lim), where=lim > 0)
             out[kind] = float(r.max()) if len(r) else 0.0
         return out
