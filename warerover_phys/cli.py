@@ -186,9 +186,10 @@ def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
             ("replans / failures / detours",
              f"{m['replans']} / {m['plan_failures']} / {m['goal_busy_detours']}")]
     if sc.executor.name == "physics":
-        sep = m.get("min_separation_m")
+        sep = m.get("min_clearance_m")
         rows += [("AGV-AGV / static contacts", f"{m['agv_contacts']} / {m['static_contacts']}"),
-                 ("min separation (m)", "-" if sep is None else f"{sep:.3f}"),
+                 ("min clearance (m)", "-" if sep is None else f"{sep:.3f}"),
+                 ("limit violations", str(m.get("limit_violations", 0))),
                  ("deadlocks / executor replans",
                   f"{m['deadlocks']} / {m['executor_replans']}"),
                  ("real-time factor", f"{m['real_time_factor']:.1f}x")]
@@ -354,7 +355,9 @@ def gap(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
                        ("delay: injected (s)", "delay_injected_s"),
                        ("AGV-AGV contacts [agv_contacts]", "agv_contacts"),
                        ("AGV-static contacts [static_contacts]", "static_contacts"),
-                       ("min separation (m) [min_separation_m]", "min_separation_m"),
+                       ("min clearance, edge to edge (m) [min_clearance_m]",
+                        "min_clearance_m"),
+                       ("limit violations [limit_violations]", "limit_violations"),
                        ("deadlocks", "deadlocks"),
                        ("real-time factor [real_time_factor]", "real_time_factor")):
         v = p.get(key)
@@ -580,7 +583,8 @@ def execute(floor: Annotated[Path, typer.Argument(
                   str(m["executed_sum_of_costs_ticks"]))
     table.add_row("ratio executed / planned", "",
                   f"{m['makespan_ratio']:.3f} / {m['sum_of_costs_ratio']:.3f}")
-    for key in ("agv_contacts", "static_contacts", "min_separation_m", "deadlocks",
+    for key in ("agv_contacts", "static_contacts", "min_clearance_m", "limit_violations",
+                "deadlocks",
                 "cycle_repairs", "real_time_factor"):
         if key in m:
             v = m[key]

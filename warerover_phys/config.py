@@ -445,7 +445,9 @@ class ExecutorSpec(_Model):
     deviation_m: PosFloat = 0.35
     """An AGV farther than this from its path is stopped and replanned."""
     trajectory_hz: PosFloat = 10.0
-    """Rate at which executed poses are recorded (``trajectories.npz``)."""
+    """Rate at which executed poses are recorded (``trajectories.npz``), in Hz: every
+    ``round(1 / (trajectory_hz x dt))`` th physics step; at most the physics rate
+    ``1 / dt_s`` (that value records every step)."""
     freeze_s: NonNegFloat = 30.0
     """Physics: a freeze is found when AGVs make no progress towards their goals for this
     many simulated seconds while nothing they wait on can still move (``freeze.py``); it
@@ -582,6 +584,12 @@ class Scenario(_Model):
         if self.tick_s / self.executor.dt_s > MAX_STEPS_PER_TICK:
             raise fail(f"more than {MAX_STEPS_PER_TICK:,} physics steps per tick (tick_s = "
                        f"{self.tick_s:g} s)", "executor.dt_s", self.executor.dt_s)
+        if self.executor.name == "physics":
+            dt = self.tick_s / max(1, round(self.tick_s / self.executor.dt_s))
+            if self.executor.trajectory_hz * dt > 1.0 + 1e-9:
+                raise fail(f"poses can be recorded at most once per physics step "
+                           f"(1 / dt = {1 / dt:g} Hz)", "executor.trajectory_hz",
+                           self.executor.trajectory_hz)
         for name, spec in self.fleet.types.items():
             moves = self.layout.cell_m / (spec.max_speed_mps * self.tick_s)
             if moves > MAX_TICKS_PER_MOVE:

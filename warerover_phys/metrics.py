@@ -36,6 +36,14 @@ Keys (units in the name or below):
   ``faults/intrusion_log.py``;
 - ``wall_s``: wall seconds of the whole episode.
 
+The physics executor adds its own figures (``PhysicsExecutor.summary``), among them
+``min_clearance_m`` (smallest edge-to-edge clearance between two AGVs' rectangles, carried
+shelves included, over every physics step; negative = overlap depth; ``min_separation_m``
+is its deprecated alias), ``min_clearance_t_s``, ``limit_violations`` (a measured speed,
+acceleration or turn rate more than 5% above its limit, counted each time it rises above)
+and ``peak_speed_ratio`` / ``peak_accel_ratio`` / ``peak_turn_rate_ratio`` (fleet maximum of
+measured peak / limit); the per-AGV peaks are in ``trajectories.npz``.
+
 CT keys, wall seconds and the physics executor's ``real_time_factor`` are the only ones that
 change between two runs with the same scenario and seed; :data:`TIMING_KEYS` lists every
 such key.

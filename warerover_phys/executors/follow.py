@@ -37,12 +37,15 @@ if TYPE_CHECKING:
     from .adg import Action, ActionGraph
     from .base import StepReport, TickView
 
-__all__ = ["LOOKAHEAD", "DECIDE_EVERY", "PlanFollower"]
+__all__ = ["LOOKAHEAD", "DECIDE_S", "PlanFollower"]
 
 LOOKAHEAD = 8
 """Actions looked at (and claimed) ahead of a driving AGV."""
-DECIDE_EVERY = 5
-"""Physics steps between checks of standing AGVs (may they start their next action?)."""
+DECIDE_S = 0.1
+"""Simulated seconds between checks of standing AGVs (may they start their next action?):
+every ``FleetState.decide_every = round(DECIDE_S / dt)`` physics steps, so that decisions
+fall at the same simulated times whatever ``dt_s`` (a fixed number of steps made the
+look-ahead and the waits five times longer at dt 0.05 s than at 0.01 s)."""
 WORK_TASK_STATES = (2, 4, 6)
 """``TickView.task_state`` values of AGVs working in place (``world.AgvState`` PICKING,
 HANDOVER, PLACING)."""
@@ -135,7 +138,7 @@ class PlanFollower:
                 decide: bool) -> None:
         """Finish, extend, turn and start actions for bodies at ``pos`` / ``ang`` (the poses
         they will have after this step's move); ``decide`` on every
-        :data:`DECIDE_EVERY` th step."""
+        ``st.decide_every`` th step (every :data:`DECIDE_S` seconds)."""
         st = self.st
         t = st.sim_s
         along = st.along(pos)
@@ -149,7 +152,7 @@ class PlanFollower:
             # Look further ahead for AGVs that would otherwise start braking before the
             # next look (the margin covers two decision intervals).
             driving = st.mode == DRIVE
-            brake = st.speed ** 2 / (2 * st.amax) + 2 * st.vmax * st.dt * DECIDE_EVERY
+            brake = st.speed ** 2 / (2 * st.amax) + 2 * st.vmax * st.dt * st.decide_every
             for i in np.flatnonzero(driving & ~delayed & (st.stop_s - along < brake + 0.05)):
                 self._extend(int(i))
             st.waiting[:] = False
