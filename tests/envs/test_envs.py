@@ -272,8 +272,12 @@ def test_physics_in_transit_actions_wait_and_rotations_are_cancelled():
     _, _, _, _, info = env.step({"agv_0": 4})  # right: it starts, 1 m takes over 1 s
     assert info["agv_0"]["in_transit"] and env.core.states()[0] == (4, 5)
     assert env.core.paths() == [(1, 0)]  # observed at the cell it leaves
-    _, _, _, _, info = env.step({"agv_0": 3})  # left: ignored while in transit
-    assert not info["agv_0"]["blocked"]
+    for _ in range(3):  # left: ignored while in transit (1 m from rest at 1 m/s^2: 2 s)
+        _, _, _, _, info = env.step({"agv_0": 3})
+        assert not info["agv_0"]["blocked"]
+        if env.core.states()[0] == (5, 5):
+            break
+        assert env.core.states()[0] == (4, 5) and env.core.paths() == [(1, 0)]
     assert env.core.states()[0] == (5, 5) and env.core.paths() == [(1, 1)]
     # Four agents turning a 2x2 block: the grid rules allow it, a real executor cannot.
     starts, goals = ((0, 0), (0, 1), (1, 1), (1, 0)), ((0, 1), (1, 1), (1, 0), (0, 0))

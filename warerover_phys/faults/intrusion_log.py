@@ -39,6 +39,9 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+FAILED_STATE = 7
+"""``world.AgvState.FAILED`` (not imported: ``world`` imports this module)."""
+
 if TYPE_CHECKING:
     from ..world import Agv, World
     from .corridors import Corridor
@@ -145,12 +148,10 @@ def record_check(world: World, hits: Iterable[Hit], t_s: float, dt_s: float,
     """One check at simulated time ``t_s`` covering ``dt_s`` seconds; returns how many new
     intrusions began. Hits of AGVs that are down, or for corridors no longer open, are
     ignored."""
-    from ..world import AgvState
-
     book: CorridorBook = world.corridor_book
     current: dict[tuple[int, int], float] = {}
     for agv, cid, depth in hits:
-        if cid not in world.corridors or world.agvs[agv].state == AgvState.FAILED:
+        if cid not in world.corridors or world.agvs[agv].state == FAILED_STATE:
             continue
         key = (agv, cid)
         current[key] = max(float(depth), current.get(key, 0.0))
@@ -160,7 +161,7 @@ def record_check(world: World, hits: Iterable[Hit], t_s: float, dt_s: float,
         if g.settled or key in current or g.corridor not in world.corridors \
                 or not g.seen_inside:
             continue
-        if world.agvs[g.agv].state == AgvState.FAILED:
+        if world.agvs[g.agv].state == FAILED_STATE:
             continue  # down: not looked at, its clock says nothing
         g.exit_s = t_s - g.open_s
         world.log("corridor_exit", agv=g.agv, corridor=g.corridor, exit_s=round(g.exit_s, 3),
