@@ -202,6 +202,19 @@ class MotionGraph:
             path.append(node)
         return path
 
+    def dead_ends(self, no_turn: frozenset[int]) -> frozenset[tuple[int, int]]:
+        """States ``(anchor, direction index)`` a turn-aware AGV must never enter on this
+        graph (:func:`~warerover_phys.planning.sweep.dead_ends`), cached per mask."""
+        if not no_turn:
+            return frozenset()
+        cache = self.__dict__.setdefault("_dead_cache", {})
+        out = cache.get(no_turn)
+        if out is None:
+            from .sweep import dead_ends
+
+            out = cache[no_turn] = dead_ends(self.neighbors, no_turn, self.cols)
+        return out
+
     def reachable_from(self, start: Cell) -> np.ndarray:
         """Boolean (rows, cols) mask of anchors reachable from ``start`` (unloaded graphs
         are symmetric, so this is the set that can reach ``start`` too)."""

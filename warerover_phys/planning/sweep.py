@@ -54,7 +54,8 @@ import numpy as np
 
 __all__ = ["turn_locks", "BodyShape", "SweepError", "disc_overlaps_rect", "discs_overlap", "sweep_offsets",
            "fleet_sweeps", "agv_sweeps", "Sweep", "check_fleet_sweeps", "static_sweep_hits", "turn_sweeps", "sweep_cells",
-           "sweep_conflicts", "SweepConflict", "EAST"]
+           "sweep_conflicts", "SweepConflict", "EAST", "no_turn_anchors", "dead_ends", "move_dir",
+           "DIR_OF", "turn_aware", "lock_keys", "turn_fields"]
 
 EAST = (0, 1)
 """``(drow, dcol)`` an AGV faces when it is placed (heading 0 = +x)."""
@@ -231,6 +232,23 @@ def agv_sweeps(specs: Sequence, cell_m: float) -> dict[int, Sweep]:
     return out
 
 
+def turn_fields(layout, specs: Sequence) -> dict[int, tuple[Sweep | None, frozenset[int]]]:
+    """Per AGV (index into ``specs``, one ``AgvTypeSpec`` each) what a planner needs to
+    plan its turns (:class:`~warerover_phys.planning.base.AgentRequest`'s ``sweep`` and
+    ``no_turn``); AGVs whose turns need nothing are left out (all of them for the default
+    0.7 m bodies on 1 m cells)."""
+    sweeps = agv_sweeps(specs, layout.cell_m)
+    masks: dict[BodyShape, frozenset[int]] = {}
+    out = {}
+    for i, spec in enumerate(specs):
+        shape = BodyShape.of(spec)
+        if shape not in masks:
+            masks[shape] = no_turn_anchors(layout, shape)
+        if i in sweeps or masks[shape]:
+            out[i] = (sweeps.get(i), masks[shape])
+    return out
+
+
 def check_fleet_sweeps(types: Mapping[str, object], cell_m: float) -> list[str]:
     """Problems with the fleet's turning sweeps, one sentence each (empty if none): a type
     whose swept disc reaches bodies the reservation cannot hold (see the module doc)."""
@@ -249,45 +267,165 @@ def check_fleet_sweeps(types: Mapping[str, object], cell_m: float) -> list[str]:
     return out
 
 
-def static_sweep_hits(layout, types: Mapping[str, object]) -> list[str]:
-    """Problems, one sentence per AGV type: a differential-drive type whose swept disc
-    reaches an obstacle or the map's edge from an anchor where it can stand (no
-    reservation can clear those; a turn there hits the static world)."""
+def no_turn_anchors(layout, shape: BodyShape) -> frozenset[int]:
+    """Flat anchors (``row * cols + col``) where the swept disc of a turn in place of
+    ``shape`` reaches an obstacle or the map's edge (the physics world has walls there):
+    no reservation can clear those, so planners must not turn such an AGV there. Empty for
+    AGVs that never turn and for discs that stay inside the footprint."""
     from ..layout import CellType
+
+    s, m = shape, layout.cell_m
+    if not s.turns or s.radius_m <= s.k * m / 2 + 1e-12:
+        return frozenset()
+    rows, cols = layout.rows, layout.cols
+    obstacle = layout.grid == CellType.OBSTACLE
+    out = set()
+    for r in range(rows - s.k + 1):
+        for c in range(cols - s.k + 1):
+            cx, cy = _centre(r, c, s.k, m)
+            if cx - s.radius_m < 0 or cy - s.radius_m < 0 or \
+                    cx + s.radius_m > cols * m or cy + s.radius_m > rows * m:
+                out.add(r * cols + c)
+                continue
+            if any(0 <= r + dr < rows and 0 <= c + dc < cols and obstacle[r + dr, c + dc]
+                   and disc_overlaps_rect(cx, cy, s.radius_m, (c + dc) * m, (r + dr) * m,
+                                          (c + dc + 1) * m, (r + dr + 1) * m)
+                   for dr in range(-1, s.k + 1) for dc in range(-1, s.k + 1)):
+                out.add(r * cols + c)
+    return frozenset(out)
+
+
+DIR_OF = {d: i for i, d in enumerate(_DIRS)}
+"""Direction ``(drow, dcol)`` -> index (0 east, 1 south, 2 west, 3 north)."""
+
+
+def move_dir(a: int, b: int, cols: int) -> int:
+    """Index of the direction of the move from anchor ``a`` to its 4-neighbour ``b``."""
+    d = b - a
+    return 0 if d == 1 else 1 if d == cols else 2 if d == -1 else 3
+
+
+def dead_ends(neighbors: Sequence[tuple[int, ...]], no_turn: frozenset[int], cols: int,
+              ) -> frozenset[tuple[int, int]]:
+    """States ``(anchor, direction index)`` an AGV must never be in: it stands in a no-turn
+    anchor facing that way, and driving straight ahead along the motion graph
+    (``neighbors``) never reaches an anchor where it may turn. An AGV that enters one can
+    never leave it."""
+    if not no_turn:
+        return frozenset()
+    step = (1, cols, -1, -cols)
+    memo: dict[tuple[int, int], bool] = {}
+    for node in no_turn:
+        for d in range(4):
+            trail = []
+            v = node
+            ok = False
+            while True:
+                key = (v, d)
+                if key in memo:
+                    ok = memo[key]
+                    break
+                if v not in no_turn:
+                    ok = True
+                    break
+                trail.append(key)
+                nxt = v + step[d]
+                if nxt not in neighbors[v] or len(trail) > len(no_turn):
+                    break
+                v = nxt
+            for key in trail:
+                memo[key] = ok
+    return frozenset(k for k, ok in memo.items() if not ok)
+
+
+def static_sweep_hits(layout, types: Mapping[str, object],
+                      starts: Mapping[str, Sequence[tuple[int, int]]] | None = None,
+                      ) -> list[str]:
+    """Problems, one sentence per AGV type: a differential-drive type that cannot do its
+    work because turning in place is impossible where its swept disc reaches an obstacle
+    or the map's edge (see :func:`no_turn_anchors`; planners never turn it there).
+
+    For each such type, over its unloaded motion graph with headings: every anchor it
+    starts on must let it reach an anchor where it may turn, and every station, parking
+    spot and shelf anchor it can stand on must be reachable in a state from which it can
+    leave again (not facing a wall where it cannot turn). ``starts``: per type the anchors
+    its AGVs start on (facing east, as they are placed). Types that turn nowhere near the
+    static world, or whose every required place passes this test, are not reported."""
     from .graph import MotionGraph
 
     m = layout.cell_m
-    obstacle = layout.grid == CellType.OBSTACLE
     out = []
     for name, spec in types.items():
         s = BodyShape.of(spec)
-        if not s.turns or s.radius_m <= s.k * m / 2 + 1e-12:
+        no_turn = no_turn_anchors(layout, s)
+        if not no_turn:
             continue
-        valid = MotionGraph(layout, s.k, False).valid
-        hits = []
-        for r, c in zip(*np.nonzero(valid), strict=True):
-            cx, cy = _centre(int(r), int(c), s.k, m)
-            if cx - s.radius_m < 0 or cy - s.radius_m < 0 or \
-                    cx + s.radius_m > layout.cols * m or cy + s.radius_m > layout.rows * m:
-                hits.append((int(r), int(c)))
+        graph = MotionGraph(layout, s.k, False)
+        cols = layout.cols
+        dead = dead_ends(graph.neighbors, no_turn, cols)
+        free = [int(n) for n in np.flatnonzero(graph.valid.ravel()) if int(n) not in no_turn]
+        # Anchors reachable from a free anchor (where it can take any heading), in a state
+        # it can leave: breadth-first over (anchor, heading) states.
+        seen = {(n, d) for n in free for d in range(4)}
+        frontier = list(seen)
+        while frontier:
+            nxt_front = []
+            for v, h in frontier:
+                for u in graph.neighbors[v]:
+                    d = move_dir(v, u, cols)
+                    if d != h and v in no_turn:
+                        continue
+                    key = (u, d)
+                    if key in seen or key in dead:
+                        continue
+                    seen.add(key)
+                    nxt_front.append(key)
+            frontier = nxt_front
+        usable = {v for v, _ in seen}
+        k = s.k
+        places = [("station", cell) for cell in layout.stations] + \
+            [("parking spot", p) for p in layout.parking] + \
+            [("shelf", sh.anchor) for sh in layout.shelves if sh.size == k]
+        bad = []
+        for what, (r, c) in places:
+            anchor = graph.goal_anchor((r, c))
+            if anchor is None:
                 continue
-            for dr in range(-1, s.k + 1):
-                for dc in range(-1, s.k + 1):
-                    rr, cc = int(r) + dr, int(c) + dc
-                    if 0 <= rr < layout.rows and 0 <= cc < layout.cols and obstacle[rr, cc] \
-                            and disc_overlaps_rect(cx, cy, s.radius_m, cc * m, rr * m,
-                                                   (cc + 1) * m, (rr + 1) * m):
-                        hits.append((int(r), int(c)))
-        if hits:
-            hits = sorted(set(hits))
+            node = anchor[0] * cols + anchor[1]
+            if node not in usable:
+                bad.append(f"{what} {(r, c)}")
+        for r, c in (starts or {}).get(name, ()):
+            if (r * cols + c, DIR_OF[EAST]) in dead:
+                bad.append(f"the start {(r, c)}")
+        if not free:
+            bad.insert(0, "every anchor")
+        if bad:
+            many = f" (and {len(bad) - 6} more)" if len(bad) > 6 else ""
             out.append(f"fleet.types.{name}: a {s.length_m} x {s.width_m} m body on a "
                        f"{s.k}x{s.k} footprint turning in place sweeps a disc of radius "
                        f"{s.radius_m:.3f} m on {m} m cells, which reaches an obstacle or "
-                       f"the map edge from {len(hits)} anchors it can stand on (first "
-                       f"{hits[0]}); no reservation can clear those, so a turn there hits "
-                       "the static world (use a body whose half-diagonal is at most "
-                       f"{s.k * m / 2} m, drive: omni, or larger cells)")
+                       f"the map edge from {len(no_turn)} anchors, where it must never "
+                       f"turn; then {', '.join(bad[:6])}{many} cannot be used: an AGV that "
+                       "drives there ends up facing a wall where it cannot turn, so it "
+                       "could never leave (use a body whose half-diagonal is at most "
+                       f"{s.k * m / 2} m, drive: omni, larger cells, or a layout with a "
+                       "free cell between those places and the walls)")
     return out
+
+
+def turn_aware(agent) -> bool:
+    """Must a planner track this :class:`~warerover_phys.planning.base.AgentRequest`'s
+    heading? (Its turns hold cells or locks, or there are anchors where it may not turn.)"""
+    sw = agent.sweep
+    return bool(agent.no_turn) or (sw is not None and bool(sw.cells or sw.locks))
+
+
+def lock_keys(anchor: int, locks: Sequence[tuple[int, int]], rows: int | None,
+              cols: int) -> tuple[int, ...]:
+    """Flat anchors of the turn locks of a turn at ``anchor`` that lie inside the grid."""
+    r, c = divmod(anchor, cols)
+    return tuple((r + dr) * cols + c + dc for dr, dc in locks
+                 if 0 <= c + dc < cols and r + dr >= 0 and (rows is None or r + dr < rows))
 
 
 def sweep_cells(anchor: int, offsets: Sequence[tuple[int, int]], rows: int,
