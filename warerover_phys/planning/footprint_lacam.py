@@ -98,8 +98,10 @@ def footprint_lacam(movers: Sequence[Mover], starts: Sequence[Pose], cols: int,
                 parent.headings, parent.config, config, cols)
         return _High(config, parent, prio, order, heads)
 
-    if any(mv.dist[start[i][1]] >= UNREACHABLE for i, mv in enumerate(movers)
-           if i not in held_set):
+    if any(mv.dist[start[i][1]] >= UNREACHABLE or (
+            mv.reach is not None and headings is not None
+            and (start[i][1], headings[i]) not in mv.reach)
+           for i, mv in enumerate(movers) if i not in held_set):
         # An agent that cannot reach its goal: no configuration search can succeed.
         return None, {"iterations": 0, "explored": 0, "exhausted": True,
                       "stopped": "unreachable"}

@@ -78,6 +78,9 @@ class Mover:
     """States ``(anchor, direction index)`` it must never enter."""
     rows: int = 0
     """Grid rows (to clip swept cells; turn-aware movers only)."""
+    reach: frozenset[tuple[int, int]] | None = None
+    """States ``(anchor, heading index)`` from which it can reach its goal (turn-aware
+    movers with no-turn anchors; None: not known)."""
 
     @property
     def turns(self) -> bool:

@@ -215,6 +215,21 @@ class MotionGraph:
             out = cache[no_turn] = dead_ends(self.neighbors, no_turn, self.cols)
         return out
 
+    def turn_reach(self, no_turn: frozenset[int], goal: int) -> frozenset[tuple[int, int]]:
+        """States ``(anchor, heading index)`` from which a turn-aware AGV reaches ``goal``
+        on this graph (:func:`~warerover_phys.planning.sweep.turn_reach`), cached."""
+        cache = self.__dict__.setdefault("_reach_cache", OrderedDict())
+        key = (no_turn, goal)
+        out = cache.get(key)
+        if out is None:
+            from .sweep import turn_reach
+
+            out = cache[key] = turn_reach(self.neighbors, no_turn, self.dead_ends(no_turn),
+                                          self.cols, goal)
+            if len(cache) > 64:
+                cache.popitem(last=False)
+        return out
+
     def reachable_from(self, start: Cell) -> np.ndarray:
         """Boolean (rows, cols) mask of anchors reachable from ``start`` (unloaded graphs
         are symmetric, so this is the set that can reach ``start`` too)."""

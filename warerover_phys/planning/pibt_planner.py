@@ -48,7 +48,8 @@ def movers_for(request: PlanRequest, agents: Sequence[AgentRequest],
                              graph.dist_to(graph.cell(goal)), goal,
                              sweep=sw.cells if sw is not None else (),
                              locks=sw.locks if sw is not None else (), no_turn=a.no_turn,
-                             dead=graph.dead_ends(a.no_turn), rows=graph.rows))
+                             dead=graph.dead_ends(a.no_turn), rows=graph.rows,
+                             reach=graph.turn_reach(a.no_turn, goal) if a.no_turn else None))
         else:
             out.append(Mover(a.k, a.ticks_per_move, graph.neighbors,
                              graph.dist_to(graph.cell(goal)), goal))

@@ -55,7 +55,7 @@ import numpy as np
 __all__ = ["turn_locks", "BodyShape", "SweepError", "disc_overlaps_rect", "discs_overlap", "sweep_offsets",
            "fleet_sweeps", "agv_sweeps", "Sweep", "check_fleet_sweeps", "static_sweep_hits", "turn_sweeps", "sweep_cells",
            "sweep_conflicts", "SweepConflict", "EAST", "no_turn_anchors", "dead_ends", "move_dir",
-           "DIR_OF", "turn_aware", "lock_keys", "turn_fields"]
+           "DIR_OF", "turn_aware", "lock_keys", "turn_fields", "heading_after", "turn_reach"]
 
 EAST = (0, 1)
 """``(drow, dcol)`` an AGV faces when it is placed (heading 0 = +x)."""
@@ -338,6 +338,30 @@ def dead_ends(neighbors: Sequence[tuple[int, ...]], no_turn: frozenset[int], col
     return frozenset(k for k, ok in memo.items() if not ok)
 
 
+def turn_reach(neighbors: Sequence[tuple[int, ...]], no_turn: frozenset[int],
+               dead: frozenset[tuple[int, int]], cols: int, goal: int,
+               ) -> frozenset[tuple[int, int]]:
+    """States ``(anchor, heading index)`` (4: unknown) from which an AGV that may not turn
+    at ``no_turn`` anchors, nor enter ``dead`` states, can reach ``goal`` (any heading)."""
+    step = (1, cols, -1, -cols)
+    seen = {(goal, h) for h in range(5)}
+    frontier = [(goal, d) for d in range(4)]
+    while frontier:
+        nxt = []
+        for u, d in frontier:
+            v = u - step[d]
+            if not 0 <= v < len(neighbors) or u not in neighbors[v]:
+                continue
+            for h in range(5):
+                if (h == d or v not in no_turn) and (v, h) not in seen and \
+                        (h == 4 or (v, h) not in dead):
+                    seen.add((v, h))
+                    if h < 4:
+                        nxt.append((v, h))
+        frontier = nxt
+    return frozenset(seen)
+
+
 def static_sweep_hits(layout, types: Mapping[str, object],
                       starts: Mapping[str, Sequence[tuple[int, int]]] | None = None,
                       ) -> list[str]:
@@ -386,28 +410,34 @@ def static_sweep_hits(layout, types: Mapping[str, object],
         places = [("station", cell) for cell in layout.stations] + \
             [("parking spot", p) for p in layout.parking] + \
             [("shelf", sh.anchor) for sh in layout.shelves if sh.size == k]
-        bad = []
+        bad: dict[str, list[tuple[int, int]]] = {}
         for what, (r, c) in places:
             anchor = graph.goal_anchor((r, c))
             if anchor is None:
                 continue
             node = anchor[0] * cols + anchor[1]
             if node not in usable:
-                bad.append(f"{what} {(r, c)}")
+                bad.setdefault(what, []).append((r, c))
         for r, c in (starts or {}).get(name, ()):
             if (r * cols + c, DIR_OF[EAST]) in dead:
-                bad.append(f"the start {(r, c)}")
+                bad.setdefault("start", []).append((r, c))
         if not free:
-            bad.insert(0, "every anchor")
+            bad = {"anchor": [(-1, -1)]}
         if bad:
-            many = f" (and {len(bad) - 6} more)" if len(bad) > 6 else ""
+            words = []
+            for what, cells in bad.items():
+                more = f" and {len(cells) - 3} more" if len(cells) > 3 else ""
+                east = " (facing east)" if what == "start" else ""
+                words.append(f"{what}{'s' if len(cells) > 1 else ''} "
+                             f"{', '.join(str(x) for x in cells[:3])}{more}{east}"
+                             if cells[0] != (-1, -1) else "every anchor")
             out.append(f"fleet.types.{name}: a {s.length_m} x {s.width_m} m body on a "
                        f"{s.k}x{s.k} footprint turning in place sweeps a disc of radius "
                        f"{s.radius_m:.3f} m on {m} m cells, which reaches an obstacle or "
                        f"the map edge from {len(no_turn)} anchors, where it must never "
-                       f"turn; then {', '.join(bad[:6])}{many} cannot be used: an AGV that "
-                       "drives there ends up facing a wall where it cannot turn, so it "
-                       "could never leave (use a body whose half-diagonal is at most "
+                       f"turn; then {'; '.join(words)} cannot be used: an AGV there "
+                       "ends up facing a wall where it cannot turn, so it could never "
+                       "leave (use a body whose half-diagonal is at most "
                        f"{s.k * m / 2} m, drive: omni, larger cells, or a layout with a "
                        "free cell between those places and the walls)")
     return out
@@ -460,16 +490,49 @@ def turn_sweeps(states: Sequence[tuple[int, int]], cols: int,
     return out
 
 
+def heading_after(states: Sequence[tuple[int, int]], cols: int,
+                  heading: tuple[int, int] | None = EAST) -> tuple[int, int] | None:
+    """The direction an AGV faces after the per-tick ``states`` (its last move's; a
+    moving state counts as its move), starting from ``heading``."""
+    out = heading
+    prev = None
+    for a, b in states:
+        src, dst = (a, b) if a != b else ((prev[0], a) if prev is not None and
+                                          prev[0] == prev[1] else (a, a))
+        if src != dst:
+            r0, c0 = divmod(src, cols)
+            r1, c1 = divmod(dst, cols)
+            if abs(r1 - r0) + abs(c1 - c0) == 1:
+                out = (r1 - r0, c1 - c0)
+        prev = (a, b)
+    return out
+
+
 @dataclass(frozen=True, slots=True)
 class SweepConflict:
     tick: int
-    agvs: tuple[int, int]
-    """(turning AGV, AGV in the swept cells)."""
+    agvs: tuple[int, ...]
+    """(turning AGV, AGV in the swept cells); (one turning AGV, the other) for ``turn_lock``;
+    (the turning AGV,) for ``turn_wall``."""
     cell: tuple[int, int]
-
-    kind = "sweep"
+    """The swept cell held by the other AGV; the first turn's anchor for ``turn_lock`` and
+    ``turn_wall``."""
+    kind: str = "sweep"
+    """``sweep``: a turn's swept cell is held by another AGV at the turn's tick or the next;
+    ``turn_lock``: two turns at one tick share a turn lock (their swept discs may touch);
+    ``turn_wall``: a turn where the swept disc reaches an obstacle or the map edge."""
+    other: tuple[int, int] | None = None
+    """The second turn's anchor (``turn_lock``)."""
 
     def __str__(self) -> str:
+        if self.kind == "turn_lock":
+            return (f"turn lock conflict at tick {self.tick}: AGVs {self.agvs[0]} and "
+                    f"{self.agvs[1]} turn in place at once at {self.cell} and {self.other}, "
+                    "whose turn locks overlap (their swept discs may touch)")
+        if self.kind == "turn_wall":
+            return (f"turn-at-wall conflict at tick {self.tick}: AGV {self.agvs[0]} turns in "
+                    f"place at {self.cell}, where its swept disc reaches an obstacle or the "
+                    "map edge")
         return (f"sweep conflict at tick {self.tick}: AGV {self.agvs[0]} turns in place "
                 f"while AGV {self.agvs[1]} holds {self.cell}")
 
@@ -477,8 +540,14 @@ class SweepConflict:
 def sweep_conflicts(trajectories: Mapping[int, Sequence[tuple[int, int]]], rows: int,
                     cols: int, sizes: Mapping[int, int], offsets: Mapping[int, Sequence],
                     *, start_tick: int = 0, headings: Mapping[int, tuple[int, int] | None]
-                    | None = None, max_conflicts: int = 100) -> list[SweepConflict]:
-    """Turns whose swept cells another AGV occupies at the turn's tick or the next one.
+                    | None = None, max_conflicts: int = 100,
+                    locks: Mapping[int, Sequence[tuple[int, int]]] | None = None,
+                    no_turn: Mapping[int, frozenset[int]] | None = None,
+                    ) -> list[SweepConflict]:
+    """Turns whose swept cells another AGV occupies at the turn's tick or the next one
+    (kind ``sweep``), pairs of turns at one tick that share a turn lock (``turn_lock``,
+    with ``locks``: per AGV its turn locks, :func:`turn_locks`), and turns at anchors in
+    the AGV's ``no_turn`` set (``turn_wall``, :func:`no_turn_anchors`).
 
     Independent of the planners: it rebuilds every AGV's cells per tick from its states
     (``(a, b)`` flat anchors, moving if different; the last state holds). ``offsets``:
@@ -486,6 +555,8 @@ def sweep_conflicts(trajectories: Mapping[int, Sequence[tuple[int, int]]], rows:
     sweeps). ``headings``: the direction each AGV faces before its first move (default
     east, as AGVs are placed; None: unknown)."""
     headings = headings or {}
+    locks = locks or {}
+    no_turn = no_turn or {}
     horizon = max((len(s) for s in trajectories.values()), default=0)
 
     def cells_at(agv: int, i: int) -> set[int]:
@@ -499,11 +570,23 @@ def sweep_conflicts(trajectories: Mapping[int, Sequence[tuple[int, int]]], rows:
         return out
 
     out: list[SweepConflict] = []
+    turns_at: dict[int, list[tuple[int, int, set[tuple[int, int]]]]] = {}
     for agv, states in sorted(trajectories.items()):
         off = offsets.get(agv)
-        if not off:
+        lk = locks.get(agv)
+        walls = no_turn.get(agv, frozenset())
+        if not off and not lk and not walls:
             continue
         for i, anchor in turn_sweeps(states, cols, headings.get(agv, EAST)):
+            if anchor in walls:
+                out.append(SweepConflict(start_tick + i, (agv,), divmod(anchor, cols),
+                                         "turn_wall"))
+            if lk:
+                r, c = divmod(anchor, cols)
+                turns_at.setdefault(i, []).append(
+                    (agv, anchor, {(r + dr, c + dc) for dr, dc in lk}))
+            if not off:
+                continue
             swept = set(sweep_cells(anchor, off, rows, cols))
             for j in (i, i + 1):
                 if j >= horizon:
@@ -515,6 +598,11 @@ def sweep_conflicts(trajectories: Mapping[int, Sequence[tuple[int, int]]], rows:
                     if hit:
                         out.append(SweepConflict(start_tick + j, (agv, other),
                                                  divmod(min(hit), cols)))
-                        if len(out) >= max_conflicts:
-                            return out
-    return out
+    for i, turns in sorted(turns_at.items()):
+        for x, (a, na, la) in enumerate(turns):
+            for b, nb, lb in turns[x + 1:]:
+                if la & lb:
+                    out.append(SweepConflict(start_tick + i, (a, b), divmod(na, cols),
+                                             "turn_lock", divmod(nb, cols)))
+    out.sort(key=lambda c: c.tick)
+    return out[:max_conflicts]

@@ -131,6 +131,8 @@ def turning_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest
     goal_cells = fp(goal)
     if any(c in never for c in goal_cells):
         return None, 0
+    if no_turn and (start, heading_index(agent.heading)) not in graph.turn_reach(no_turn, goal):
+        return None, 0  # no way there without turning where it may not
     t_free = max((res.last_use(c, me) for c in goal_cells), default=-1) + 1
     if t_free >= FOREVER:
         return None, 0
