@@ -33,7 +33,8 @@ from .planning import make_planner
 from .planning.astar import nearest_free_anchor
 from .planning.base import AgentRequest, PlanRequest, PlanResult
 from .planning.paths import TimedPath, footprint_nodes, occupancy
-from .planning.sweep import EAST, turn_fields
+from .planning.sweep import EAST, BodyShape, TurnMasks, turn_fields
+from .planning.turns import request_turn_fields
 from .registry import check_plugins
 from .schedulers import make_scheduler
 from .schedulers.base import SchedulerView
@@ -87,6 +88,9 @@ class Simulation:
         w = self.world
         self._turns = turn_fields(w.layout, [a.spec for a in w.agvs])
         """AGVs whose turns in place planners must reserve: agv -> (sweep, no-turn anchors)."""
+        shapes: dict = {}
+        self._masks = {aid: shapes.setdefault(BodyShape.of(w.agvs[aid].spec), TurnMasks(
+            w.layout, BodyShape.of(w.agvs[aid].spec))) for aid in self._turns}
         self._heading = {aid: EAST for aid in self._turns}
         """The direction each of those AGVs faces (its last move's; east when placed)."""
         if self._turns:
@@ -252,15 +256,24 @@ class Simulation:
                 agv=agv.id, start=agv.node, goal=goal, k=agv.k, loaded=agv.loaded,
                 ticks_per_move=agv.ticks_per_move,
                 shelf=agv.trip.shelf if agv.loaded and agv.trip is not None else None,
-                priority=(0.0 if hold else age,), hold=hold, **self._turn_request(agv.id)))
+                priority=(0.0 if hold else age,), hold=hold, **self._turn_request(agv, goal)))
         return out
 
-    def _turn_request(self, agv: int) -> dict:
-        """The AgentRequest fields of a turn-aware AGV (none for the others)."""
-        turn = self._turns.get(agv)
+    def _turn_request(self, agv: Agv, goal: int) -> dict:
+        """The AgentRequest fields of a turn-aware AGV (none for the others): its heading,
+        what its turns hold, where it may not turn, and how it leaves its goal."""
+        turn = self._turns.get(agv.id)
         if turn is None:
             return {}
-        return {"heading": self._heading[agv], "sweep": turn[0], "no_turn": turn[1]}
+        w = self.world
+        shelf = agv.trip.shelf if agv.trip is not None else None
+        after = None
+        if goal == w.goal_of(agv):
+            after = {AgvState.TO_SHELF: (True, shelf), AgvState.TO_STATION: (True, shelf),
+                     AgvState.RETURNING: (False, None)}.get(agv.state)
+        return request_turn_fields(w.graphs, self._masks[agv.id], turn[0],
+                                   self._heading[agv.id], agv.k, agv.loaded,
+                                   shelf if agv.loaded else None, goal, after)
 
     def _replan_requests(self) -> list[AgentRequest]:
         """The AGVs that need a new path (see :meth:`_plan`)."""
@@ -292,7 +305,7 @@ class Simulation:
                 ticks_per_move=agv.ticks_per_move,
                 shelf=agv.trip.shelf if agv.loaded and agv.trip is not None else None,
                 priority=(-agv.plan_failures, not agv.loaded, agv.state == AgvState.IDLE),
-                **self._turn_request(agv.id)))
+                **self._turn_request(agv, goal)))
             # Re-anchor a delayed AGV's committed path at where it really stands.
             if agv.delay or path.state_at(w.tick) != agv.pos:
                 res.commit(TimedPath(agv.id, w.tick, (agv.pos,)), agv.k)

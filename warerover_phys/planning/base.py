@@ -48,7 +48,12 @@ class AgentRequest:
     no other turn at the same tick may share. None: its turns hold nothing."""
     no_turn: frozenset[int] = frozenset()
     """Anchors where it must not turn in place (its swept disc reaches an obstacle or the
-    map edge: :func:`~warerover_phys.planning.sweep.no_turn_anchors`)."""
+    map edge: :func:`~warerover_phys.planning.sweep.no_turn_anchors`; while loaded, also
+    another shelf: :class:`~warerover_phys.planning.sweep.TurnMasks`)."""
+    goal_dead: frozenset[int] | None = None
+    """Headings (direction indices, :data:`~warerover_phys.planning.sweep.DIR_OF`) it must
+    not arrive at its goal in: after its work there (loaded or not) it could never turn to
+    leave. None: those it would be stuck in as it is now."""
 
 
 @dataclass

@@ -99,8 +99,8 @@ def footprint_lacam(movers: Sequence[Mover], starts: Sequence[Pose], cols: int,
         return _High(config, parent, prio, order, heads)
 
     if any(mv.dist[start[i][1]] >= UNREACHABLE or (
-            mv.reach is not None and headings is not None
-            and (start[i][1], headings[i]) not in mv.reach)
+            mv.tdist is not None and headings is not None
+            and (start[i][1], headings[i]) not in mv.tdist)
            for i, mv in enumerate(movers) if i not in held_set):
         # An agent that cannot reach its goal: no configuration search can succeed.
         return None, {"iterations": 0, "explored": 0, "exhausted": True,

@@ -78,9 +78,11 @@ class Mover:
     """States ``(anchor, direction index)`` it must never enter."""
     rows: int = 0
     """Grid rows (to clip swept cells; turn-aware movers only)."""
-    reach: frozenset[tuple[int, int]] | None = None
-    """States ``(anchor, heading index)`` from which it can reach its goal (turn-aware
-    movers with no-turn anchors; None: not known)."""
+    goal_dead: frozenset[int] | None = None
+    """Headings it must not arrive at its goal in (None: the ``dead`` ones)."""
+    tdist: Mapping[tuple[int, int], int] | None = None
+    """Moves to its goal from each state ``(anchor, heading index)`` that can reach it
+    (turn-aware movers with no-turn anchors; None: use ``dist``)."""
 
     @property
     def turns(self) -> bool:
@@ -195,7 +197,10 @@ class _Step:
         if not self.turning or not mv.turns or r or target == here:
             return (), ()
         d = move_dir(here, target, self.cols)
-        if (target, d) in mv.dead:
+        if target == mv.goal and mv.goal_dead is not None:
+            if d in mv.goal_dead:
+                return None
+        elif (target, d) in mv.dead:
             return None
         assert self.headings is not None
         if d == self.headings[i]:
@@ -255,11 +260,30 @@ class _Step:
         """Targets of an agent at rest, best first (its own node last among equals)."""
         mv, here = self.movers[i], self.poses[i][1]
         d, tie = mv.dist, self.tie
+        if mv.tdist is not None and self.headings is not None:
+            return self._turn_candidates(i, avoid)
         near = [v for v in mv.neighbors[here] if d[v] < UNREACHABLE] + [here]
         if avoid:
             near = [v for v in near
                     if avoid.isdisjoint(footprint_nodes(v, mv.k, self.cols))]
         return sorted(near, key=lambda v: d[v] + tie[v])
+
+    def _turn_candidates(self, i: int, avoid: frozenset[int]) -> list[int]:
+        """:meth:`candidates` by the moves left from the state (anchor, heading) each
+        target leads to (a turn-aware mover that may not turn everywhere)."""
+        mv, here = self.movers[i], self.poses[i][1]
+        assert mv.tdist is not None and self.headings is not None
+        td, tie, cols = mv.tdist, self.tie, self.cols
+        score = {here: td.get((here, self.headings[i]), UNREACHABLE)}
+        for v in mv.neighbors[here]:
+            s = td.get((v, move_dir(here, v, cols)))
+            if s is not None:
+                score[v] = s
+        near = list(score)
+        if avoid:
+            near = [v for v in near
+                    if avoid.isdisjoint(footprint_nodes(v, mv.k, self.cols))]
+        return sorted(near, key=lambda v: (score[v] + tie[v], v != here))
 
     def try_target(self, i: int, target: int) -> bool:
         """Take ``target`` for agent ``i`` if every agent in the way can be pushed aside."""
@@ -353,12 +377,20 @@ class _Step:
         Their moves (and the pushes they need) are kept even if a decision of this chain is
         rolled back later, so they keep clear of the cells of ``i`` and of every agent with
         a decision in this chain: each of those may still stay where it is.
+
+        A turn-aware agent whose move to ``target`` is a turn nudges every agent at rest
+        there the same way: such an agent often has to turn to get out of the way, and two
+        neighbours may not turn in the same tick, so it moves first and ``i`` follows a
+        tick later.
         """
         mv = self.movers[i]
         dest = footprint_nodes(target, mv.k, self.cols)
+        turn_first = self.turning and mv.turns and self.poses[i][2] == 0 and \
+            target != self.poses[i][1] and self.headings is not None and \
+            move_dir(self.poses[i][1], target, self.cols) != self.headings[i]
         slow = [x for x in dict.fromkeys(self.occ_now.get(c) for c in dest)
                 if x is not None and x != i and self.nxt[x] is None
-                and self.movers[x].m > 1 and x not in self.stuck]
+                and (self.movers[x].m > 1 or turn_first) and x not in self.stuck]
         if not slow or self.budget <= 0:
             return
         self.budget -= len(slow)

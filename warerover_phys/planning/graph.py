@@ -212,21 +212,23 @@ class MotionGraph:
         if out is None:
             from .sweep import dead_ends
 
-            out = cache[no_turn] = dead_ends(self.neighbors, no_turn, self.cols)
+            out = cache[no_turn] = dead_ends(self.neighbors, no_turn, self.cols,
+                                             self.expandable_flat)
         return out
 
-    def turn_reach(self, no_turn: frozenset[int], goal: int) -> frozenset[tuple[int, int]]:
-        """States ``(anchor, heading index)`` from which a turn-aware AGV reaches ``goal``
-        on this graph (:func:`~warerover_phys.planning.sweep.turn_reach`), cached."""
+    def turn_dist(self, no_turn: frozenset[int], goal: int,
+                  goal_dead: frozenset[int] | None = None) -> dict[tuple[int, int], int]:
+        """Moves to ``goal`` from each state ``(anchor, heading index)`` of a turn-aware AGV
+        on this graph (:func:`~warerover_phys.planning.sweep.turn_dist`), cached."""
         cache = self.__dict__.setdefault("_reach_cache", OrderedDict())
-        key = (no_turn, goal)
+        key = (no_turn, goal, goal_dead)
         out = cache.get(key)
         if out is None:
-            from .sweep import turn_reach
+            from .sweep import turn_dist
 
-            out = cache[key] = turn_reach(self.neighbors, no_turn, self.dead_ends(no_turn),
-                                          self.cols, goal)
-            if len(cache) > 64:
+            out = cache[key] = turn_dist(self.neighbors, no_turn, self.dead_ends(no_turn),
+                                         self.cols, goal, goal_dead, self.expandable_flat)
+            if len(cache) > 256:
                 cache.popitem(last=False)
         return out
 

@@ -49,7 +49,10 @@ def movers_for(request: PlanRequest, agents: Sequence[AgentRequest],
                              sweep=sw.cells if sw is not None else (),
                              locks=sw.locks if sw is not None else (), no_turn=a.no_turn,
                              dead=graph.dead_ends(a.no_turn), rows=graph.rows,
-                             reach=graph.turn_reach(a.no_turn, goal) if a.no_turn else None))
+                             goal_dead=a.goal_dead if goal == a.goal else None,
+                             tdist=graph.turn_dist(a.no_turn, goal, a.goal_dead
+                                                   if goal == a.goal else None)
+                             if a.no_turn else None))
         else:
             out.append(Mover(a.k, a.ticks_per_move, graph.neighbors,
                              graph.dist_to(graph.cell(goal)), goal))

@@ -55,7 +55,8 @@ import numpy as np
 __all__ = ["turn_locks", "BodyShape", "SweepError", "disc_overlaps_rect", "discs_overlap", "sweep_offsets",
            "fleet_sweeps", "agv_sweeps", "Sweep", "check_fleet_sweeps", "static_sweep_hits", "turn_sweeps", "sweep_cells",
            "sweep_conflicts", "SweepConflict", "EAST", "no_turn_anchors", "dead_ends", "move_dir",
-           "DIR_OF", "turn_aware", "lock_keys", "turn_fields", "heading_after", "turn_reach"]
+           "DIR_OF", "turn_aware", "lock_keys", "turn_fields", "heading_after", "turn_dist",
+           "TurnMasks", "SHELF_BOX"]
 
 EAST = (0, 1)
 """``(drow, dcol)`` an AGV faces when it is placed (heading 0 = +x)."""
@@ -295,6 +296,56 @@ def no_turn_anchors(layout, shape: BodyShape) -> frozenset[int]:
     return frozenset(out)
 
 
+SHELF_BOX = 0.9
+"""A shelf's box, as a fraction of its footprint's side (the physics executor's shelf
+sensor: a loaded AGV touching another shelf is a static contact)."""
+
+
+class TurnMasks:
+    """Where one body shape may not turn in place on one layout: ``walls`` (the swept disc
+    reaches an obstacle or the map edge: :func:`no_turn_anchors`), and, while carrying a
+    shelf, also where it reaches another shelf's box (:meth:`carrying`)."""
+
+    def __init__(self, layout, shape: BodyShape) -> None:
+        self.layout, self.shape = layout, shape
+        self.walls = no_turn_anchors(layout, shape)
+        self._hits: dict[int, set[int]] | None = None
+        self._carrying: dict[int | None, frozenset[int]] = {}
+
+    def _shelf_hits(self) -> dict[int, set[int]]:
+        """Anchor -> shelves whose box the swept disc there reaches."""
+        if self._hits is None:
+            lay, s = self.layout, self.shape
+            m, cols = lay.cell_m, lay.cols
+            hits: dict[int, set[int]] = {}
+            if s.turns and s.radius_m > s.k * m / 2 * SHELF_BOX + 1e-12:
+                for shelf in lay.shelves:
+                    r0, c0 = shelf.anchor
+                    ks = shelf.size
+                    cx, cy = (c0 + ks / 2) * m, (r0 + ks / 2) * m
+                    half = ks * m * SHELF_BOX / 2
+                    reach = int(math.ceil(s.radius_m / m)) + 1
+                    for r in range(r0 - s.k - reach, r0 + ks + reach + 1):
+                        for c in range(c0 - s.k - reach, c0 + ks + reach + 1):
+                            if not (0 <= r <= lay.rows - s.k and 0 <= c <= lay.cols - s.k):
+                                continue
+                            ax, ay = _centre(r, c, s.k, m)
+                            if disc_overlaps_rect(ax, ay, s.radius_m, cx - half, cy - half,
+                                                  cx + half, cy + half):
+                                hits.setdefault(r * cols + c, set()).add(shelf.id)
+            self._hits = hits
+        return self._hits
+
+    def carrying(self, shelf: int | None) -> frozenset[int]:
+        """No-turn anchors while carrying ``shelf``: the walls' and where the disc reaches
+        the box of any other shelf (cached per shelf)."""
+        out = self._carrying.get(shelf)
+        if out is None:
+            extra = {a for a, ids in self._shelf_hits().items() if ids - {shelf}}
+            out = self._carrying[shelf] = self.walls | frozenset(extra)
+        return out
+
+
 DIR_OF = {d: i for i, d in enumerate(_DIRS)}
 """Direction ``(drow, dcol)`` -> index (0 east, 1 south, 2 west, 3 north)."""
 
@@ -306,11 +357,12 @@ def move_dir(a: int, b: int, cols: int) -> int:
 
 
 def dead_ends(neighbors: Sequence[tuple[int, ...]], no_turn: frozenset[int], cols: int,
-              ) -> frozenset[tuple[int, int]]:
+              expandable: Sequence[bool] | None = None) -> frozenset[tuple[int, int]]:
     """States ``(anchor, direction index)`` an AGV must never be in: it stands in a no-turn
     anchor facing that way, and driving straight ahead along the motion graph
-    (``neighbors``) never reaches an anchor where it may turn. An AGV that enters one can
-    never leave it."""
+    (``neighbors``; only into ``expandable`` anchors: never through a shelf's home while
+    loaded) never reaches an anchor where it may turn. An AGV that enters one can never
+    leave it."""
     if not no_turn:
         return frozenset()
     step = (1, cols, -1, -cols)
@@ -330,7 +382,8 @@ def dead_ends(neighbors: Sequence[tuple[int, ...]], no_turn: frozenset[int], col
                     break
                 trail.append(key)
                 nxt = v + step[d]
-                if nxt not in neighbors[v] or len(trail) > len(no_turn):
+                if nxt not in neighbors[v] or len(trail) > len(no_turn) or (
+                        expandable is not None and not expandable[nxt]):
                     break
                 v = nxt
             for key in trail:
@@ -338,28 +391,37 @@ def dead_ends(neighbors: Sequence[tuple[int, ...]], no_turn: frozenset[int], col
     return frozenset(k for k, ok in memo.items() if not ok)
 
 
-def turn_reach(neighbors: Sequence[tuple[int, ...]], no_turn: frozenset[int],
-               dead: frozenset[tuple[int, int]], cols: int, goal: int,
-               ) -> frozenset[tuple[int, int]]:
-    """States ``(anchor, heading index)`` (4: unknown) from which an AGV that may not turn
-    at ``no_turn`` anchors, nor enter ``dead`` states, can reach ``goal`` (any heading)."""
+def turn_dist(neighbors: Sequence[tuple[int, ...]], no_turn: frozenset[int],
+              dead: frozenset[tuple[int, int]], cols: int, goal: int,
+              goal_dead: frozenset[int] | None = None,
+              expandable: Sequence[bool] | None = None) -> dict[tuple[int, int], int]:
+    """Moves to ``goal`` from every state ``(anchor, heading index)`` (4: unknown) from which
+    an AGV that may not turn at ``no_turn`` anchors, nor enter ``dead`` states (nor
+    non-``expandable`` anchors other than the goal), can reach it in a heading not in
+    ``goal_dead`` (default: any it is not stuck in, per ``dead``). States missing from the
+    result cannot reach it. Turns cost nothing (as in the plans)."""
     step = (1, cols, -1, -cols)
-    seen = {(goal, h) for h in range(5)}
-    frontier = [(goal, d) for d in range(4)]
+    ends = [(goal, d) for d in range(4) if (d not in goal_dead if goal_dead is not None
+                                            else (goal, d) not in dead)]
+    dist = {e: 0 for e in ends}
+    frontier = list(ends)
+    n = 0
     while frontier:
+        n += 1
         nxt = []
         for u, d in frontier:
             v = u - step[d]
             if not 0 <= v < len(neighbors) or u not in neighbors[v]:
                 continue
             for h in range(5):
-                if (h == d or v not in no_turn) and (v, h) not in seen and \
-                        (h == 4 or (v, h) not in dead):
-                    seen.add((v, h))
-                    if h < 4:
+                if (h == d or v not in no_turn) and (v, h) not in dist and \
+                        (h == 4 or (v, h) not in dead) and not (
+                            v == goal and goal_dead is not None and h in goal_dead):
+                    dist[(v, h)] = n
+                    if h < 4 and (expandable is None or expandable[v]):
                         nxt.append((v, h))
         frontier = nxt
-    return frozenset(seen)
+    return dist
 
 
 def static_sweep_hits(layout, types: Mapping[str, object],

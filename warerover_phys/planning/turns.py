@@ -34,7 +34,7 @@ from .graph import UNREACHABLE, MotionGraph
 from .reservation import FOREVER, ReservationTable
 from .sweep import DIR_OF, lock_keys, move_dir, sweep_cells
 
-__all__ = ["turning_astar", "turn_ok", "heading_index"]
+__all__ = ["turning_astar", "turn_ok", "heading_index", "request_turn_fields"]
 
 _NONE = 4
 """Heading index for "unknown" (the first move counts as a turn)."""
@@ -42,6 +42,24 @@ _NONE = 4
 
 def heading_index(heading: tuple[int, int] | None) -> int:
     return _NONE if heading is None else DIR_OF[heading]
+
+
+def request_turn_fields(graphs, masks, sweep, heading: tuple[int, int] | None, k: int,
+                        loaded: bool, shelf: int | None, goal: int,
+                        after: tuple[bool, int | None] | None) -> dict:
+    """The :class:`~warerover_phys.planning.base.AgentRequest` fields of a turn-aware AGV:
+    ``heading``, ``sweep``, ``no_turn`` for how it drives now (``masks``: its
+    :class:`~warerover_phys.planning.sweep.TurnMasks`; loaded: carrying ``shelf``), and
+    ``goal_dead`` for ``after`` = (loaded, shelf) once its work at the goal is done (None:
+    unchanged)."""
+    no_turn = masks.carrying(shelf) if loaded else masks.walls
+    goal_dead = None
+    if after is not None and after != (loaded, shelf if loaded else None):
+        loaded2, shelf2 = after
+        no_turn2 = masks.carrying(shelf2) if loaded2 else masks.walls
+        dead2 = graphs.get(k, loaded2, shelf2).dead_ends(no_turn2)
+        goal_dead = frozenset(d for d in range(4) if (goal, d) in dead2)
+    return {"heading": heading, "sweep": sweep, "no_turn": no_turn, "goal_dead": goal_dead}
 
 
 def turn_ok(res: ReservationTable, agent: AgentRequest, node: int, t: int, rows: int,
@@ -131,7 +149,9 @@ def turning_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest
     goal_cells = fp(goal)
     if any(c in never for c in goal_cells):
         return None, 0
-    if no_turn and (start, heading_index(agent.heading)) not in graph.turn_reach(no_turn, goal):
+    goal_dead = agent.goal_dead
+    if no_turn and (start, heading_index(agent.heading)) not in graph.turn_dist(
+            no_turn, goal, goal_dead):
         return None, 0  # no way there without turning where it may not
     t_free = max((res.last_use(c, me) for c in goal_cells), default=-1) + 1
     if t_free >= FOREVER:
@@ -185,7 +205,7 @@ def turning_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest
             continue
         closed.add(key)
         node, hd = divmod(sid, 5)
-        if node == goal and t >= t_free:
+        if node == goal and t >= t_free and (goal_dead is None or hd not in goal_dead):
             return _reconstruct(parent, key, me), expansions
         expansions += 1
         if expansions > max_expansions:
@@ -199,7 +219,10 @@ def turning_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest
             if loaded_sinks and nxt != goal and not expandable[nxt]:
                 continue  # never drive into another shelf's home
             d = move_dir(node, nxt, cols)
-            if (nxt, d) in dead:
+            if nxt == goal and goal_dead is not None:
+                if d in goal_dead:
+                    continue  # it would start its work there facing the wrong way
+            elif (nxt, d) in dead:
                 continue
             t_arr = t + m
             nsid = nxt * 5 + d
