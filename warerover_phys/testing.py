@@ -535,7 +535,6 @@ def _run_plan_case(planner, case: _PlanCase, seed: int, ck: _Checker) -> list:
     """Plan ``case`` (tick by tick for ``replans_all`` planners, committing the returned
     paths as the loop does) and check every call; return a trace of the results."""
     from .planning.base import AgentRequest
-
     from .planning.sweep import heading_after, turn_fields
 
     world = _mixed_world(seed)

@@ -28,6 +28,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
 from ..layout import CellType, Layout
+from .headings import dead_ends, turn_dist
 
 __all__ = ["MotionGraph", "GraphSet", "UNREACHABLE"]
 
@@ -210,8 +211,6 @@ class MotionGraph:
         cache = self.__dict__.setdefault("_dead_cache", {})
         out = cache.get(no_turn)
         if out is None:
-            from .sweep import dead_ends
-
             out = cache[no_turn] = dead_ends(self.neighbors, no_turn, self.cols,
                                              self.expandable_flat)
         return out
@@ -224,8 +223,6 @@ class MotionGraph:
         key = (no_turn, goal, goal_dead)
         out = cache.get(key)
         if out is None:
-            from .sweep import turn_dist
-
             out = cache[key] = turn_dist(self.neighbors, no_turn, self.dead_ends(no_turn),
                                          self.cols, goal, goal_dead, self.expandable_flat)
             if len(cache) > 256:
