@@ -188,6 +188,40 @@ class _Step:
             self.nxt_swept[i], self.nxt_locks[i] = (), ()
         self.nxt[i], self.nxt_cells[i] = None, ()
 
+    def head_on_trap(self, i: int, target: int, d: int) -> bool:
+        """Would agent ``i`` (1x1), entering ``target`` facing ``d`` where it may not turn,
+        meet head-on, on the straight run it must now drive before it may turn again, an
+        agent that faces it and may not turn there either? Then neither could ever pass
+        (there is no reversing)."""
+        mv = self.movers[i]
+        if mv.k != 1 or target not in mv.no_turn:
+            return False
+        step = (1, self.cols, -1, -self.cols)[d]
+        back = (d + 2) % 4
+        assert self.headings is not None
+        cur = target
+        for _ in range(len(mv.no_turn)):
+            if cur not in mv.no_turn:
+                return False
+            ahead = cur + step
+            if ahead not in mv.neighbors[cur]:
+                return False
+            for x in {self.occ_now.get(ahead), self.occ_next.get(ahead)}:
+                if x is None or x < 0 or x == i or self.movers[x].k != 1 or \
+                        ahead not in self.movers[x].no_turn:
+                    continue
+                nxt = self.nxt[x]
+                if nxt is not None and nxt[1] == ahead and self.poses[x][1] != ahead:
+                    facing = move_dir(self.poses[x][1], ahead, self.cols)
+                elif self.poses[x][1] == ahead and self.poses[x][2] == 0:
+                    facing = self.headings[x]
+                else:
+                    continue
+                if facing == back:
+                    return True
+            cur = ahead
+        return False
+
     def turn_claim(self, i: int, target: int,
                    ) -> tuple[tuple[int, ...], tuple[int, ...]] | None:
         """What agent ``i`` (at rest) must claim to head for ``target``: its turn's swept
@@ -203,6 +237,8 @@ class _Step:
         elif (target, d) in mv.dead:
             return None
         assert self.headings is not None
+        if target != mv.goal and self.head_on_trap(i, target, d):
+            return None
         if d == self.headings[i]:
             return (), ()
         if here in mv.no_turn:
@@ -350,13 +386,21 @@ class _Step:
 
     def can_step_aside(self, j: int, i: int, best: int) -> bool:
         """Has ``j`` a neighbouring anchor off ``i``'s way (clear of ``i``'s cells and of
-        ``best``, no closer to ``i``'s goal) that nothing immovable covers?"""
+        ``best``, no closer to ``i``'s goal) that nothing immovable covers? (A turn-aware
+        ``j`` only where it may drive: no turn where it may not turn, no dead end.)"""
         mj, mi = self.movers[j], self.movers[i]
         blocked = self.cur_set[i].union(footprint_nodes(best, mi.k, self.cols))
         ref = mi.dist[best]
-        for u in mj.neighbors[self.poses[j][1]]:
+        here = self.poses[j][1]
+        for u in mj.neighbors[here]:
             if mj.dist[u] >= UNREACHABLE or mi.dist[u] < ref:
                 continue
+            if self.turning and mj.turns:
+                assert self.headings is not None
+                d = move_dir(here, u, self.cols)
+                if (u, d) in mj.dead or (d != self.headings[j] and here in mj.no_turn) or (
+                        mj.tdist is not None and (u, d) not in mj.tdist):
+                    continue
             cells = footprint_nodes(u, mj.k, self.cols)
             if blocked.isdisjoint(cells) and not any(self.immovable(c, j) for c in cells):
                 return True
