@@ -108,7 +108,8 @@ def one(n: int, plan_file: Path, solver: str, dt_s: float = 0.02) -> dict:
         "executed_makespan": m["executed_makespan_ticks"],
         "makespan_ratio": round(m["makespan_ratio"], 3),
         "agv_contacts": m["agv_contacts"], "static_contacts": m["static_contacts"],
-        "min_separation_m": m["min_separation_m"], "completed": m["completed"],
+        "min_clearance_m": m["min_clearance_m"], "limit_violations": m["limit_violations"],
+        "completed": m["completed"],
         "validator_conflicts": len(conflicts),
         "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
     }

@@ -4,8 +4,8 @@ Builds a 100 x 100 m floor (1 m cells, a few shelf blocks, access points on the 
 opens three corridors from random cells (1.0 m wide, 0.3 m margin) and times
 :meth:`IntrusionChecker.check` in two cases:
 
-- ``moving``: fresh random poses on every call (every fcl transform is rewritten: worst case);
-- ``static``: the same poses again (no transform changes, broad + narrow phase only).
+- ``moving``: fresh random poses on every call (worst case for the broad phase);
+- ``static``: the same poses again.
 
 Also times the shapely reference :func:`intrusions_shapely` and checks both agree.
 

@@ -14,7 +14,8 @@ __all__ = ["gap_report", "GAP_KEYS"]
 
 GAP_KEYS = ("makespan_ratio", "tp_ratio", "latency_ratio", "delay_dependency_wait_s",
             "delay_kinematic_s", "delay_turns_s", "delay_injected_s", "agv_contacts",
-            "static_contacts", "min_separation_m", "deadlocks", "replans", "real_time_factor")
+            "static_contacts", "min_clearance_m", "min_separation_m", "limit_violations",
+            "deadlocks", "replans", "real_time_factor")
 
 
 def _ratio(a: float, b: float) -> float | None:

@@ -18,10 +18,31 @@ Keys (units in the name or below):
   out of its node or time budget and used its documented fallback;
 - ``failures`` (AGV breakdowns), ``down_ticks`` (AGV-ticks spent failed),
   ``orders_delayed_by_failures`` (orders held by an AGV when it failed),
-  ``corridor_intrusions`` (an AGV entering an open safety corridor's protected zone; counted
-  once per AGV and corridor visit), ``failure_replans`` (AGVs stopped and replanned because
-  a corridor opened across their path);
+  ``failure_replans`` (AGVs stopped and replanned because a corridor opened across their
+  path);
+- safety corridors (physics: an AGV body within ``corridor_margin_m`` of the person's space,
+  checked every physics step; grid: an AGV cell on a corridor cell, checked every tick;
+  the failed AGV in its own corridor and AGVs that are down are never counted):
+  ``corridor_inside_agv_s`` (every AGV-second inside an open corridor),
+  ``corridor_intrusion_agv_s`` (the part of it that is intrusion: all of it, except the
+  time an AGV caught inside when the corridor opened takes to leave within its exit
+  bound), ``corridor_intrusions`` (intrusion visits: an AGV entering, or a caught AGV still
+  inside at its deadline; once per AGV and corridor visit), ``corridor_caught_inside``
+  (AGVs caught inside, or unable to stop before, a corridor as it opened; each gets an
+  exit bound, ``faults.exit_time_s`` or derived from its speed),
+  ``corridor_exits_within_bound`` and ``corridor_exits_overrun`` (how those exits ended;
+  they add up to ``corridor_caught_inside``) and ``corridor_exit_max_s`` (longest exit that
+  was seen to end, seconds from the opening; null if none). Exact rules:
+  ``faults/intrusion_log.py``;
 - ``wall_s``: wall seconds of the whole episode.
+
+The physics executor adds its own figures (``PhysicsExecutor.summary``), among them
+``min_clearance_m`` (smallest edge-to-edge clearance between two AGVs' rectangles, carried
+shelves included, over every physics step; negative = overlap depth; ``min_separation_m``
+is its deprecated alias), ``min_clearance_t_s``, ``limit_violations`` (a measured speed,
+acceleration or turn rate more than 5% above its limit, counted each time it rises above)
+and ``peak_speed_ratio`` / ``peak_accel_ratio`` / ``peak_turn_rate_ratio`` (fleet maximum of
+measured peak / limit); the per-AGV peaks are in ``trajectories.npz``.
 
 CT keys, wall seconds and the physics executor's ``real_time_factor`` are the only ones that
 change between two runs with the same scenario and seed; :data:`TIMING_KEYS` lists every
@@ -115,7 +136,7 @@ class MetricsRecorder:
             "failures": world.fault_stats["failures"],
             "down_ticks": world.fault_stats["down_ticks"],
             "orders_delayed_by_failures": len(world.delayed_orders),
-            "corridor_intrusions": world.fault_stats["corridor_intrusions"],
+            **world.corridor_book.summary(),
             "failure_replans": world.fault_stats["failure_replans"],
             "ct_total_s": float(total.sum() / 1e3),
             "ct_mean_ms": mean(total),

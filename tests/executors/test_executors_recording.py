@@ -19,14 +19,15 @@ def samples(n: int, count: int, seed: int = 0):
     rng = np.random.default_rng(seed)
     for j in range(count):
         yield (0.05 * j, rng.normal(size=(n, 2)), rng.normal(size=n),
-               rng.integers(0, 8, n).astype(np.int8), rng.random(n) < 0.5)
+               rng.integers(0, 8, n).astype(np.int8), rng.random(n) < 0.5,
+               (rng.random((n, 2)) * 2).astype(np.float32))
 
 
 def expected(rows) -> dict[str, np.ndarray]:
     return {"t": np.array([r[0] for r in rows]),
             "x": np.stack([r[1][:, 0] for r in rows]), "y": np.stack([r[1][:, 1] for r in rows]),
             "heading": np.stack([r[2] for r in rows]), "state": np.stack([r[3] for r in rows]),
-            "loaded": np.stack([r[4] for r in rows])}
+            "loaded": np.stack([r[4] for r in rows]), "shelf_m": np.stack([r[5] for r in rows])}
 
 
 def assert_same(got: dict, want: dict) -> None:
@@ -69,10 +70,11 @@ def test_no_agvs():
     store = TrajectoryStore(0, chunk=2)
     for j in range(5):
         store.append(float(j), np.zeros((0, 2)), np.zeros(0), np.zeros(0, np.int8),
-                     np.zeros(0, bool))
+                     np.zeros(0, bool), np.zeros((0, 2)))
     got = store.arrays()
     assert got["t"].tolist() == [0.0, 1.0, 2.0, 3.0, 4.0]
     assert got["x"].shape == (5, 0) and got["loaded"].dtype == bool
+    assert got["shelf_m"].shape == (5, 0, 2)
 
 
 def test_folder_removed_when_the_store_is_collected():

@@ -26,14 +26,24 @@ def fault_run(planner: str, executor: str, seed: int) -> dict:
     return run_episode(sc, seed=seed).metrics
 
 
+def check_corridor_figures(m: dict) -> None:
+    """What the corridor figures must satisfy whatever happened."""
+    assert m["corridor_caught_inside"] == (m["corridor_exits_within_bound"]
+                                           + m["corridor_exits_overrun"]), m
+    assert 0 <= m["corridor_intrusion_agv_s"] <= m["corridor_inside_agv_s"], m
+
+
 @pytest.mark.parametrize("executor", ["grid", "physics"])
 @pytest.mark.parametrize("planner", ["astar", "cbs", "pibt"])
-def test_paper_fault_scenario_finishes_without_intrusions(planner, executor):
+def test_paper_fault_scenario_finishes(planner, executor):
+    """Every order completes and no AGV-AGV contact. Intrusions are not 0 on physics:
+    AGVs caught inside a corridor are not sent out and overrun their exit bound (issue
+    13, fault 5; counted, no longer hidden by an exemption)."""
     failures = 0
     for seed in range(2):
         m = fault_run(planner, executor, seed)
         assert m["success_rate"] == 1.0, (seed, m)
-        assert m["corridor_intrusions"] == 0, (seed, m)
+        check_corridor_figures(m)
         assert m["collisions"] == 0 if executor == "grid" else m["agv_contacts"] == 0, m
         failures += m["failures"]
     assert failures > 0  # the scenario does break AGVs
@@ -47,8 +57,9 @@ def test_paper_fault_scenario_twenty_seeds(planner, executor):
     for seed in range(20):
         m = fault_run(planner, executor, seed)
         contacts = m["collisions"] if executor == "grid" else m["agv_contacts"]
-        if m["success_rate"] != 1.0 or m["corridor_intrusions"] or contacts:
-            bad.append((seed, m["success_rate"], m["corridor_intrusions"], contacts))
+        check_corridor_figures(m)
+        if m["success_rate"] != 1.0 or contacts:
+            bad.append((seed, m["success_rate"], contacts))
     assert bad == []
 
 
@@ -133,7 +144,7 @@ def test_driving_into_an_open_corridor_is_reported(executor):
     for _ in range(len(route) + 3):
         step_executor(w, sim.executor)
         w.tick += 1
-        if executor == "grid":
+        if executor == "grid":  # the loop's cell check, as Simulation.step runs it
             sim._grid_intrusions()
     assert w.fault_stats["corridor_intrusions"] >= 1
     events = [e for e in w.events if e["event"] == "corridor_intrusion"]
@@ -165,7 +176,7 @@ def test_on_demand_failure_opens_a_corridor_that_later_plans_avoid(executor):
     sim.fail(victim)
     assert w.agvs[victim].state == AgvState.FAILED and len(w.corridors) == 1
     corridor = next(iter(w.corridors.values()))
-    exempt = set(w.corridor_exempt[corridor.id])
+    exempt = {g.agv for g in w.corridor_book.grants.values() if g.corridor == corridor.id}
     before = {aid: p for aid, p in w.reservations.paths.items()}
     for _ in range(30):
         sim.step()
@@ -175,7 +186,12 @@ def test_on_demand_failure_opens_a_corridor_that_later_plans_avoid(executor):
             for s in path.states:
                 assert not corridor.cells.intersection(occupancy(s, w.agvs[aid].k,
                                                                   w.layout.cols)), aid
-    assert w.fault_stats["corridor_intrusions"] == 0
+    # No AGV that was outside when it opened entered it.
+    book = w.corridor_book
+    entered = {e["agv"] for e in w.events if e["event"] == "corridor_intrusion"}
+    assert entered <= exempt, (entered, exempt)
+    assert book.intrusions == 0 or all(g.overran for g in book.grants.values()
+                                       if g.agv in entered)
     sim.repair(victim)
     assert not w.corridors and w.agvs[victim].state != AgvState.FAILED
     result = sim.run()
@@ -220,7 +236,9 @@ def test_fault_metrics_are_written(tmp_path):
     assert r.returncode == 0, r.stderr
     m = json.loads((tmp_path / "metrics.json").read_text())
     for key in ("failures", "down_ticks", "orders_delayed_by_failures", "corridor_intrusions",
-                "failure_replans"):
+                "failure_replans", "corridor_intrusion_agv_s", "corridor_inside_agv_s",
+                "corridor_caught_inside", "corridor_exits_within_bound",
+                "corridor_exits_overrun", "corridor_exit_max_s"):
         assert key in m
     assert m["failures"] > 0 and m["down_ticks"] > 0
     events = [json.loads(x) for x in (tmp_path / "events.jsonl").read_text().splitlines()]

@@ -2,8 +2,10 @@
 
 - contacts come from pymunk collision handlers: AGV-AGV, AGV-obstacle, and a loaded AGV
   against a shelf other than its own (shelves are sensors);
-- the minimum centre-to-edge separation between AGVs is sampled every tick, over the pairs
-  a k-d tree finds near each other;
+- the true minimum clearance between AGVs (edge to edge between their rectangles, the
+  carried shelf included) and each AGV's peak speed, acceleration and turn rate are
+  measured at every physics step (:mod:`.measured`); a limit exceeded by more than 5% is a
+  counted ``limit_violation``;
 - a swept segment query catches any body that moves farther than half its width in one
   physics step (tunnelling);
 - open safety corridors are checked with fcl every step;
@@ -21,8 +23,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .bodies import AGV, OBSTACLE, SHELF
+from .bodies import AGV, OBSTACLE, SHELF, SHELF_SIDE
 from .fleet_state import DRIVE, HOLD, TURN, FleetState
+from .measured import ClearanceMonitor, LimitMonitor
 from .recording import TrajectoryStore
 
 if TYPE_CHECKING:
@@ -34,19 +37,6 @@ if TYPE_CHECKING:
     from .bodies import BodyIO, PhysicalFleet
 
 __all__ = ["Accounting"]
-
-
-def _point_to_box(p: np.ndarray, centre: np.ndarray, angle: np.ndarray,
-                  half: np.ndarray) -> np.ndarray:
-    """Signed distance from points ``p`` (M, 2) to boxes (centre, angle, half sizes):
-    positive outside, negative inside (minus the depth to the nearest edge)."""
-    rel = p - centre
-    c, s = np.cos(angle), np.sin(angle)
-    local = np.abs(np.stack([c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1]],
-                            axis=1)) - half
-    outside = np.linalg.norm(np.maximum(local, 0.0), axis=1)
-    inside = np.minimum(local.max(axis=1), 0.0)
-    return outside + inside
 
 
 class Accounting:
@@ -73,7 +63,11 @@ class Accounting:
         self.steps = 0
         self.agv_contacts = 0
         self.static_contacts = 0
-        self.min_sep = math.inf
+        self.clearance = ClearanceMonitor(fleet.half_size)
+        self.limits = LimitMonitor(st.vmax, st.amax, st.wmax)
+        self._shelf_side = {sh.id: SHELF_SIDE * sh.size * layout.cell_m for sh in layout.shelves}
+        self.shelf_m = np.zeros((n, 2))
+        """(N, 2) length and width of the shelf each AGV carries this tick (0: none)."""
         self.deadlocks = 0
         self.replans_asked = 0
         self.deviations = 0
@@ -127,6 +121,12 @@ class Accounting:
         self.view = view
         self.events, self.intrusion_checks = [], []
         self.tick_agv_contacts = 0
+        shelf = np.zeros((self.st.n, 2))
+        for i, c in enumerate(view.carried):
+            if c is not None:
+                shelf[i] = self._shelf_side.get(c, 0.0)
+        self.shelf_m = shelf
+        self.clearance.set_shelves(shelf / 2)
 
     def sync_corridors(self, corridors: dict) -> None:
         """Open corridors go to the fcl checker (built on the first one)."""
@@ -153,11 +153,14 @@ class Accounting:
 
     # ------------------------------------------------------------------------- per step
 
-    def after_step(self, raw: np.ndarray, raw_ang: np.ndarray, injected: np.ndarray) -> None:
-        """Sum the step's delay shares, run the swept and corridor checks (on the poses
-        before the step) and record poses when due."""
+    def after_step(self, raw: np.ndarray, raw_ang: np.ndarray, injected: np.ndarray,
+                   t: float) -> None:
+        """Sum the step's delay shares, measure clearance and limits and run the swept and
+        corridor checks (on the poses before the step, at simulated time ``t``) and record
+        poses when due."""
         st = self.st
         self.steps += 1
+        self.measure(raw, raw_ang, t)
         busy = (st.mode != HOLD) | st.waiting
         self.dep_wait += st.waiting * st.dt
         self.injected += (injected & (busy | st.pending)) * st.dt
@@ -199,22 +202,11 @@ class Accounting:
         self.intrusion_checks.append(
             [(h.agv, h.corridor, h.depth_m) for h in self._checker.check(poses, skip)])
 
-    def min_separation(self, pos: np.ndarray, ang: np.ndarray) -> None:
-        """Smallest centre-to-edge distance between two AGVs (negative: overlap), over the
-        pairs a k-d tree finds near each other, in closed form for rotated boxes."""
-        if self.st.n < 2:
-            return
-        from scipy.spatial import cKDTree
-
-        half = self.fleet.half_size
-        reach = float(np.linalg.norm(half, axis=1).max()) * 2 + 0.5
-        pairs = cKDTree(pos).query_pairs(reach, output_type="ndarray")
-        if len(pairs) == 0:
-            return
-        i, j = pairs[:, 0], pairs[:, 1]
-        d = np.minimum(_point_to_box(pos[i], pos[j], ang[j], half[j]),
-                       _point_to_box(pos[j], pos[i], ang[i], half[i]))
-        self.min_sep = min(self.min_sep, float(d.min()))
+    def measure(self, pos: np.ndarray, ang: np.ndarray, t: float) -> None:
+        """Clearance and peak speed / acceleration / turn rate at the poses of simulated
+        time ``t`` (each time is taken once, whoever calls first)."""
+        self.clearance.measure(pos, ang, t)
+        self.events.extend(self.limits.measure(pos, ang, t))
 
     def _record(self) -> None:
         pos, ang, _, _ = self.io.read()
@@ -224,7 +216,7 @@ class Accounting:
         else:
             state = np.array(view.task_state, dtype=np.int8)
             loaded = np.array(view.loaded, dtype=bool)
-        self._traj.append(self.st.sim_s, pos, ang, state, loaded)
+        self._traj.append(self.st.sim_s, pos, ang, state, loaded, self.shelf_m)
 
     # ------------------------------------------------------------------------- results
 
@@ -232,10 +224,19 @@ class Accounting:
         """Executor figures for ``metrics.json`` (seconds of simulated time unless noted)."""
         st = self.st
         lag = np.array(self.kin_lag) if self.kin_lag else np.zeros(1)
+        c = self.clearance.min_m
+        clear = float(c) if math.isfinite(c) else None
+        ratios = self.limits.ratios()
         return {
             "agv_contacts": self.agv_contacts,
             "static_contacts": self.static_contacts,
-            "min_separation_m": float(self.min_sep) if math.isfinite(self.min_sep) else None,
+            "min_clearance_m": clear,
+            "min_clearance_t_s": self.clearance.at_s,
+            "min_separation_m": clear,
+            "limit_violations": self.limits.violations,
+            "peak_speed_ratio": ratios["speed"],
+            "peak_accel_ratio": ratios["accel"],
+            "peak_turn_rate_ratio": ratios["turn_rate"],
             "deadlocks": self.deadlocks,
             "executor_replans": self.replans_asked,
             "deviations": self.deviations,
@@ -263,6 +264,12 @@ class Accounting:
         out.update({
             "footprint": st.k.copy(),
             "body_m": self.fleet.half_size * 2,
+            "limit_speed_mps": self.limits.limits["speed"].copy(),
+            "limit_accel_mps2": self.limits.limits["accel"].copy(),
+            "limit_turn_rate_radps": self.limits.limits["turn_rate"].copy(),
+            "peak_speed_mps": self.limits.peak["speed"].copy(),
+            "peak_accel_mps2": self.limits.peak["accel"].copy(),
+            "peak_turn_rate_radps": self.limits.peak["turn_rate"].copy(),
             "cell_m": np.array(st.cell_m),
             "tick_s": np.array(st.tick_s),
             "grid": self.layout.grid.copy(),

@@ -29,14 +29,17 @@ import pymunk.batch as batch
 
 from ..layout import CellType, Layout
 
-__all__ = ["AGV", "OBSTACLE", "SHELF", "FORCE_HEADROOM", "BodyIO", "PhysicalFleet",
-           "build_space", "unsolved_agv_contacts"]
+__all__ = ["AGV", "OBSTACLE", "SHELF", "FORCE_HEADROOM", "SHELF_SIDE", "BodyIO",
+           "PhysicalFleet", "build_space", "unsolved_agv_contacts"]
 
 AGV, OBSTACLE, SHELF = 1, 2, 3
 """Collision types."""
 FORCE_HEADROOM = 2.0
 """Pivot force = mass x max acceleration x this: the commanded profile obeys the limit; the
 headroom lets the joint correct small errors and push back on contacts."""
+SHELF_SIDE = 0.9
+"""A shelf of size ``k`` is a square ``SHELF_SIDE x k x cell_m`` on a side (its sensor box
+here, and its footprint while carried in the clearance figures)."""
 
 
 def cell_centre(node: int, k: int, cols: int, cell_m: float) -> tuple[float, float]:
@@ -81,7 +84,8 @@ def build_space(layout: Layout, n_agvs: int) -> tuple[pymunk.Space, dict[int, in
     for shelf in layout.shelves:
         r, c = shelf.anchor
         k = shelf.size
-        box = _box(static, ((c + k / 2) * m, (r + k / 2) * m), (k * m * 0.9, k * m * 0.9))
+        box = _box(static, ((c + k / 2) * m, (r + k / 2) * m),
+                   (k * m * SHELF_SIDE, k * m * SHELF_SIDE))
         box.sensor = True
         box.collision_type = SHELF
         shelf_of[id(box)] = shelf.id

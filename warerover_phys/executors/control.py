@@ -1,12 +1,23 @@
 """The physics executor's control law: control-body velocities from the AGVs' references.
 
 Vectorised over the fleet, once per physics step. Along the current straight run a
-reference point runs an exact trapezoid to the stop point,
-``v = min(v_max * scale, sqrt(2 a d), v_prev + a dt, d / dt)``, and the body follows it
+reference point runs a trapezoid to the stop point that is exact *in steps of dt*:
+``v = min(v_max * scale, v_prev + a dt, v_stop)`` with the position integrated by the
+trapezoidal rule, ``s += (v_prev + v) / 2 dt``, and ``v_stop`` the speed from which braking
+at ``a`` ends exactly at the stop point (:func:`stop_speed`): it covers the
+distance of the continuous profile whatever ``dt`` and never brakes harder than ``a`` (the
+former ``d / dt`` term and ``s += v dt`` stopped with one step of up to ``2 a``, and ran
+up to ``dt / 2`` ahead of the continuous profile). The body follows the reference
 through its pivot joint with a small proportional pull on the along-track and lateral
 errors; a delayed or failed AGV brakes at its limit. Standing AGVs hold their cell centre.
 Differential-drive AGVs hold their heading, and turn in place behind a reference heading
 that turns at ``max_turn_rate``; omnidirectional AGVs never turn.
+
+Whatever the mode, the commanded velocity finally goes through :func:`limit_command`: at
+most ``v_max`` and at most ``a dt`` away from the body's present velocity. The pivot joint
+(force headroom 2x) then gives the body exactly that velocity, so neither switching modes
+(drive -> hold at the end of an action) nor the corrective pulls can accelerate a body
+beyond its limits; only contacts can.
 """
 
 from __future__ import annotations
@@ -18,7 +29,7 @@ import numpy as np
 from .fleet_state import DRIVE, TURN, FleetState
 
 __all__ = ["ARRIVE_EPS_M", "TURN_EPS_RAD", "ALIGN_EPS_RAD", "LATERAL_GAIN", "ALONG_GAIN",
-           "HEADING_GAIN", "steer", "wrap"]
+           "HEADING_GAIN", "limit_command", "steer", "stop_speed", "wrap"]
 
 ARRIVE_EPS_M = 0.02
 """An action is done when its reference point has reached the target centre and the body's
@@ -40,24 +51,75 @@ def wrap(a: np.ndarray | float) -> np.ndarray | float:
     return (a + math.pi) % (2 * math.pi) - math.pi
 
 
-def steer(st: FleetState, pos: np.ndarray, ang: np.ndarray,
-          delayed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def stop_speed(d: np.ndarray, a: np.ndarray, dt: float, v_prev: np.ndarray) -> np.ndarray:
+    """Highest speed (m/s) at the end of this step from which braking at ``a`` still stops
+    within the distance ``d`` (metres) left at its start, for a reference integrated by the
+    trapezoidal rule (``s += (v_prev + v) / 2 dt``).
+
+    Solves ``v^2 / (2 a) = d - (v_prev + v) / 2 dt`` (what is left after the step is the
+    braking distance from ``v``): ``v = sqrt(a^2 dt^2 / 4 + 2 a d - a dt v_prev) - a dt / 2``.
+    From ``v_prev = sqrt(2 a d)`` this gives exactly ``v_prev - a dt``: the reference brakes
+    at exactly ``a`` and covers the distance of the continuous profile, whatever ``dt``
+    (``v = sqrt(2 a d)`` with ``s += v dt``, as before, ran ahead of it by up to ``dt / 2``,
+    and its ``d / dt`` last step braked at up to ``2 a``).
+
+    >>> one = np.array([1.0])
+    >>> float(stop_speed(np.array([0.0]), one, 0.02, np.array([0.0]))[0])
+    0.0
+    >>> v0 = np.sqrt(2 * 2.0)  # on the braking curve 2 m before the stop
+    >>> round(float(v0 - stop_speed(np.array([2.0]), one, 0.02, np.array([v0]))[0]), 12)
+    0.02
+    """
+    h = 0.5 * a * dt
+    r = h * h + 2.0 * a * np.maximum(d, 0.0) - a * dt * v_prev
+    return np.maximum(np.sqrt(np.maximum(r, 0.0)) - h, 0.0)
+
+
+def limit_command(cmd: np.ndarray, v_now: np.ndarray, vmax: np.ndarray, amax: np.ndarray,
+                  dt: float) -> np.ndarray:
+    """``cmd`` (N, 2) capped at speed ``vmax`` and moved to within ``amax dt`` of the
+    bodies' present velocities ``v_now`` (both as vectors)."""
+    speed2 = np.einsum("ij,ij->i", cmd, cmd)
+    over = speed2 > vmax * vmax
+    if over.any():
+        cmd = cmd.copy()
+        cmd[over] *= (vmax[over] / np.sqrt(speed2[over]))[:, None]
+    dv = cmd - v_now
+    step2 = np.einsum("ij,ij->i", dv, dv)
+    room = amax * dt
+    far = step2 > room * room
+    if not far.any():
+        return cmd
+    out = cmd.copy()
+    out[far] = v_now[far] + dv[far] * (room[far] / np.sqrt(step2[far]))[:, None]
+    return out
+
+
+def steer(st: FleetState, pos: np.ndarray, ang: np.ndarray, delayed: np.ndarray,
+          v_now: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Control-body velocities ``(N, 2)`` and turn rates ``(N,)`` for bodies at ``pos`` /
-    ``ang``; advances the references (``speed``, ``s_ref``, ``heading``, ``ang_ref``)."""
+    ``ang`` moving at ``v_now`` (N, 2); advances the references (``speed``, ``s_ref``,
+    ``heading``, ``ang_ref``)."""
     dt, a = st.dt, st.amax
     along = st.along(pos)
     vel = np.zeros((st.n, 2))
     drive = st.mode == DRIVE
-    # The reference runs on its own kinematic state (s_ref, speed): an exact trapezoid
-    # to the stop point; the body follows it through the joint, with a small pull on the
-    # along-track and lateral errors.
+    # The reference runs on its own kinematic state (s_ref, speed): a trapezoid to the
+    # stop point, exact in steps of dt; the body follows it through the joint, with a
+    # small pull on the along-track and lateral errors.
     d = np.maximum(st.stop_s - st.s_ref, 0.0)
-    v = np.minimum.reduce([st.vmax, np.sqrt(2 * a * d), st.speed + a * dt, d / dt])
+    v = np.minimum.reduce([st.vmax, stop_speed(d, a, dt, st.speed), st.speed + a * dt])
     v = np.where(delayed, np.maximum(st.speed - a * dt, 0.0), v)
     v = np.where(drive, v, 0.0)
+    v_prev = st.speed
     st.speed = v
     v_along = v + np.clip(ALONG_GAIN * (st.s_ref - along), -0.2, 0.2)
-    st.s_ref = np.where(drive, st.s_ref + v * dt, st.s_ref)
+    # Trapezoidal integration: the reference covers exactly the distance of the continuous
+    # profile, whatever dt. The last step of a stop may reach a little past the stop point
+    # (less than a dt^2 / 2): the reference stops on it.
+    ds = 0.5 * (v_prev + v) * dt
+    st.s_ref = np.where(drive, np.minimum(st.s_ref + ds, np.maximum(st.stop_s, st.s_ref)),
+                        st.s_ref)
     rel = pos - st.origin
     normal = np.stack([-st.direction[:, 1], st.direction[:, 0]], axis=1)
     lateral = (rel * normal).sum(axis=1)
@@ -84,4 +146,4 @@ def steer(st: FleetState, pos: np.ndarray, ang: np.ndarray,
                                             st.ang_ref + turn_step), ang)
     w_hold = np.clip(HEADING_GAIN * herr, -st.wmax, st.wmax)
     w = np.where(turning, w_turn, w_hold)
-    return vel, w
+    return limit_command(vel, v_now, st.vmax, a, dt), w

@@ -38,6 +38,8 @@ class FleetState:
     """Omnidirectional drive (never turns)."""
     origin: np.ndarray
     """(N, 2) start of the current straight run (metres)."""
+    decide_every: int = 1
+    """Physics steps between decisions for standing AGVs (``follow.DECIDE_S`` seconds)."""
     sim_s: float = 0.0
     """Simulated time (seconds)."""
     mode: np.ndarray = field(init=False)

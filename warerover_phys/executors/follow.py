@@ -23,7 +23,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..freeze import FreezeDetector
 from ..planning.base import TimedPath
+from ..planning.paths import footprint_nodes, occupancy
+from ..validate import DWELL_HEADING_TOL_RAD, DWELL_POS_TOL_M
 from .bodies import cell_centre
 from .control import ALIGN_EPS_RAD, ARRIVE_EPS_M, TURN_EPS_RAD, wrap
 from .fleet_state import DRIVE, HOLD, TURN, FleetState
@@ -34,12 +37,18 @@ if TYPE_CHECKING:
     from .adg import Action, ActionGraph
     from .base import StepReport, TickView
 
-__all__ = ["LOOKAHEAD", "DECIDE_EVERY", "PlanFollower"]
+__all__ = ["LOOKAHEAD", "DECIDE_S", "PlanFollower"]
 
 LOOKAHEAD = 8
 """Actions looked at (and claimed) ahead of a driving AGV."""
-DECIDE_EVERY = 5
-"""Physics steps between checks of standing AGVs (may they start their next action?)."""
+DECIDE_S = 0.1
+"""Simulated seconds between checks of standing AGVs (may they start their next action?):
+every ``FleetState.decide_every = round(DECIDE_S / dt)`` physics steps, so that decisions
+fall at the same simulated times whatever ``dt_s`` (a fixed number of steps made the
+look-ahead and the waits five times longer at dt 0.05 s than at 0.01 s)."""
+WORK_TASK_STATES = (2, 4, 6)
+"""``TickView.task_state`` values of AGVs working in place (``world.AgvState`` PICKING,
+HANDOVER, PLACING)."""
 
 
 class PlanFollower:
@@ -54,6 +63,11 @@ class PlanFollower:
         self._cycles_seen: set[frozenset[int]] = set()
         self._asleep = np.zeros(st.n, dtype=bool)
         """AGVs waiting on the dependency graph that need no decision until woken."""
+        freeze_s = getattr(spec, "freeze_s", 0.0)
+        self.freezes: FreezeDetector | None = FreezeDetector(
+            st.n, st.cols, max(1, math.ceil(freeze_s / st.tick_s - 1e-9))) if freeze_s > 0 else None
+        """Finds AGVs without progress while nothing they wait on can move
+        (``executor.freeze_s``; None: off)."""
 
     # ------------------------------------------------------------------------- per tick
 
@@ -124,7 +138,7 @@ class PlanFollower:
                 decide: bool) -> None:
         """Finish, extend, turn and start actions for bodies at ``pos`` / ``ang`` (the poses
         they will have after this step's move); ``decide`` on every
-        :data:`DECIDE_EVERY` th step."""
+        ``st.decide_every`` th step (every :data:`DECIDE_S` seconds)."""
         st = self.st
         t = st.sim_s
         along = st.along(pos)
@@ -138,7 +152,7 @@ class PlanFollower:
             # Look further ahead for AGVs that would otherwise start braking before the
             # next look (the margin covers two decision intervals).
             driving = st.mode == DRIVE
-            brake = st.speed ** 2 / (2 * st.amax) + 2 * st.vmax * st.dt * DECIDE_EVERY
+            brake = st.speed ** 2 / (2 * st.amax) + 2 * st.vmax * st.dt * st.decide_every
             for i in np.flatnonzero(driving & ~delayed & (st.stop_s - along < brake + 0.05)):
                 self._extend(int(i))
             st.waiting[:] = False
@@ -285,6 +299,7 @@ class PlanFollower:
                     acc.deviations += 1
                     report.replan.append(i)
         st.pending = pending
+        report.settled = self.settled(pending, report.poses)
         for i in sorted(self._resync):
             if i not in report.replan:
                 report.replan.append(i)
@@ -299,8 +314,48 @@ class PlanFollower:
                 report.events.append(("deadlock", {"agvs": sorted(cyc)}))
             report.replan.extend(i for i in cyc if i not in report.replan)
         self._cycles_seen = seen
+        if self.freezes is not None and view.goals:
+            report.freezes = self.freezes.update(
+                tick_next, [report.states[i][1] for i in range(st.n)], view.goals,
+                [s in WORK_TASK_STATES for s in view.task_state], st.failed,
+                lambda: self._waits_on(report, view.goals))
         acc.replans_asked += len(report.replan)
         report.replan.sort()
+
+    def _waits_on(self, report: StepReport, goals: tuple[int | None, ...]
+                  ) -> dict[int, set[int]]:
+        """Wait-for edges for the freeze detector: the ADG's (an AGV waits on the AGVs
+        ahead of it in the queues of the cells it enters next), plus the AGVs standing on
+        an AGV's goal (it waits for its goal to be free)."""
+        st = self.st
+        waits = {a: set(b) for a, b in self.adg.waiting_for().items()} if self.spec.adg else {}
+        owner: dict[int, int] = {}
+        for i in range(st.n):
+            for c in occupancy(report.states[i], int(st.k[i]), st.cols):
+                owner[c] = i
+        for i, goal in enumerate(goals):
+            if goal is None:
+                continue
+            for c in footprint_nodes(goal, int(st.k[i]), st.cols):
+                j = owner.get(c)
+                if j is not None and j != i:
+                    waits.setdefault(i, set()).add(j)
+        return waits
+
+    def settled(self, pending: np.ndarray, poses: np.ndarray | None) -> frozenset[int]:
+        """AGVs at rest: standing with no action running or left, not failed, within
+        :data:`~warerover_phys.validate.DWELL_POS_TOL_M` of the cell centre they hold and
+        :data:`~warerover_phys.validate.DWELL_HEADING_TOL_RAD` of the heading they hold
+        (``poses``: (N, 3) x, y, heading at the end of the tick)."""
+        st = self.st
+        if poses is None:
+            return frozenset()
+        idle = (st.mode == HOLD) & ~pending & ~st.failed
+        idle &= np.array([self.adg.current(i) is None for i in range(st.n)], dtype=bool)
+        off = np.hypot(poses[:, 0] - st.hold_xy[:, 0], poses[:, 1] - st.hold_xy[:, 1])
+        turn = np.abs(wrap(poses[:, 2] - st.heading))
+        ok = idle & (off <= DWELL_POS_TOL_M) & (turn <= DWELL_HEADING_TOL_RAD)
+        return frozenset(int(i) for i in np.flatnonzero(ok))
 
     # ------------------------------------------------------------------------- fault hooks
 

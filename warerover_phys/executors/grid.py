@@ -68,7 +68,7 @@ class GridExecutor:
                         blocked.add(aid)
                         changed = True
                         break
-        report = StepReport(blocked=sorted(blocked))
+        report = StepReport(blocked=sorted(blocked), intrusion_unit="cells")
         after: dict[int, set[int]] = {}
         for i in pos:
             if i in moving and i not in blocked:

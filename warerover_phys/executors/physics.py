@@ -21,7 +21,8 @@ per-AGV arrays of one :class:`~.fleet_state.FleetState`:
 - :mod:`.follow`: following the dependency graph (decide, start, extend, arrive, delays,
   plan sync and commit cut, ``stop_short``, ``remaining``);
 - :mod:`.accounting`: contact and clearance accounting (contact handlers, minimum
-  separation, swept checks, corridor checks, delay shares), :meth:`summary` and
+  clearance and measured limits from :mod:`.measured`, swept checks, corridor checks,
+  delay shares), :meth:`summary` and
   :meth:`trajectory` (poses recorded at ``trajectory_hz``, streamed to disk by
   :mod:`.recording`).
 
@@ -42,7 +43,7 @@ from .base import ExecutorSetup, StepReport, TickView
 from .bodies import BodyIO, PhysicalFleet, build_space, cell_centre, unsolved_agv_contacts
 from .control import steer
 from .fleet_state import FleetState
-from .follow import DECIDE_EVERY, PlanFollower
+from .follow import DECIDE_S, PlanFollower
 
 if TYPE_CHECKING:
     from ..config import ExecutorSpec
@@ -83,7 +84,8 @@ class PhysicsExecutor:
             amax=np.array([a.spec.max_accel_mps2 for a in agvs]),
             wmax=np.array([a.spec.max_turn_rate_radps for a in agvs]),
             omni=np.array([a.spec.drive == "omni" for a in agvs]),
-            origin=np.array([p[:2] for p in poses], dtype=float))
+            origin=np.array([p[:2] for p in poses], dtype=float),
+            decide_every=max(1, round(DECIDE_S / self.dt)))
         self.adg = ActionGraph(layout.cols, {a.id: a.k for a in agvs},
                                sweeps=agv_sweeps([a.spec for a in agvs], layout.cell_m),
                                rows=layout.rows)
@@ -124,9 +126,9 @@ class PhysicsExecutor:
         follow.sync_failed(view.failed)
         acc.sync_corridors(view.corridors)
         for s in range(self.steps_per_tick):
-            self._physics_step(decide=(s % DECIDE_EVERY == 0))
+            self._physics_step(decide=(s % self.state.decide_every == 0))
         pos, ang, vel, _ = self.io.read()
-        acc.min_separation(pos, ang)
+        acc.measure(pos, ang, self.state.sim_s)
         report = StepReport(collisions=acc.tick_agv_contacts,
                             poses=np.column_stack([pos, ang]).astype(float),
                             speeds=np.hypot(vel[:, 0], vel[:, 1]).astype(float))
@@ -148,11 +150,11 @@ class PhysicsExecutor:
         injected = st.delayed_until > t
         delayed = injected | st.failed | (self.contact_until > t)
         self.follow.advance(pos, ang, delayed, decide)
-        vel, w = steer(st, pos, ang, delayed)
+        vel, w = steer(st, pos, ang, delayed, v_now)
         self.io.write(vel, w)
         self.space.step(st.dt)
         st.sim_s = t + st.dt
-        self.acc.after_step(raw, raw_ang, injected)
+        self.acc.after_step(raw, raw_ang, injected, t)
 
     # ------------------------------------------------------------------------- fault hooks
 

@@ -1,7 +1,8 @@
 """Pose samples streamed to disk: memory stays bounded however long the episode runs.
 
-At 1,000 AGVs one sample is ~26 kB (``x``, ``y``, ``heading`` float64, ``state`` int8,
-``loaded`` bool per AGV); kept in memory at 10 Hz that is ~0.94 GB per simulated hour.
+At 1,000 AGVs one sample is ~42 kB (``x``, ``y``, ``heading`` float64, ``state`` int8,
+``loaded`` bool, ``shelf_m`` 2 x float32 per AGV); kept in memory at 10 Hz that is ~1.5 GB
+per simulated hour.
 :class:`TrajectoryStore` fills a fixed buffer of :data:`CHUNK` samples and appends it to one
 raw file per field in a temporary folder when full. :meth:`TrajectoryStore.arrays` gives
 read-only :class:`numpy.memmap` s over those files (a short run that never filled a chunk
@@ -14,10 +15,10 @@ Example::
     >>> s = TrajectoryStore(2, chunk=2)
     >>> for t in range(3):
     ...     s.append(float(t), np.zeros((2, 2)), np.zeros(2), np.zeros(2, np.int8),
-    ...              np.zeros(2, bool))
+    ...              np.zeros(2, bool), np.zeros((2, 2)))
     >>> a = s.arrays()
-    >>> a["t"].tolist(), a["x"].shape, a["state"].dtype
-    ([0.0, 1.0, 2.0], (3, 2), dtype('int8'))
+    >>> a["t"].tolist(), a["x"].shape, a["state"].dtype, a["shelf_m"].shape
+    ([0.0, 1.0, 2.0], (3, 2), dtype('int8'), (3, 2, 2))
 """
 
 from __future__ import annotations
@@ -35,17 +36,23 @@ CHUNK = 256
 """Samples buffered in memory before they are appended to the files."""
 
 _FIELDS = (("t", np.float64), ("x", np.float64), ("y", np.float64), ("heading", np.float64),
-           ("state", np.int8), ("loaded", np.bool_))
+           ("state", np.int8), ("loaded", np.bool_), ("shelf_m", np.float32))
+_TAIL = {"shelf_m": (2,)}
+"""Per-AGV trailing shape of a field (scalar per AGV otherwise)."""
+
+
+def _shape(name: str, rows: int, n: int) -> tuple[int, ...]:
+    return (rows,) if name == "t" else (rows, n, *_TAIL.get(name, ()))
 
 
 class TrajectoryStore:
-    """Append-only ``t`` (T,), ``x``, ``y``, ``heading``, ``state``, ``loaded`` (T, N)."""
+    """Append-only ``t`` (T,), ``x``, ``y``, ``heading``, ``state``, ``loaded`` (T, N) and
+    ``shelf_m`` (T, N, 2: carried shelf length and width, 0 when not carrying)."""
 
     def __init__(self, n: int, chunk: int = CHUNK) -> None:
         self.n = n
         self.chunk = max(1, chunk)
-        self._buf = {name: np.zeros((self.chunk,) if name == "t" else (self.chunk, n), dtype)
-                     for name, dtype in _FIELDS}
+        self._buf = {name: np.zeros(_shape(name, self.chunk, n), dtype) for name, dtype in _FIELDS}
         self._fill = 0
         """Samples in the buffer."""
         self._on_disk = 0
@@ -62,8 +69,9 @@ class TrajectoryStore:
         return self._dir
 
     def append(self, t: float, pos: np.ndarray, ang: np.ndarray, state: np.ndarray,
-               loaded: np.ndarray) -> None:
-        """One sample: time, positions (N, 2), headings, task states and loaded flags."""
+               loaded: np.ndarray, shelf_m: np.ndarray) -> None:
+        """One sample: time, positions (N, 2), headings, task states, loaded flags and
+        carried-shelf sizes (N, 2)."""
         b, r = self._buf, self._fill
         b["t"][r] = t
         b["x"][r] = pos[:, 0]
@@ -71,6 +79,7 @@ class TrajectoryStore:
         b["heading"][r] = ang
         b["state"][r] = state
         b["loaded"][r] = loaded
+        b["shelf_m"][r] = shelf_m
         self._fill = r + 1
         if self._fill == self.chunk:
             self._flush()
@@ -96,7 +105,7 @@ class TrajectoryStore:
         total = self._on_disk
         out: dict[str, np.ndarray] = {}
         for name, dtype in _FIELDS:
-            shape = (total,) if name == "t" else (total, self.n)
+            shape = _shape(name, total, self.n)
             if self.n == 0 and name != "t":
                 out[name] = np.zeros(shape, dtype)
             else:

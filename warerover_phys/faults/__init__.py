@@ -3,7 +3,13 @@
 from __future__ import annotations
 
 from .corridors import Corridor, cover_mask, plan_corridor
-from .intrusion import Intrusion, IntrusionChecker, agv_boxes, intrusions_shapely
+from .intrusion import (
+    Intrusion,
+    IntrusionChecker,
+    agv_boxes,
+    box_rect_signed_distance,
+    intrusions_shapely,
+)
 
 __all__ = ["Corridor", "plan_corridor", "cover_mask", "Intrusion", "IntrusionChecker",
-           "agv_boxes", "intrusions_shapely"]
+           "agv_boxes", "box_rect_signed_distance", "intrusions_shapely"]

@@ -15,27 +15,100 @@ when ``sd < m``; its depth is ``depth_m = m - sd > 0``:
 - ``0 < depth_m <= m``: the body is within the margin but outside the person's space;
 - ``depth_m > m``: the body overlaps the person's space.
 
-:class:`IntrusionChecker` answers with python-fcl (two dynamic AABB trees, exact box-box
-narrow phase); :func:`intrusions_shapely` is an independent shapely reference (STRtree
-``dwithin`` candidates, signed distance from the Minkowski difference) for tests.
+:class:`IntrusionChecker` answers in closed form with numpy (:func:`box_rect_signed_distance`:
+separating-axis overlap for the depth, vertex-to-box distances for the gap), after an
+axis-aligned bounding-box broad phase; :func:`intrusions_shapely` is an independent shapely
+reference (STRtree ``dwithin`` candidates, signed distance from the Minkowski difference)
+for tests.
+
+Why not python-fcl: its signed distance runs libccd's GJK/EPA, which aborts the whole
+process (``std::logic_error`` from ``validateNearestFeatureOfPolytopeBeingEdge``, SIGABRT)
+on deep, near-symmetric overlaps such as an AGV box standing centred on a corridor
+rectangle: the failed AGV on its own footprint rectangle did exactly that (issue 13,
+fault 1). The closed form has no iteration and no failure mode: any finite input gives a
+finite answer, degenerate boxes (zero length or width) and touching or collinear edges
+included.
 """
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 
-import fcl
 import numpy as np
 import shapely
 
 from .corridors import Corridor
 
-__all__ = ["Intrusion", "IntrusionChecker", "agv_boxes", "intrusions_shapely"]
+__all__ = ["Intrusion", "IntrusionChecker", "agv_boxes", "box_rect_signed_distance",
+           "intrusions_shapely"]
 
 _REACH_EPS_M = 1e-6
 """Slack on the broad-phase search distance, so that a zero margin still finds overlaps."""
+
+
+def box_rect_signed_distance(centre: np.ndarray, angle: np.ndarray, half: np.ndarray,
+                             rect: np.ndarray) -> np.ndarray:
+    """Signed distance (m) between rotated boxes and axis-aligned rectangles, pairwise.
+
+    Args:
+        centre: ``(M, 2)`` box centres, metres.
+        angle: ``(M,)`` box headings, radians.
+        half: ``(M, 2)`` half length (along the heading) and half width, metres, ``>= 0``.
+        rect: ``(M, 4)`` rectangles ``(xmin, ymin, xmax, ymax)``, metres, ``max >= min``.
+
+    Returns ``(M,)``: the Euclidean distance where a pair is apart, minus the penetration
+    depth (shortest separating translation) where it overlaps, 0 where it touches. Exact
+    for convex polygons: the depth is the smallest overlap over the four edge normals
+    (separating-axis theorem), the gap the smallest distance from a vertex of one shape to
+    the other (the closest points of two disjoint convex polygons include a vertex).
+    Zero-length or zero-width boxes and zero-area rectangles are handled as the segments
+    or points they are. Non-finite inputs give NaN, never an exception.
+
+    >>> import numpy as np
+    >>> box_rect_signed_distance(np.array([[0.0, 0.0], [3.0, 0.0]]), np.zeros(2),
+    ...                          np.array([[0.5, 0.5], [0.5, 0.5]]),
+    ...                          np.array([[-1.0, -1.0, 1.0, 1.0], [-1.0, -1.0, 1.0, 1.0]]))
+    array([-1.5,  1.5])
+    """
+    centre = np.asarray(centre, dtype=float).reshape(-1, 2)
+    angle = np.asarray(angle, dtype=float).reshape(-1)
+    half = np.abs(np.asarray(half, dtype=float).reshape(-1, 2))
+    rect = np.asarray(rect, dtype=float).reshape(-1, 4)
+    with np.errstate(invalid="ignore", over="ignore"):
+        rc = np.column_stack([(rect[:, 0] + rect[:, 2]) / 2, (rect[:, 1] + rect[:, 3]) / 2])
+        rh = np.abs(np.column_stack([rect[:, 2] - rect[:, 0], rect[:, 3] - rect[:, 1]])) / 2
+        d = centre - rc
+        c, s = np.abs(np.cos(angle)), np.abs(np.sin(angle))
+        cs, sn = np.cos(angle), np.sin(angle)
+        # Separation along each axis (positive: a gap on that axis).
+        sep_x = np.abs(d[:, 0]) - rh[:, 0] - (half[:, 0] * c + half[:, 1] * s)
+        sep_y = np.abs(d[:, 1]) - rh[:, 1] - (half[:, 0] * s + half[:, 1] * c)
+        du = np.abs(d[:, 0] * cs + d[:, 1] * sn)
+        dv = np.abs(-d[:, 0] * sn + d[:, 1] * cs)
+        sep_u = du - half[:, 0] - (rh[:, 0] * c + rh[:, 1] * s)
+        sep_v = dv - half[:, 1] - (rh[:, 0] * s + rh[:, 1] * c)
+        sep = np.max(np.column_stack([sep_x, sep_y, sep_u, sep_v]), axis=1)
+        # Gap: box vertices to the rectangle, rectangle vertices to the box.
+        sign = np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
+        lx = sign[None, :, 0] * half[:, None, 0]
+        ly = sign[None, :, 1] * half[:, None, 1]
+        bx = d[:, None, 0] + cs[:, None] * lx - sn[:, None] * ly  # relative to rect centre
+        by = d[:, None, 1] + sn[:, None] * lx + cs[:, None] * ly
+        gx = np.maximum(np.abs(bx) - rh[:, None, 0], 0.0)
+        gy = np.maximum(np.abs(by) - rh[:, None, 1], 0.0)
+        gap_b = np.hypot(gx, gy).min(axis=1)
+        rx = -d[:, None, 0] + sign[None, :, 0] * rh[:, None, 0]  # relative to box centre
+        ry = -d[:, None, 1] + sign[None, :, 1] * rh[:, None, 1]
+        ru = np.abs(cs[:, None] * rx + sn[:, None] * ry) - half[:, None, 0]
+        rv = np.abs(-sn[:, None] * rx + cs[:, None] * ry) - half[:, None, 1]
+        gap_r = np.hypot(np.maximum(ru, 0.0), np.maximum(rv, 0.0)).min(axis=1)
+        gap = np.minimum(gap_b, gap_r)
+        out = np.where(sep > 0, gap, sep)
+    bad = ~(np.isfinite(centre).all(axis=1) & np.isfinite(angle) & np.isfinite(half).all(axis=1)
+            & np.isfinite(rect).all(axis=1))
+    out[bad] = np.nan
+    return out
 
 
 @dataclass(frozen=True, slots=True)
@@ -49,15 +122,13 @@ class Intrusion:
 
 
 class IntrusionChecker:
-    """Finds AGV bodies within the margin of open corridors, with python-fcl.
+    """Finds AGV bodies within the margin of open corridors.
 
-    The AGV boxes are created once and kept in a dynamic AABB tree whose transforms are
-    refreshed on each :meth:`check` (only for AGVs whose pose changed); the corridor
-    rectangles sit in a second tree rebuilt by :meth:`set_corridors`. A broad-phase
-    distance query between the trees, cut off at the largest margin, yields candidate
-    pairs; the narrow phase is fcl's signed box-box distance. The 2D shapes are boxes in
-    the z = 0 plane, thick enough that no xy penetration exceeds their z overlap (the
-    bodies are rebuilt thicker when wider corridors need it).
+    :meth:`set_corridors` keeps the open corridors' rectangles as arrays; each
+    :meth:`check` compares every AGV's axis-aligned bounding box with every rectangle grown
+    by its corridor's margin (broad phase, one numpy comparison) and measures the candidate
+    pairs in closed form (:func:`box_rect_signed_distance`). Nothing is handed to a
+    collision library, so no pose can make it abort.
 
     >>> import numpy as np
     >>> from warerover_phys.config import LayoutSpec
@@ -76,112 +147,81 @@ class IntrusionChecker:
     def __init__(self, half_sizes: np.ndarray) -> None:
         """``half_sizes``: ``(N, 2)`` half length and half width of each AGV body (m)."""
         hs = np.asarray(half_sizes, dtype=float)
-        if hs.ndim != 2 or hs.shape[1] != 2 or not (hs > 0).all():
-            raise ValueError(f"half_sizes must be (N, 2) and positive, got shape {hs.shape}")
+        if hs.ndim != 2 or hs.shape[1] != 2 or not (np.isfinite(hs).all() and (hs > 0).all()):
+            raise ValueError(f"half_sizes must be (N, 2), finite and positive, got shape "
+                             f"{hs.shape}")
         self.half_sizes = hs
         self.n = len(hs)
-        self._radius = float(np.hypot(hs[:, 0], hs[:, 1]).max()) if self.n else 0.0
-        self._thick = 0.0
-        self._build_bodies(2.0 * (self._radius + 1.0))
-        self._request = fcl.DistanceRequest(enable_signed_distance=True)
         self._corridor_ids: list[int] = []
-        self._margins: list[float] = []
-        self._rect_of: dict[int, int] = {}
-        self._cor_geoms: list = []
-        self._cor_objs: list = []
-        self._cor_mgr = fcl.DynamicAABBTreeCollisionManager()
-        self._reach = 0.0
+        self._margins = np.zeros(0)
+        self._rects = np.zeros((0, 4))
+        self._owner = np.zeros(0, dtype=np.int64)
+        """Index into ``_corridor_ids`` of each rectangle."""
 
     def set_corridors(self, corridors: Sequence[Corridor]) -> None:
-        """Replace the open corridors: one ``fcl.Box`` per rectangle of each corridor."""
-        # A penetration is at most half a rectangle's short side plus a body's radius; the
-        # z overlap of two boxes (their thickness) must stay above it.
-        short = max((min(x1 - x0, y1 - y0) for cor in corridors for x0, y0, x1, y1 in cor.rects),
-                    default=0.0)
-        need = short / 2 + self._radius + 1.0
-        if need > self._thick:
-            self._build_bodies(2 * need)
-        geoms, objs, rect_of = [], [], {}
+        """Replace the open corridors (their rectangles, margins and ids)."""
+        rects, owner = [], []
         for k, cor in enumerate(corridors):
-            for x0, y0, x1, y1 in cor.rects:
-                g = fcl.Box(x1 - x0, y1 - y0, self._thick)
-                tf = fcl.Transform(np.array([(x0 + x1) / 2, (y0 + y1) / 2, 0.0]))
-                geoms.append(g)
-                objs.append(fcl.CollisionObject(g, tf))
-                rect_of[id(g)] = k
-        mgr = fcl.DynamicAABBTreeCollisionManager()
-        if objs:
-            mgr.registerObjects(objs)
-            mgr.setup()
-        self._cor_geoms, self._cor_objs, self._cor_mgr = geoms, objs, mgr
-        self._rect_of = rect_of
+            for r in cor.rects:
+                rects.append(r)
+                owner.append(k)
+        rects_a = np.array(rects, dtype=float).reshape(-1, 4)
+        if not np.isfinite(rects_a).all() or (rects_a[:, 2:] < rects_a[:, :2]).any():
+            raise ValueError(f"corridor rectangles must be finite (xmin, ymin, xmax, ymax) "
+                             f"with max >= min, got {rects_a.tolist()}")
+        self._rects = rects_a
+        self._owner = np.array(owner, dtype=np.int64)
         self._corridor_ids = [cor.id for cor in corridors]
-        self._margins = [float(cor.margin_m) for cor in corridors]
-        self._reach = max(self._margins, default=0.0) + _REACH_EPS_M
+        self._margins = np.array([float(cor.margin_m) for cor in corridors])
 
     def check(self, poses: np.ndarray, skip: Collection[int] = ()) -> list[Intrusion]:
         """Intrusions of the AGVs at ``poses`` (``(N, 3)``: x m, y m, heading rad) into the
         open corridors, one per (AGV, corridor) with its largest depth, sorted by
-        (agv, corridor). AGVs in ``skip`` (e.g. the failed ones) are left out."""
+        (agv, corridor). AGVs in ``skip`` (e.g. the failed ones) are left out.
+
+        Raises:
+            ValueError: ``poses`` has the wrong shape, or an AGV not in ``skip`` has a
+                non-finite pose (named in the message).
+        """
         poses = np.asarray(poses, dtype=float)
         if poses.shape != (self.n, 3):
             raise ValueError(f"poses must be ({self.n}, 3), got {poses.shape}")
-        if not self._cor_objs:
+        if not len(self._rects) or not self.n:
             return []
-        self._pose_bodies(poses)
-        skip = frozenset(skip)
-        agv_of, rect_of, margins = self._agv_of, self._rect_of, self._margins
-        request, reach = self._request, self._reach
+        live = np.ones(self.n, dtype=bool)
+        for a in skip:
+            if 0 <= a < self.n:
+                live[a] = False
+        bad = np.flatnonzero(live & ~np.isfinite(poses).all(axis=1))
+        if len(bad):
+            raise ValueError(f"AGV pose not finite: AGV {int(bad[0])} at "
+                             f"{poses[bad[0]].tolist()} ({len(bad)} AGVs in all)")
+        # Broad phase: bounding boxes against rectangles grown by margin + eps.
+        hs = self.half_sizes
+        c, s = np.abs(np.cos(poses[:, 2])), np.abs(np.sin(poses[:, 2]))
+        ex = hs[:, 0] * c + hs[:, 1] * s
+        ey = hs[:, 0] * s + hs[:, 1] * c
+        grow = self._margins[self._owner] + _REACH_EPS_M
+        r = self._rects
+        near = ((poses[:, None, 0] + ex[:, None] > r[None, :, 0] - grow[None])
+                & (poses[:, None, 0] - ex[:, None] < r[None, :, 2] + grow[None])
+                & (poses[:, None, 1] + ey[:, None] > r[None, :, 1] - grow[None])
+                & (poses[:, None, 1] - ey[:, None] < r[None, :, 3] + grow[None])
+                & live[:, None])
+        agv, rect = np.nonzero(near)
+        if not len(agv):
+            return []
+        # Narrow phase, in closed form.
+        sd = box_rect_signed_distance(poses[agv, :2], poses[agv, 2], hs[agv], r[rect])
+        k = self._owner[rect]
+        hit = sd < self._margins[k]
         best: dict[tuple[int, int], float] = {}
-        fmax = sys.float_info.max
-
-        def on_pair(o1, o2, _data):
-            # Callbacks get fresh wrapper objects: the geometries say who is who.
-            result = fcl.DistanceResult(fmax)
-            sd = fcl.distance(o1, o2, request, result)
-            a = agv_of.get(id(result.o1))
-            k = rect_of.get(id(result.o2)) if a is not None else rect_of.get(id(result.o1))
-            if a is None:
-                a = agv_of[id(result.o2)]
-            if sd < margins[k] and a not in skip:
-                key = (a, k)
-                if sd < best.get(key, fmax):
-                    best[key] = sd
-            return False, reach
-
-        self._agv_mgr.distance(self._cor_mgr, None, on_pair)
-        ids = self._corridor_ids
-        return sorted((Intrusion(a, ids[k], margins[k] - sd) for (a, k), sd in best.items()),
-                      key=lambda i: (i.agv, i.corridor))
-
-    def _build_bodies(self, thick: float) -> None:
-        """(Re)create the AGV boxes, ``thick`` metres thick in z (unposed)."""
-        self._thick = thick
-        self._agv_geoms = [fcl.Box(2 * hx, 2 * hy, thick) for hx, hy in self.half_sizes.tolist()]
-        self._agv_objs = [fcl.CollisionObject(g) for g in self._agv_geoms]
-        self._agv_of = {id(g): i for i, g in enumerate(self._agv_geoms)}
-        self._agv_mgr = fcl.DynamicAABBTreeCollisionManager()
-        if self._agv_objs:
-            self._agv_mgr.registerObjects(self._agv_objs)
-            self._agv_mgr.setup()
-        self._posed = np.full((self.n, 3), np.nan)
-
-    def _pose_bodies(self, poses: np.ndarray) -> None:
-        """Move the fcl boxes of the AGVs whose pose changed, then refit the tree."""
-        moved = np.flatnonzero((poses != self._posed).any(axis=1))
-        if not len(moved):
-            return
-        half = poses[moved, 2] / 2
-        quat = np.zeros((len(moved), 4))
-        quat[:, 0], quat[:, 3] = np.cos(half), np.sin(half)
-        trans = np.zeros((len(moved), 3))
-        trans[:, :2] = poses[moved, :2]
-        objs = self._agv_objs
-        for i, q, t in zip(moved.tolist(), quat, trans, strict=True):
-            objs[i].setTranslation(t)
-            objs[i].setQuatRotation(q)
-        self._posed[moved] = poses[moved]
-        self._agv_mgr.update()
+        for a, kk, d in zip(agv[hit].tolist(), k[hit].tolist(), sd[hit].tolist(), strict=True):
+            if d < best.get((a, kk), np.inf):
+                best[(a, kk)] = d
+        ids, margins = self._corridor_ids, self._margins
+        return sorted((Intrusion(a, ids[kk], float(margins[kk] - d))
+                       for (a, kk), d in best.items()), key=lambda i: (i.agv, i.corridor))
 
 
 # ------------------------------------------------------------------------------ reference

@@ -124,12 +124,12 @@ def open_failure(world: World, agv_id: int, repair_ticks: int | None,
     except ScenarioError as err:  # name the scenario file, not <scenario>
         raise err.with_file(w.scenario.source) if w.scenario.source else err from None
     w.corridors[corridor.id] = corridor
-    w.corridor_exempt[corridor.id] = set()
     w.log("corridor_opened", corridor=corridor.id, agv=agv.id,
           access=list(corridor.access), cells=len(corridor.cells))
     w.corridor_log.append({
         "id": corridor.id, "agv": agv.id, "open_tick": w.tick, "close_tick": None,
         "polygon": _rings(corridor.polygon), "zone": _rings(corridor.zone),
+        "rects": [list(r) for r in corridor.rects], "margin_m": corridor.margin_m,
         "cells": sorted(corridor.cells)})
     _close_cells(w)
     _clear_paths(w, corridor, executor, view)
@@ -143,7 +143,7 @@ def close_failure(world: World, agv_id: int) -> None:
     cid = next((c for c, corridor in w.corridors.items() if corridor.agv == agv_id), None)
     if cid is not None:
         w.corridors.pop(cid, None)
-        w.corridor_exempt.pop(cid, None)
+        w.corridor_book.closed(w, cid)
         w.log("corridor_closed", corridor=cid, agv=agv_id)
         for entry in w.corridor_log:
             if entry["id"] == cid:
@@ -163,15 +163,19 @@ def _close_cells(w: World) -> None:
 
 
 def _clear_paths(w: World, corridor: Corridor, executor: Executor, view: TickView) -> None:
-    """AGVs inside the corridor, or that can no longer stop before it, are exempt until
-    they are out; AGVs whose remaining route would enter it stop as soon as they can
-    and are replanned."""
+    """AGVs inside the corridor, or that can no longer stop before it, are caught: they get
+    a bounded time to leave (:func:`~.intrusion_log.exit_bound_s`), after which their time
+    inside counts as intrusion; AGVs whose remaining route would enter it stop as soon as
+    they can and are replanned."""
+    from .intrusion_log import exit_bound_s
+
     cells, cols, t = corridor.cells, w.layout.cols, w.tick
     res = w.reservations
     for agv in w.agvs:
         if agv.id == corridor.agv:
             continue
-        exempt = bool(cells.intersection(occupancy(agv.pos, agv.k, cols)))
+        inside = bool(cells.intersection(occupancy(agv.pos, agv.k, cols)))
+        exempt = inside
         path = res.paths.get(agv.id)
         if path is not None:
             # Grid AGVs run ``delay`` ticks behind their plan; physics ones follow the
@@ -194,8 +198,12 @@ def _clear_paths(w: World, corridor: Corridor, executor: Executor, view: TickVie
                     res.commit(TimedPath(agv.id, t, tuple(keep)), agv.k)
                     agv.retry_at = t
                     w.fault_stats["failure_replans"] += 1
-        if exempt:
-            w.corridor_exempt[corridor.id].add(agv.id)
+        if exempt and agv.state != AgvState.FAILED:  # a failed one is not counted anyway
+            bound = exit_bound_s(w, agv, corridor)
+            reason = "inside" if inside else "cannot_stop"
+            w.corridor_book.catch(agv.id, corridor.id, t * w.scenario.tick_s, bound, reason)
+            w.log("corridor_caught", agv=agv.id, corridor=corridor.id, reason=reason,
+                  bound_s=round(bound, 3))
 
 
 def _rings(shape) -> list[list[list[float]]]:

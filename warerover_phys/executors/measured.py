@@ -1,0 +1,278 @@
+"""What the bodies actually did, measured at every physics step from their poses.
+
+- :class:`ClearanceMonitor`: the true minimum clearance between AGVs, edge to edge between
+  their rectangles (body, and the carried shelf while one is carried), signed: negative is
+  the penetration depth of an overlap. Broad phase first: a neighbour list (Verlet list)
+  from a k-d tree over the centres, rebuilt only when some AGV has moved more than half the
+  list's skin; then, per step, a bound from axis-aligned boxes over the listed pairs; the
+  exact rectangle-rectangle distance (:func:`rect_distance`) only for pairs whose bound is
+  below the smallest clearance seen so far.
+- :class:`LimitMonitor`: per AGV the peak speed, acceleration and turn rate, from finite
+  differences of the poses at consecutive physics steps, and the limit violations: every
+  time a measured value goes above its limit by more than :data:`LIMIT_TOLERANCE`.
+
+Example: two unit squares 0.5 m apart edge to edge, and the same with one turned 45 degrees
+(its corner then reaches ``sqrt(0.5) - 0.5`` m further)::
+
+    >>> import numpy as np
+    >>> h = np.array([[0.5, 0.5]])
+    >>> float(rect_distance(np.zeros((1, 2)), np.zeros(1), h,
+    ...                     np.array([[1.5, 0.0]]), np.zeros(1), h)[0])
+    0.5
+    >>> d = rect_distance(np.zeros((1, 2)), np.array([np.pi / 4]), h,
+    ...                   np.array([[1.5, 0.0]]), np.zeros(1), h)
+    >>> round(float(d[0]), 6)
+    0.292893
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["CLEARANCE_HORIZON_M", "LIMIT_TOLERANCE", "ClearanceMonitor", "LimitMonitor",
+           "rect_distance"]
+
+CLEARANCE_HORIZON_M = 1.0
+"""Pairs farther apart than this (edge to edge, bounded through the circumscribed circles)
+are not listed; a fleet in which no two AGVs ever came this close reports no clearance."""
+SKIN_M = 0.4
+"""Extra reach of the neighbour list; it is rebuilt once an AGV has moved half of it."""
+LIMIT_TOLERANCE = 0.05
+"""A measured speed, acceleration or turn rate more than 5% above its limit is a
+violation."""
+
+_CORNERS = np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, -1.0], [-1.0, 1.0]])
+
+
+def _rot(angle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return np.cos(angle), np.sin(angle)
+
+
+def _corners(c: np.ndarray, angle: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """(P, 4, 2) corners of rectangles centred at ``c`` turned by ``angle``."""
+    cos, sin = _rot(angle)
+    local = _CORNERS[None, :, :] * half[:, None, :]
+    x = cos[:, None] * local[:, :, 0] - sin[:, None] * local[:, :, 1]
+    y = sin[:, None] * local[:, :, 0] + cos[:, None] * local[:, :, 1]
+    return np.stack([x, y], axis=2) + c[:, None, :]
+
+
+def _points_to_rect(p: np.ndarray, c: np.ndarray, angle: np.ndarray,
+                    half: np.ndarray) -> np.ndarray:
+    """(P, 4) distances from points ``p`` (P, 4, 2) to filled rectangles (0 inside)."""
+    cos, sin = _rot(angle)
+    rel = p - c[:, None, :]
+    lx = np.abs(cos[:, None] * rel[:, :, 0] + sin[:, None] * rel[:, :, 1]) - half[:, 0:1]
+    ly = np.abs(-sin[:, None] * rel[:, :, 0] + cos[:, None] * rel[:, :, 1]) - half[:, 1:2]
+    return np.hypot(np.maximum(lx, 0.0), np.maximum(ly, 0.0))
+
+
+def rect_distance(c1: np.ndarray, a1: np.ndarray, h1: np.ndarray, c2: np.ndarray,
+                  a2: np.ndarray, h2: np.ndarray) -> np.ndarray:
+    """Signed distance between pairs of rectangles (centres (P, 2), angles (P,), half sizes
+    (P, 2)): the gap edge to edge if they are apart, minus the penetration depth (the
+    shortest push that separates them) if they overlap.
+
+    Apart: the nearest points of two disjoint convex polygons include a corner of one of
+    them, so the gap is the smallest corner-to-rectangle distance either way. Overlap
+    (separating-axis test on the four edge normals): the depth is the smallest overlap of
+    the projections on those normals, which for convex polygons in the plane is exact."""
+    cos1, sin1 = _rot(a1)
+    cos2, sin2 = _rot(a2)
+    axes = np.stack([np.stack([cos1, sin1], 1), np.stack([-sin1, cos1], 1),
+                     np.stack([cos2, sin2], 1), np.stack([-sin2, cos2], 1)], axis=1)  # (P,4,2)
+    ax1, ay1 = axes[:, 0:1], axes[:, 1:2]
+    ax2, ay2 = axes[:, 2:3], axes[:, 3:4]
+
+    def radius(ax: np.ndarray, ay: np.ndarray, h: np.ndarray) -> np.ndarray:
+        return (h[:, 0:1] * np.abs((axes * ax).sum(2)) + h[:, 1:2] * np.abs((axes * ay).sum(2)))
+
+    d = c2 - c1
+    centre_gap = np.abs((axes * d[:, None, :]).sum(2))
+    overlap = radius(ax1, ay1, h1) + radius(ax2, ay2, h2) - centre_gap      # (P, 4)
+    depth = overlap.min(axis=1)
+    gap = np.minimum(_points_to_rect(_corners(c1, a1, h1), c2, a2, h2).min(axis=1),
+                     _points_to_rect(_corners(c2, a2, h2), c1, a1, h1).min(axis=1))
+    return np.where(depth > 0.0, -depth, gap)
+
+
+def _aabb_half(angle: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """(N, 2) half extents of the axis-aligned boxes around turned rectangles."""
+    c, s = np.abs(np.cos(angle)), np.abs(np.sin(angle))
+    return np.stack([half[:, 0] * c + half[:, 1] * s, half[:, 0] * s + half[:, 1] * c], 1)
+
+
+class ClearanceMonitor:
+    """Smallest signed clearance between any two AGVs over every measured pose.
+
+    Each AGV is its body rectangle and, while it carries one, its shelf rectangle: same
+    centre, sides parallel to the grid whatever the AGV's heading (the drive unit turns
+    under the shelf, as Kiva-type robots counter-rotate their turntable); the clearance of
+    a pair is the smallest over those parts."""
+
+    def __init__(self, body_half: np.ndarray) -> None:
+        self.body_half = np.asarray(body_half, dtype=float)
+        self.n = len(self.body_half)
+        self.shelf_half = np.zeros_like(self.body_half)
+        self.min_m = math.inf
+        """Smallest clearance so far (metres; inf until a pair comes within reach)."""
+        self.at_s: float | None = None
+        self.agvs: tuple[int, int] | None = None
+        self._pairs = np.zeros((0, 2), dtype=np.intp)
+        self._ends = np.zeros(0, dtype=np.intp)
+        self._built_at: np.ndarray | None = None
+        self._radius = np.zeros(self.n)
+        self._t = -math.inf
+
+    def set_shelves(self, shelf_half: np.ndarray) -> None:
+        """Half sizes (N, 2) of the shelves carried now (zeros: none)."""
+        shelf_half = np.asarray(shelf_half, dtype=float)
+        if not np.array_equal(shelf_half, self.shelf_half):
+            self.shelf_half = shelf_half.copy()
+            self._built_at = None  # reaches changed: rebuild the list
+
+    def measure(self, pos: np.ndarray, ang: np.ndarray, t: float) -> None:
+        """Take the poses at simulated time ``t`` into account (once per time)."""
+        if self.n < 2 or t <= self._t:
+            return
+        self._t = t
+        if self._built_at is None or float(
+                np.abs(pos - self._built_at).max()) > SKIN_M / 2:
+            self._build(pos)
+        p = len(self._pairs)
+        if p == 0:
+            return
+        # One gather per array for both ends of every pair (rows 0..p-1: i, p..2p-1: j).
+        ext = np.maximum(_aabb_half(ang, self.body_half), self.shelf_half)
+        x, e = pos[self._ends], ext[self._ends]
+        g = np.abs(x[:p] - x[p:])
+        g -= e[:p]
+        g -= e[p:]
+        best = self.min_m
+        if best > 0.0:
+            np.maximum(g, 0.0, out=g)
+            near = np.einsum("ij,ij->i", g, g) < best * best
+        else:
+            near = g.max(axis=1) < best
+        k = np.flatnonzero(near)
+        if len(k) == 0:
+            return
+        i, j = self._pairs[k, 0], self._pairs[k, 1]
+        d = self._exact(pos, ang, i, j)
+        m = int(np.argmin(d))
+        if d[m] < self.min_m:
+            self.min_m = float(d[m])
+            self.at_s = t
+            self.agvs = (int(i[m]), int(j[m]))
+
+    def _exact(self, pos: np.ndarray, ang: np.ndarray, i: np.ndarray,
+               j: np.ndarray) -> np.ndarray:
+        d = rect_distance(pos[i], ang[i], self.body_half[i], pos[j], ang[j], self.body_half[j])
+        si = self.shelf_half[i, 0] > 0
+        sj = self.shelf_half[j, 0] > 0
+        flat = np.zeros(self.n)
+        body, shelf = (ang, self.body_half), (flat, self.shelf_half)
+        for use, (aa, ha), (ab, hb) in ((si, shelf, body), (sj, body, shelf),
+                                        (si & sj, shelf, shelf)):
+            if use.any():
+                u = np.flatnonzero(use)
+                a, b = i[u], j[u]
+                d[u] = np.minimum(d[u], rect_distance(pos[a], aa[a], ha[a], pos[b], ab[b],
+                                                      hb[b]))
+        return d
+
+    def _build(self, pos: np.ndarray) -> None:
+        from scipy.spatial import cKDTree
+
+        self._built_at = pos.copy()
+        self._radius = np.hypot(*np.maximum(self.body_half, self.shelf_half).T)
+        # Pairs farther apart than the smallest clearance so far cannot lower it: once one
+        # is known the list needs only pairs within it (plus the skin).
+        horizon = min(CLEARANCE_HORIZON_M, max(self.min_m, 0.0)) + SKIN_M
+        reach = 2 * float(self._radius.max()) + horizon
+        pairs = cKDTree(pos).query_pairs(reach, output_type="ndarray")
+        if len(pairs):
+            # Only pairs whose circumscribed circles come within the horizon plus the skin.
+            gap = np.linalg.norm(pos[pairs[:, 0]] - pos[pairs[:, 1]], axis=1) - (
+                self._radius[pairs[:, 0]] + self._radius[pairs[:, 1]])
+            pairs = pairs[gap < horizon]
+        self._pairs = pairs.astype(np.intp).reshape(-1, 2)
+        self._ends = np.concatenate([self._pairs[:, 0], self._pairs[:, 1]])
+
+
+class LimitMonitor:
+    """Per-AGV peak speed (m/s), acceleration (m/s^2) and turn rate (rad/s), measured from
+    poses at consecutive physics steps, and the count of limit violations (each time a
+    value rises above ``limit x (1 + LIMIT_TOLERANCE)``)."""
+
+    KINDS = ("speed", "accel", "turn_rate")
+
+    def __init__(self, vmax: np.ndarray, amax: np.ndarray, wmax: np.ndarray) -> None:
+        n = len(vmax)
+        self.limits = {"speed": np.asarray(vmax, float), "accel": np.asarray(amax, float),
+                       "turn_rate": np.asarray(wmax, float)}
+        self._peak = {k: np.zeros(n) for k in self.KINDS}
+        """Peaks, speed and acceleration squared."""
+        self._bound = {k: (v * (1 + LIMIT_TOLERANCE)) ** (1 if k == "turn_rate" else 2)
+                       for k, v in self.limits.items()}
+        self.violations = 0
+        self._over = {k: np.zeros(n, dtype=bool) for k in self.KINDS}
+        self._any_over = dict.fromkeys(self.KINDS, False)
+        self._pos: np.ndarray | None = None
+        self._ang: np.ndarray | None = None
+        self._vel: np.ndarray | None = None
+        self._t = -math.inf
+
+    def measure(self, pos: np.ndarray, ang: np.ndarray, t: float) -> list[tuple[str, dict]]:
+        """Take the poses at simulated time ``t`` (once per time); returns
+        ``limit_violation`` events for values that just went over their limits."""
+        if t <= self._t:
+            return []
+        dt = t - self._t
+        self._t = t
+        prev_pos, prev_ang, prev_vel = self._pos, self._ang, self._vel
+        self._pos, self._ang = pos.copy(), ang.copy()
+        if prev_pos is None:
+            return []
+        vel = (pos - prev_pos) / dt
+        self._vel = vel
+        # Squared speed and acceleration: no square roots per step (peaks are kept squared).
+        now = {"speed": np.einsum("ij,ij->i", vel, vel),
+               "turn_rate": np.abs((ang - prev_ang + math.pi) % (2 * math.pi) - math.pi) / dt}
+        if prev_vel is not None:
+            dv = vel - prev_vel
+            now["accel"] = np.einsum("ij,ij->i", dv, dv) / (dt * dt)
+        events: list[tuple[str, dict]] = []
+        for kind, value in now.items():
+            np.maximum(self._peak[kind], value, out=self._peak[kind])
+            over = value > self._bound[kind]
+            if not over.any() and not self._any_over[kind]:
+                continue
+            new = over & ~self._over[kind]
+            self._over[kind] = over
+            self._any_over[kind] = bool(over.any())
+            if new.any():
+                value = np.sqrt(value) if kind != "turn_rate" else value
+                for i in np.flatnonzero(new):
+                    self.violations += 1
+                    events.append(("limit_violation", {
+                        "agv": int(i), "kind": kind, "value": round(float(value[i]), 4),
+                        "limit": float(self.limits[kind][i]), "t_s": round(t, 4)}))
+        return events
+
+    @property
+    def peak(self) -> dict[str, np.ndarray]:
+        """Per-AGV peaks: ``speed`` (m/s), ``accel`` (m/s^2), ``turn_rate`` (rad/s)."""
+        return {k: (v if k == "turn_rate" else np.sqrt(v)) for k, v in self._peak.items()}
+
+    def ratios(self) -> dict[str, float]:
+        """Highest peak / limit over the fleet, per kind (0.0 with no AGV)."""
+        out = {}
+        peak = self.peak
+        for kind in self.KINDS:
+            lim = self.limits[kind]
+            r = np.divide(peak[kind], lim, out=np.zeros_like(lim), where=lim > 0)
+            out[kind] = float(r.max()) if len(r) else 0.0
+        return out
