@@ -23,6 +23,13 @@ Low level: space-time A* per AGV as in :func:`~warerover_phys.planning.astar.spa
 constraints; among equally short paths it takes the one with the fewest cells shared with
 the other planned AGVs' current paths (a conflict-avoidance table).
 
+Turns in place. For turn-aware agents (:func:`~warerover_phys.planning.sweep.turn_aware`)
+the low level searches with headings (:func:`~warerover_phys.planning.turns.turning_astar`)
+and the high level also finds *sweep* conflicts (a turn's swept cell held by another agent
+at the turn's tick or the next: one child forbids the turn there then, the other the cell)
+and *lock* conflicts (two turns at one tick sharing a turn lock: each child forbids one of
+the turns); ``path_fits`` checks turns against the table too.
+
 Window. Conflicts after ``request.tick + horizon`` are ignored by the high level, but the
 grid executor follows committed paths exactly, so the result is made safe afterwards: the
 CBS paths are taken in priority order (``priority``, then id) and each one is committed only

@@ -22,7 +22,9 @@ step is taken without a search and without a budget hit.
 A fleet of 1x1 AGVs that move one cell per tick takes the fast path (:func:`lacam_nodes`).
 Any other fleet is solved by :func:`footprint_lacam` over poses (an AGV in the middle of a
 multi-tick move has one successor; its progress is read back from its committed path), with
-footprint-aware effective goals: goal footprints of different AGVs never overlap.
+footprint-aware effective goals: goal footprints of different AGVs never overlap. A fleet
+with turn-aware AGVs takes that path too (headings kept per search node; see
+:mod:`footprint_lacam`).
 """
 
 from __future__ import annotations

@@ -11,7 +11,11 @@ A fleet of 1x1 AGVs that move one cell per tick takes the fast path (:func:`pibt
 with swap). Any other fleet (``k x k`` AGVs, slow AGVs) is stepped by the footprint-aware
 PIBT of :mod:`footprint_pibt`: an AGV in the middle of a multi-tick move keeps going, one
 that starts a move gets the whole move as its path (the next tick reads its progress back
-from that path in the reservation table).
+from that path in the reservation table). So are fleets with turn-aware AGVs (bodies whose
+turns in place must be reserved, :func:`~warerover_phys.planning.sweep.turn_aware`): the
+footprint-aware step then tracks headings, turn locks, swept cells and no-turn anchors, and
+ranks moves by heading-aware distances (:meth:`~warerover_phys.planning.graph.MotionGraph.
+turn_dist`).
 """
 
 from __future__ import annotations
