@@ -33,6 +33,8 @@ from .planning import make_planner
 from .planning.astar import nearest_free_anchor
 from .planning.base import AgentRequest, PlanRequest, PlanResult
 from .planning.paths import TimedPath, footprint_nodes, occupancy
+from .planning.sweep import EAST, BodyShape, TurnMasks, turn_fields
+from .planning.turns import request_turn_fields
 from .registry import check_plugins
 from .schedulers import make_scheduler
 from .schedulers.base import SchedulerView
@@ -89,6 +91,17 @@ class Simulation:
         self._freeze_hits: dict[int, int] = {}
         self._freeze_yields: set[int] = set()
         """AGVs sent to a yield spot by a freeze recovery (step planners honour these)."""
+        w = self.world
+        self._turns = turn_fields(w.layout, [a.spec for a in w.agvs])
+        """AGVs whose turns in place planners must reserve: agv -> (sweep, no-turn anchors)."""
+        shapes: dict = {}
+        self._masks = {aid: shapes.setdefault(BodyShape.of(w.agvs[aid].spec), TurnMasks(
+            w.layout, BodyShape.of(w.agvs[aid].spec))) for aid in self._turns}
+        self._heading = {aid: EAST for aid in self._turns}
+        """The direction each of those AGVs faces (its last move's; east when placed)."""
+        if self._turns:
+            w.reservations.configure_turns({a: sw for a, (sw, _) in self._turns.items()
+                                            if sw is not None}, w.layout.rows)
 
     @property
     def done(self) -> bool:
@@ -227,10 +240,10 @@ class Simulation:
         failed = set(result.failed)
         for a in agents:
             path = result.paths.get(a.agv)
-            if path is None and a.agv in failed:
-                path = res.paths.get(a.agv)
             if path is not None:
-                res.commit(path, a.k)
+                res.commit(path, a.k, a.heading)
+            elif a.agv in failed and a.agv in res.paths:
+                res.commit(res.paths[a.agv], a.k)
 
     @property
     def _lifelong(self) -> bool:
@@ -261,8 +274,24 @@ class Simulation:
                 agv=agv.id, start=agv.node, goal=goal, k=agv.k, loaded=agv.loaded,
                 ticks_per_move=agv.ticks_per_move,
                 shelf=agv.trip.shelf if agv.loaded and agv.trip is not None else None,
-                priority=(0.0 if hold else age,), hold=hold))
+                priority=(0.0 if hold else age,), hold=hold, **self._turn_request(agv, goal)))
         return out
+
+    def _turn_request(self, agv: Agv, goal: int) -> dict:
+        """The AgentRequest fields of a turn-aware AGV (none for the others): its heading,
+        what its turns hold, where it may not turn, and how it leaves its goal."""
+        turn = self._turns.get(agv.id)
+        if turn is None:
+            return {}
+        w = self.world
+        shelf = agv.trip.shelf if agv.trip is not None else None
+        after = None
+        if goal == w.goal_of(agv):
+            after = {AgvState.TO_SHELF: (True, shelf), AgvState.TO_STATION: (True, shelf),
+                     AgvState.RETURNING: (False, None)}.get(agv.state)
+        return request_turn_fields(w.graphs, self._masks[agv.id], turn[0],
+                                   self._heading[agv.id], agv.k, agv.loaded,
+                                   shelf if agv.loaded else None, goal, after)
 
     def _replan_requests(self) -> list[AgentRequest]:
         """The AGVs that need a new path (see :meth:`_plan`)."""
@@ -293,7 +322,8 @@ class Simulation:
                 agv=agv.id, start=agv.node, goal=goal, k=agv.k, loaded=agv.loaded,
                 ticks_per_move=agv.ticks_per_move,
                 shelf=agv.trip.shelf if agv.loaded and agv.trip is not None else None,
-                priority=(-agv.plan_failures, not agv.loaded, agv.state == AgvState.IDLE)))
+                priority=(-agv.plan_failures, not agv.loaded, agv.state == AgvState.IDLE),
+                **self._turn_request(agv, goal)))
             # Re-anchor a delayed AGV's committed path at where it really stands.
             if agv.delay or path.state_at(w.tick) != agv.pos:
                 res.commit(TimedPath(agv.id, w.tick, (agv.pos,)), agv.k)
@@ -388,7 +418,16 @@ class Simulation:
     def _follow_up(self, blocked: list[int]) -> None:
         w = self.world
         blocked_set = set(blocked)
+        cols = w.layout.cols
         for agv in w.agvs:
+            if agv.id in self._heading:
+                (pa, pb), (a, b) = self.actual[agv.id][-1], agv.pos
+                src, dst = (a, b) if a != b else (pa, a) if pa == pb else (a, a)
+                if src != dst:
+                    r0, c0 = divmod(src, cols)
+                    r1, c1 = divmod(dst, cols)
+                    if abs(r1 - r0) + abs(c1 - c0) == 1:
+                        self._heading[agv.id] = (r1 - r0, c1 - c0)
             self.actual[agv.id].append(agv.pos)
             agv.blocked_ticks = agv.blocked_ticks + 1 if agv.id in blocked_set else 0
 

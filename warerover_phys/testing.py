@@ -535,9 +535,14 @@ def _run_plan_case(planner, case: _PlanCase, seed: int, ck: _Checker) -> list:
     """Plan ``case`` (tick by tick for ``replans_all`` planners, committing the returned
     paths as the loop does) and check every call; return a trace of the results."""
     from .planning.base import AgentRequest
+    from .planning.sweep import heading_after, turn_fields
 
     world = _mixed_world(seed)
     res = world.reservations
+    fields = turn_fields(world.layout, [a.spec for a in world.agvs])
+    if fields:
+        res.configure_turns({a: sw for a, (sw, _) in fields.items() if sw is not None},
+                            world.layout.rows)
     for agv, cells in case.committed.items():
         res.commit(_timed(world, agv, cells), world.agvs[agv].k)
     goals = {agv: world.node(cell) for agv, cell in case.goals.items()}
@@ -550,9 +555,16 @@ def _run_plan_case(planner, case: _PlanCase, seed: int, ck: _Checker) -> list:
             if agv.id not in goals:
                 continue
             pos = res.paths[agv.id].state_at(t)
+            turn = fields.get(agv.id)
+            extra = {} if turn is None else {
+                "heading": heading_after(res.paths[agv.id].states[:t - res.paths[agv.id]
+                                                                   .start_tick + 1],
+                                         world.layout.cols,
+                                         res.heading_at_start(agv.id)),
+                "sweep": turn[0], "no_turn": turn[1]}
             agents.append(AgentRequest(agv=agv.id, start=pos[1], goal=goals[agv.id], k=agv.k,
                                        ticks_per_move=agv.ticks_per_move,
-                                       priority=(t + (n - agv.id) / (n + 1),)))
+                                       priority=(t + (n - agv.id) / (n + 1),), **extra))
         if planner.replans_all and all(res.paths[a.agv].state_at(t) == (a.goal, a.goal)
                                        and res.paths[a.agv].end_tick <= t for a in agents):
             break
@@ -561,7 +573,7 @@ def _run_plan_case(planner, case: _PlanCase, seed: int, ck: _Checker) -> list:
                       sorted(result.failed)))
         for a in agents:  # commit as the loop does: returned paths, in request order
             if a.agv in result.paths:
-                res.commit(result.paths[a.agv], a.k)
+                res.commit(result.paths[a.agv], a.k, a.heading)
     if case.easy:
         _check_goals(world, goals, planner.replans_all, ck)
     return trace
@@ -689,6 +701,55 @@ def _check_paths(world, agents: list, result, tick: int, ck: _Checker) -> None:
                     "request.graphs.get(agent.k, agent.loaded, agent.shelf)")
         ck.fail("conflict-free", *what)
     ck.ok("conflict-free")
+    turns = plan_turn_conflicts(world, paths, tick, {a.agv: a.heading for a in agents})
+    if turns:
+        c = turns[0]
+        mine = [x for x in c.agvs if x in result.paths]
+        fixes = {
+            "sweep": "keep the cells agent.sweep.cells (offsets from the anchor) of every "
+                     "turn in place free of other AGVs at the turn's tick and the next "
+                     "(reservations.free), and off cells other AGVs' turns sweep",
+            "turn_lock": "never turn at the same tick as another AGV whose turn shares one "
+                         "of agent.sweep.locks (reservations.locks_free)",
+            "turn_wall": "never turn in place at an anchor in agent.no_turn (drive straight "
+                         "through it)"}
+        ck.fail("turn sweeps", f"a returned path {'of AGV ' + str(mine[0]) + ' ' if mine else ''}"
+                f"turns in place where it may not ({c})",
+                fixes[c.kind] + "; a turn is a move whose direction differs from the AGV's "
+                "heading (agent.heading, then its last move's); see "
+                "warerover_phys.planning.turns")
+    ck.ok("turn sweeps")
+
+
+def plan_turn_conflicts(world, paths: dict, tick: int,
+                        headings: dict | None = None, max_conflicts: int = 100) -> list:
+    """Turn-in-place conflicts (:func:`~warerover_phys.planning.sweep.sweep_conflicts`:
+    ``sweep``, ``turn_lock``, ``turn_wall``) of the timed ``paths`` (``agv -> TimedPath``)
+    from ``tick`` on, for ``world``'s fleet and layout (empty when no AGV's turn holds
+    anything). ``headings``: the heading of AGVs at ``tick`` (for paths that start then);
+    the others' headings are worked out from their paths and the reservation table."""
+    from .planning.sweep import heading_after, sweep_conflicts, turn_fields
+
+    fields = turn_fields(world.layout, [a.spec for a in world.agvs])
+    if not fields:
+        return []
+    cols = world.layout.cols
+    res = world.reservations
+    horizon = max(p.end_tick for p in paths.values()) + 2
+    states = {agv: [p.state_at(t) for t in range(tick, horizon)] for agv, p in paths.items()}
+    heads = {}
+    for agv, p in paths.items():
+        if headings is not None and agv in headings and p.start_tick == tick:
+            heads[agv] = headings[agv]
+        else:
+            heads[agv] = heading_after(p.states[:max(0, tick - p.start_tick) + 1], cols,
+                                       res.heading_at_start(agv))
+    return sweep_conflicts(
+        states, world.layout.rows, cols, {a.id: a.k for a in world.agvs},
+        {a: sw.cells for a, (sw, _) in fields.items() if sw is not None},
+        start_tick=tick, headings=heads, max_conflicts=max_conflicts,
+        locks={a: sw.locks for a, (sw, _) in fields.items() if sw is not None},
+        no_turn={a: nt for a, (_, nt) in fields.items()})
 
 
 def _check_edges(world, agent, path, ck: _Checker) -> None:

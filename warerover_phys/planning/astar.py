@@ -19,6 +19,8 @@ from ..layout import CellType
 from .base import AgentRequest, PlanRequest, PlanResult, State, TimedPath, footprint_nodes
 from .graph import UNREACHABLE, MotionGraph
 from .reservation import FOREVER, ReservationTable
+from .sweep import turn_aware
+from .turns import turning_astar
 
 __all__ = ["AStarPlanner", "space_time_astar", "goal_held", "nearest_free_anchor"]
 
@@ -28,10 +30,16 @@ def space_time_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequ
                      budget_per_move: int | None = 40) -> tuple[TimedPath | None, int]:
     """Search one AGV's path from tick ``t0``. Returns (path or None, expansions).
 
+    A turn-aware AGV (:func:`~warerover_phys.planning.sweep.turn_aware`) is searched with
+    headings by :func:`~warerover_phys.planning.turns.turning_astar`.
+
     With ``budget_per_move`` the search also gives up after that many expansions per move
     of the static shortest path (plus a margin): in the closed loop a search that needs far
     more is usually blocked by AGVs that will move later, and retrying is cheaper.
     """
+    if turn_aware(agent):
+        return turning_astar(graph, res, agent, t0, max_expansions=max_expansions,
+                             budget_per_move=budget_per_move)
     cols, k, m, me = graph.cols, agent.k, agent.ticks_per_move, agent.agv
     start, goal = agent.start, agent.goal
     occ, rest = res._occ, res._rest
@@ -219,6 +227,6 @@ class AStarPlanner:
                     res.commit(old, agent.k)
                 result.failed.append(agent.agv)
                 continue
-            res.commit(path, agent.k)
+            res.commit(path, agent.k, agent.heading)
             result.paths[agent.agv] = path
         return result

@@ -16,6 +16,7 @@ import numpy as np
 from .graph import GraphSet
 from .paths import State, TimedPath, footprint_nodes, occupancy
 from .reservation import ReservationTable
+from .sweep import EAST, Sweep
 
 __all__ = ["State", "TimedPath", "AgentRequest", "PlanRequest", "PlanResult", "Planner",
            "footprint_nodes", "occupancy"]
@@ -37,6 +38,22 @@ class AgentRequest:
     """Sort key: lower is planned first (lifelong PIBT: ticks since the goal was set)."""
     hold: bool = False
     """The AGV works in place this tick and must not move (step planners only)."""
+    heading: tuple[int, int] | None = EAST
+    """``(drow, dcol)`` it faces (the direction of its last move; east as AGVs are placed;
+    None: unknown, its first move counts as a turn). Read only for turn-aware AGVs (see
+    :func:`~warerover_phys.planning.sweep.turn_aware`)."""
+    sweep: Sweep | None = None
+    """What its turns in place hold (:func:`~warerover_phys.planning.sweep.agv_sweeps`):
+    cells that must be free of other AGVs at the turn's tick and the next, and turn locks
+    no other turn at the same tick may share. None: its turns hold nothing."""
+    no_turn: frozenset[int] = frozenset()
+    """Anchors where it must not turn in place (its swept disc reaches an obstacle or the
+    map edge: :func:`~warerover_phys.planning.sweep.no_turn_anchors`; while loaded, also
+    another shelf: :class:`~warerover_phys.planning.sweep.TurnMasks`)."""
+    goal_dead: frozenset[int] | None = None
+    """Headings (direction indices, :data:`~warerover_phys.planning.sweep.DIR_OF`) it must
+    not arrive at its goal in: after its work there (loaded or not) it could never turn to
+    leave. None: those it would be stuck in as it is now."""
 
 
 @dataclass

@@ -23,6 +23,13 @@ Low level: space-time A* per AGV as in :func:`~warerover_phys.planning.astar.spa
 constraints; among equally short paths it takes the one with the fewest cells shared with
 the other planned AGVs' current paths (a conflict-avoidance table).
 
+Turns in place. For turn-aware agents (:func:`~warerover_phys.planning.sweep.turn_aware`)
+the low level searches with headings (:func:`~warerover_phys.planning.turns.turning_astar`)
+and the high level also finds *sweep* conflicts (a turn's swept cell held by another agent
+at the turn's tick or the next: one child forbids the turn there then, the other the cell)
+and *lock* conflicts (two turns at one tick sharing a turn lock: each child forbids one of
+the turns); ``path_fits`` checks turns against the table too.
+
 Window. Conflicts after ``request.tick + horizon`` are ignored by the high level, but the
 grid executor follows committed paths exactly, so the result is made safe afterwards: the
 CBS paths are taken in priority order (``priority``, then id) and each one is committed only
@@ -81,6 +88,8 @@ from .base import (
 )
 from .graph import UNREACHABLE, MotionGraph
 from .reservation import FOREVER, ReservationTable
+from .sweep import Sweep, lock_keys, sweep_cells, turn_aware, turn_sweeps
+from .turns import turn_ok, turning_astar
 
 __all__ = ["CBSPlanner", "Constraints", "PairConflict", "constrained_astar", "find_conflicts",
            "path_fits"]
@@ -97,7 +106,11 @@ class PairConflict:
 
     ``kind`` is ``"vertex"`` (``cell`` is a shared cell at ``tick``), ``"target"`` (agent
     ``i`` is on ``cell`` of agent ``j``'s goal at ``tick``, while ``j`` already rests there)
-    or ``"swap"`` (``moves`` holds each agent's state transition into ``tick``).
+    or ``"swap"`` (``moves`` holds each agent's state transition into ``tick``). Turn-aware
+    agents add ``"sweep"`` (agent ``i``'s turn at anchor ``turn[0]`` at tick ``turn[1]``
+    sweeps ``cell``, which agent ``j`` holds at ``tick``, the turn's tick or the next; when
+    ``j`` holds it by a turn of its own, ``turn_j`` names that turn) and ``"lock"`` (the
+    turns ``turn`` of ``i`` and ``turn_j`` of ``j`` at one tick share a turn lock).
     """
 
     kind: str
@@ -106,6 +119,8 @@ class PairConflict:
     j: int
     cell: int = -1
     moves: tuple[tuple[State, State], tuple[State, State]] | None = None
+    turn: tuple[int, int] | None = None
+    turn_j: tuple[int, int] | None = None
 
 
 @dataclass(slots=True)
@@ -121,15 +136,19 @@ class Constraints:
     """The agent may reach its goal for good only after this tick."""
     finish_by: int = FOREVER
     """... and at this tick at the latest."""
+    noturn: set[tuple[int, int]] = field(default_factory=set)
+    """``(anchor, tick)``: the agent may not start a turn in place there then (turn-aware
+    agents only)."""
 
     def __len__(self) -> int:
         return len(self.vertex) + len(self.edge) + len(self.never) + (
-            self.finish_after >= 0) + (self.finish_by < FOREVER)
+            self.finish_after >= 0) + (self.finish_by < FOREVER) + len(self.noturn)
 
     def last_tick(self, default: int) -> int:
         return max(max(self.vertex, default=default), max((e[0] for e in self.edge),
                                                           default=default),
-                   max(self.never.values(), default=default), self.finish_after, default)
+                   max(self.never.values(), default=default), self.finish_after,
+                   max((t for _, t in self.noturn), default=default), default)
 
 
 # ----------------------------------------------------------------------------- low level
@@ -146,6 +165,9 @@ def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentReq
     the other planned AGVs: it only breaks ties between equally short paths. Returns (the
     shortest path that satisfies every constraint, or None; expansions).
     """
+    if turn_aware(agent):
+        return turning_astar(graph, res, agent, t0, constraints if constraints is not None
+                             else Constraints(), avoid, max_expansions, cbs=True)
     cols, k, m, me = graph.cols, agent.k, agent.ticks_per_move, agent.agv
     start, goal = agent.start, agent.goal
     occ, rest = res._occ, res._rest
@@ -279,10 +301,79 @@ def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentReq
 
 
 def find_conflicts(paths: Sequence[TimedPath], sizes: Sequence[int], cols: int, t0: int,
-                   t_end: int, limit: int = 1) -> tuple[list[PairConflict], int]:
+                   t_end: int, limit: int = 1, turns: Sequence[AgentRequest] | None = None,
+                   rows: int | None = None) -> tuple[list[PairConflict], int]:
     """The earliest ``limit`` conflicts among ``paths`` at ticks ``t0 .. t_end`` (at most one
     per pair and tick; each path rests at its end), and how many there are in all (cells
-    shared plus swaps: a tie-breaker, not an exact figure)."""
+    shared plus swaps: a tie-breaker, not an exact figure). With ``turns`` (the agents of
+    the paths, for their headings and sweeps) sweep and lock conflicts count too."""
+    found, count = _cell_conflicts(paths, sizes, cols, t0, t_end, limit)
+    if turns is None or not any(turn_aware(a) for a in turns):
+        return found, count
+    more, n = _turn_conflicts(paths, sizes, cols, rows, t0, t_end, turns)
+    if not more:
+        return found, count
+    merged = sorted(found + more, key=lambda c: (c.tick, min(c.i, c.j), max(c.i, c.j)))
+    return merged[:limit], count + n
+
+
+def _turn_conflicts(paths: Sequence[TimedPath], sizes: Sequence[int], cols: int,
+                    rows: int | None, t0: int, t_end: int, agents: Sequence[AgentRequest],
+                    ) -> tuple[list[PairConflict], int]:
+    """Sweep and lock conflicts among the planned agents (see :class:`PairConflict`)."""
+    t_end = min(t_end, max((p.end_tick for p in paths), default=t0))
+    nrows = rows if rows is not None else 1 << 30
+    # Per agent: tick -> [(anchor, turn tick, swept cells)], and turn tick -> (anchor, locks).
+    swept: list[dict[int, list[tuple[int, int, frozenset[int]]]]] = []
+    locks: list[dict[int, tuple[int, frozenset[int]]]] = []
+    for p, a in zip(paths, agents, strict=True):
+        sw: Sweep | None = a.sweep
+        by_tick: dict[int, list[tuple[int, int, frozenset[int]]]] = {}
+        by_lock: dict[int, tuple[int, frozenset[int]]] = {}
+        if sw is not None and (sw.cells or sw.locks):
+            for i, anchor in turn_sweeps(p.states, cols, a.heading):
+                t = p.start_tick + i
+                if sw.cells:
+                    cells = frozenset(sweep_cells(anchor, sw.cells, nrows, cols))
+                    for tt in (t, t + 1):
+                        by_tick.setdefault(tt, []).append((anchor, t, cells))
+                if sw.locks:
+                    by_lock[t] = (anchor, frozenset(lock_keys(anchor, sw.locks, rows, cols)))
+        swept.append(by_tick)
+        locks.append(by_lock)
+    out: list[PairConflict] = []
+    seen: set[tuple[int, int, int]] = set()
+    n = len(paths)
+    for i in range(n):
+        for tt, turns_i in sorted(swept[i].items()):
+            if not t0 <= tt <= t_end:
+                continue
+            for j in range(n):
+                if j == i:
+                    continue
+                held = set(occupancy(paths[j].state_at(tt), sizes[j], cols))
+                theirs = {c: (anc, t) for anc, t, cells in swept[j].get(tt, ())
+                          for c in cells}
+                for anchor, t, cells in turns_i:
+                    hit = sorted(cells & held) or sorted(cells & theirs.keys())
+                    if hit and (tt, i, j) not in seen:
+                        seen.add((tt, i, j))
+                        c = hit[0]
+                        out.append(PairConflict("sweep", tt, i, j, cell=c, turn=(anchor, t),
+                                                turn_j=None if c in held else theirs[c]))
+        for t, (anchor, keys) in sorted(locks[i].items()):
+            if not t0 <= t <= t_end:
+                continue
+            for j in range(i + 1, n):
+                other = locks[j].get(t)
+                if other is not None and not keys.isdisjoint(other[1]):
+                    out.append(PairConflict("lock", t, i, j, turn=(anchor, t),
+                                            turn_j=(other[0], t)))
+    return out, len(out)
+
+
+def _cell_conflicts(paths: Sequence[TimedPath], sizes: Sequence[int], cols: int, t0: int,
+                    t_end: int, limit: int = 1) -> tuple[list[PairConflict], int]:
     n = len(paths)
     t_end = min(t_end, max((p.end_tick for p in paths), default=t0))
     found: list[PairConflict] = []
@@ -335,10 +426,18 @@ def find_conflicts(paths: Sequence[TimedPath], sizes: Sequence[int], cols: int, 
     return found, count
 
 
-def path_fits(res: ReservationTable, path: TimedPath, k: int) -> bool:
+def path_fits(res: ReservationTable, path: TimedPath, k: int,
+              agent: AgentRequest | None = None) -> bool:
     """Does ``path`` (footprint ``k``) fit the committed paths of ``res`` for good: no shared
-    cell at any tick, no swap, and no other AGV on its goal after it arrives?"""
+    cell at any tick, no swap, and no other AGV on its goal after it arrives? With a
+    turn-aware ``agent``, also every turn: allowed where it turns, swept cells and turn
+    locks free (:func:`~warerover_phys.planning.turns.turn_ok`)."""
     cols, me = res.cols, path.agv
+    if agent is not None and turn_aware(agent):
+        rows = res.rows if res.rows is not None else 1 << 30
+        for i, anchor in turn_sweeps(path.states, cols, agent.heading):
+            if not turn_ok(res, agent, anchor, path.start_tick + i, rows, cols):
+                return False
     prev: tuple[int, ...] | None = None
     for i, state in enumerate(path.states):
         t = path.start_tick + i
@@ -380,6 +479,8 @@ def _constraints_of(chain: tuple | None, idx: int) -> Constraints:
         elif kind == "never":
             cell, t = payload
             cons.never[cell] = min(cons.never.get(cell, FOREVER), t)
+        elif kind == "noturn":
+            cons.noturn.add(payload)
         elif kind == "after":
             cons.finish_after = max(cons.finish_after, payload)
         else:  # "by"
@@ -397,6 +498,13 @@ def _branches(c: PairConflict) -> list[tuple[int, list[tuple[int, str, object]]]
         # tick, or it is there by then, and then i may never be on that cell again.
         return [(c.j, [(c.j, "after", c.tick)]),
                 (c.i, [(c.j, "by", c.tick), (c.i, "never", (c.cell, c.tick))])]
+    if c.kind == "sweep":
+        assert c.turn is not None
+        other = (c.j, [(c.j, "noturn", c.turn_j)]) if c.turn_j is not None else \
+            (c.j, [(c.j, "vertex", (c.cell, c.tick))])
+        return [(c.i, [(c.i, "noturn", c.turn)]), other]
+    if c.kind == "lock":
+        return [(c.i, [(c.i, "noturn", c.turn)]), (c.j, [(c.j, "noturn", c.turn_j)])]
     assert c.moves is not None
     (a0, a1), (b0, b1) = c.moves
     return [(c.i, [(c.i, "edge", (c.tick, a0, a1))]), (c.j, [(c.j, "edge", (c.tick, b0, b1))])]
@@ -458,8 +566,8 @@ class CBSPlanner:
         # Commit in priority order what fits for good; replan the rest with prioritized A*.
         demoted: list[AgentRequest] = []
         for i in sorted(range(len(agents)), key=lambda i: (agents[i].priority, agents[i].agv)):
-            if path_fits(res, solved[i], agents[i].k):
-                res.commit(solved[i], agents[i].k)
+            if path_fits(res, solved[i], agents[i].k, agents[i]):
+                res.commit(solved[i], agents[i].k, agents[i].heading)
                 result.paths[agents[i].agv] = solved[i]
             else:
                 demoted.append(agents[i])
@@ -529,6 +637,7 @@ class CBSPlanner:
         res, t0 = request.reservations, request.tick
         cols = res.cols
         sizes = [a.k for a in agents]
+        turns = agents if any(turn_aware(a) for a in agents) else None
         graphs = [request.graphs.get(a.k, a.loaded, a.shelf) for a in agents]
         t_end = t0 + self.horizon
         stop_at = t_start + self.time_budget_s
@@ -557,7 +666,7 @@ class CBSPlanner:
             new_paths = list(node.paths)
             new_paths[idx] = path
             conflicts, count = find_conflicts(new_paths, sizes, cols, t0, t_end,
-                                              self.classify)
+                                              self.classify, turns, res.rows)
             return _Node(new_paths, node.soc - cost(node.paths[idx]) + cost(path), chain,
                          conflicts, count)
 
@@ -583,7 +692,8 @@ class CBSPlanner:
             assert choice is not None
             return [kid for kid in choice[1] if kid is not None]
 
-        conflicts, n_conf = find_conflicts(paths, sizes, cols, t0, t_end, self.classify)
+        conflicts, n_conf = find_conflicts(paths, sizes, cols, t0, t_end, self.classify, turns,
+                                           res.rows)
         root = _Node(paths, sum(cost(p) for p in paths), None, conflicts, n_conf)
         counter = 0
         open_list: list[tuple[int, int, int, _Node]] = [(root.soc, n_conf, counter, root)]

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .footprint_pibt import Mover, Pose, footprint_step
+from .footprint_pibt import Mover, Pose, footprint_step, next_headings
 from .graph import UNREACHABLE
 
 __all__ = ["footprint_lacam", "footprint_priorities", "update_footprint_priorities"]
@@ -45,6 +45,8 @@ class _High:
     prio: list[float]
     order: list[int]
     """Agents at rest that are not held, highest priority first: the constraint order."""
+    headings: tuple[int, ...] | None = None
+    """Each agent's heading here, along this node's parent chain (turn-aware fleets)."""
     tree: deque = field(default_factory=lambda: deque([_Low()]))
 
 
@@ -65,6 +67,7 @@ def update_footprint_priorities(prio: Sequence[float], movers: Sequence[Mover],
 def footprint_lacam(movers: Sequence[Mover], starts: Sequence[Pose], cols: int,
                     deadline: float, rng: np.random.Generator, held: Sequence[int] = (),
                     prio: list[float] | None = None, max_iterations: int | None = None,
+                    headings: Sequence[int] | None = None,
                     ) -> tuple[list[Config] | None, dict]:
     """Configurations from ``starts`` until every agent rests on its goal, or None.
 
@@ -73,6 +76,11 @@ def footprint_lacam(movers: Sequence[Mover], starts: Sequence[Pose], cols: int,
     no solution, otherwise ``max_iterations`` high-level iterations were spent
     (``stats["stopped"] == "iterations"``: deterministic) or the deadline (a
     ``time.monotonic()`` value, a safety stop) passed (``"time"``).
+
+    ``headings`` (turn-aware fleets, see :mod:`footprint_pibt`): each agent's direction
+    index at the start. A node keeps the headings its parent chain gives it; a
+    configuration reached again with other headings is the same node (the search stays
+    sound, the found plan follows the parent chain).
     """
     n_nodes = len(movers[0].dist) if movers else 0
     ties = rng.random(n_nodes + 4099) * 0.5
@@ -84,10 +92,16 @@ def footprint_lacam(movers: Sequence[Mover], starts: Sequence[Pose], cols: int,
     def make(config: Config, parent: _High | None, prio: list[float]) -> _High:
         order = sorted((i for i in range(len(config)) if i not in held_set and config[i][2] == 0),
                        key=lambda i: -prio[i])
-        return _High(config, parent, prio, order)
+        heads = None
+        if headings is not None:
+            heads = tuple(headings) if parent is None else next_headings(
+                parent.headings, parent.config, config, cols)
+        return _High(config, parent, prio, order, heads)
 
-    if any(mv.dist[start[i][1]] >= UNREACHABLE for i, mv in enumerate(movers)
-           if i not in held_set):
+    if any(mv.dist[start[i][1]] >= UNREACHABLE or (
+            mv.tdist is not None and headings is not None
+            and (start[i][1], headings[i]) not in mv.tdist)
+           for i, mv in enumerate(movers) if i not in held_set):
         # An agent that cannot reach its goal: no configuration search can succeed.
         return None, {"iterations": 0, "explored": 0, "exhausted": True,
                       "stopped": "unreachable"}
@@ -115,7 +129,8 @@ def footprint_lacam(movers: Sequence[Mover], starts: Sequence[Pose], cols: int,
         salt = int(rng.integers(4096))
         forced = dict(stay)
         forced.update(zip(low.who, low.where, strict=True))
-        nxt = footprint_step(movers, node.config, node.prio, ties[salt:], cols, forced)
+        nxt = footprint_step(movers, node.config, node.prio, ties[salt:], cols, forced,
+                             headings=node.headings)
         if nxt is None:
             continue
         key = tuple(nxt)

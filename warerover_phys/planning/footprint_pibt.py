@@ -24,6 +24,14 @@ PIBT (Okumura et al., AIJ 2022) generalised the standard way to large and slow a
   room test: any neighbouring anchor of the other agent off the first one's way that no
   immovable agent (slow, decided, or already failed) covers.
 
+Turning sweeps (issue 13): a turn-aware mover (one whose ``sweep``, ``locks`` or
+``no_turn`` is set; see :mod:`~warerover_phys.planning.turns`) has a heading (one per
+agent, ``headings``). An agent at rest that starts a move in a new direction turns in place
+first: only where it may turn, with its swept cells clear of every other agent now and
+claimed for the next tick, and with none of its turn locks taken by another turn of the
+same step. No move enters a dead end (a no-turn anchor faced so that it can never turn
+again). Without turn-aware movers nothing changes.
+
 The step is used by the lifelong PIBT planner and, with forced moves as its constraints, as
 the configuration generator of :mod:`footprint_lacam`.
 """
@@ -38,9 +46,10 @@ import numpy as np
 
 from .base import State, footprint_nodes
 from .graph import UNREACHABLE
+from .sweep import lock_keys, move_dir, sweep_cells
 
 __all__ = ["Mover", "Pose", "pose_cells", "successor", "arrive", "pose_states",
-           "footprint_step"]
+           "footprint_step", "next_headings"]
 
 Pose = tuple[int, int, int]
 """``(a, b, r)``: at rest on ``b`` if ``r == 0``, else moving ``a -> b``, ``r`` ticks to go."""
@@ -59,6 +68,25 @@ class Mover:
     dist: np.ndarray
     """Moves from every anchor to its goal (``UNREACHABLE`` where none)."""
     goal: int
+    sweep: tuple[tuple[int, int], ...] = ()
+    """Cells a turn in place holds (offsets from the anchor; turn-aware movers only)."""
+    locks: tuple[tuple[int, int], ...] = ()
+    """Turn locks of a turn in place (anchor offsets)."""
+    no_turn: frozenset[int] = frozenset()
+    """Anchors where it must not turn."""
+    dead: frozenset[tuple[int, int]] = frozenset()
+    """States ``(anchor, direction index)`` it must never enter."""
+    rows: int = 0
+    """Grid rows (to clip swept cells; turn-aware movers only)."""
+    goal_dead: frozenset[int] | None = None
+    """Headings it must not arrive at its goal in (None: the ``dead`` ones)."""
+    tdist: Mapping[tuple[int, int], int] | None = None
+    """Moves to its goal from each state ``(anchor, heading index)`` that can reach it
+    (turn-aware movers with no-turn anchors; None: use ``dist``)."""
+
+    @property
+    def turns(self) -> bool:
+        return bool(self.sweep or self.locks or self.no_turn)
 
 
 def pose_cells(pose: Pose, k: int, cols: int) -> tuple[int, ...]:
@@ -88,6 +116,14 @@ def arrive(pose: Pose) -> tuple[State, ...]:
     return ((a, b),) * (r - 1) + ((b, b),) if r > 0 else ()
 
 
+def next_headings(headings: Sequence[int], before: Sequence[Pose], after: Sequence[Pose],
+                  cols: int) -> tuple[int, ...]:
+    """Each agent's heading after a step from poses ``before`` to ``after``: the direction
+    of a move it started, else unchanged."""
+    return tuple(move_dir(p[1], q[1], cols) if p[2] == 0 and q[1] != p[1] else h
+                 for h, p, q in zip(headings, before, after, strict=True))
+
+
 def pose_states(poses: Sequence[Pose]) -> tuple[State, ...]:
     """Per-tick states of a sequence of poses, finishing any move still under way, without
     trailing repeats (after its last state an AGV stays where it is)."""
@@ -102,8 +138,13 @@ class _Step:
     """The working state of one step (see the module doc)."""
 
     def __init__(self, movers: Sequence[Mover], poses: Sequence[Pose], cols: int,
-                 tie: np.ndarray, budget: int) -> None:
+                 tie: np.ndarray, budget: int, headings: Sequence[int] | None = None) -> None:
         self.movers, self.poses, self.cols, self.tie = movers, poses, cols, tie
+        self.headings = headings
+        self.turning = headings is not None and any(mv.turns for mv in movers)
+        self.nxt_swept: list[tuple[int, ...]] = [()] * len(poses)
+        self.nxt_locks: list[tuple[int, ...]] = [()] * len(poses)
+        self.lock_owner: dict[int, int] = {}
         self.cur = [pose_cells(p, mv.k, cols) for p, mv in zip(poses, movers, strict=True)]
         self.cur_set = [frozenset(c) for c in self.cur]
         self.occ_now = {c: i for i, cells in enumerate(self.cur) for c in cells}
@@ -121,16 +162,96 @@ class _Step:
 
     # ------------------------------------------------------------------ bookkeeping
 
-    def decide(self, i: int, pose: Pose, cells: tuple[int, ...]) -> None:
+    def decide(self, i: int, pose: Pose, cells: tuple[int, ...],
+               turn: tuple[tuple[int, ...], tuple[int, ...]] = ((), ())) -> None:
         self.nxt[i], self.nxt_cells[i] = pose, cells
         for c in cells:
             self.occ_next[c] = i
+        swept, keys = turn
+        if swept or keys:
+            swept = tuple(c for c in swept if c not in self.occ_next)
+            for c in swept:
+                self.occ_next[c] = i
+            for key in keys:
+                self.lock_owner[key] = i
+            self.nxt_swept[i], self.nxt_locks[i] = swept, keys
         self.log.append(i)
 
     def undo(self, i: int) -> None:
         for c in self.nxt_cells[i]:
             del self.occ_next[c]
+        if self.nxt_swept[i] or self.nxt_locks[i]:
+            for c in self.nxt_swept[i]:
+                del self.occ_next[c]
+            for key in self.nxt_locks[i]:
+                del self.lock_owner[key]
+            self.nxt_swept[i], self.nxt_locks[i] = (), ()
         self.nxt[i], self.nxt_cells[i] = None, ()
+
+    def head_on_trap(self, i: int, target: int, d: int) -> bool:
+        """Would agent ``i`` (1x1), entering ``target`` facing ``d`` where it may not turn,
+        meet head-on, on the straight run it must now drive before it may turn again, an
+        agent that faces it and may not turn there either? Then neither could ever pass
+        (there is no reversing)."""
+        mv = self.movers[i]
+        if mv.k != 1 or target not in mv.no_turn:
+            return False
+        step = (1, self.cols, -1, -self.cols)[d]
+        back = (d + 2) % 4
+        assert self.headings is not None
+        cur = target
+        for _ in range(len(mv.no_turn)):
+            if cur not in mv.no_turn:
+                return False
+            ahead = cur + step
+            if ahead not in mv.neighbors[cur]:
+                return False
+            for x in {self.occ_now.get(ahead), self.occ_next.get(ahead)}:
+                if x is None or x < 0 or x == i or self.movers[x].k != 1 or \
+                        ahead not in self.movers[x].no_turn:
+                    continue
+                nxt = self.nxt[x]
+                if nxt is not None and nxt[1] == ahead and self.poses[x][1] != ahead:
+                    facing = move_dir(self.poses[x][1], ahead, self.cols)
+                elif self.poses[x][1] == ahead and self.poses[x][2] == 0:
+                    facing = self.headings[x]
+                else:
+                    continue
+                if facing == back:
+                    return True
+            cur = ahead
+        return False
+
+    def turn_claim(self, i: int, target: int,
+                   ) -> tuple[tuple[int, ...], tuple[int, ...]] | None:
+        """What agent ``i`` (at rest) must claim to head for ``target``: its turn's swept
+        cells and locks if the move needs a turn (empty if not), or None if the move is
+        not allowed (a dead end, or a turn it may not make now)."""
+        mv, (_, here, r) = self.movers[i], self.poses[i]
+        if not self.turning or not mv.turns or r or target == here:
+            return (), ()
+        d = move_dir(here, target, self.cols)
+        if target == mv.goal and mv.goal_dead is not None:
+            if d in mv.goal_dead:
+                return None
+        elif (target, d) in mv.dead:
+            return None
+        assert self.headings is not None
+        if target != mv.goal and self.head_on_trap(i, target, d):
+            return None
+        if d == self.headings[i]:
+            return (), ()
+        if here in mv.no_turn:
+            return None
+        swept = sweep_cells(here, mv.sweep, mv.rows, self.cols) if mv.sweep else ()
+        for c in swept:
+            if self.occ_now.get(c, i) != i or self.occ_next.get(c, i) != i:
+                return None
+        keys = lock_keys(here, mv.locks, mv.rows, self.cols) if mv.locks else ()
+        for key in keys:
+            if self.lock_owner.get(key, i) != i:
+                return None
+        return swept, keys
 
     def rollback(self, mark: int) -> None:
         """Forget every decision taken since the log had ``mark`` entries, except those
@@ -175,11 +296,30 @@ class _Step:
         """Targets of an agent at rest, best first (its own node last among equals)."""
         mv, here = self.movers[i], self.poses[i][1]
         d, tie = mv.dist, self.tie
+        if mv.tdist is not None and self.headings is not None:
+            return self._turn_candidates(i, avoid)
         near = [v for v in mv.neighbors[here] if d[v] < UNREACHABLE] + [here]
         if avoid:
             near = [v for v in near
                     if avoid.isdisjoint(footprint_nodes(v, mv.k, self.cols))]
         return sorted(near, key=lambda v: d[v] + tie[v])
+
+    def _turn_candidates(self, i: int, avoid: frozenset[int]) -> list[int]:
+        """:meth:`candidates` by the moves left from the state (anchor, heading) each
+        target leads to (a turn-aware mover that may not turn everywhere)."""
+        mv, here = self.movers[i], self.poses[i][1]
+        assert mv.tdist is not None and self.headings is not None
+        td, tie, cols = mv.tdist, self.tie, self.cols
+        score = {here: td.get((here, self.headings[i]), UNREACHABLE)}
+        for v in mv.neighbors[here]:
+            s = td.get((v, move_dir(here, v, cols)))
+            if s is not None:
+                score[v] = s
+        near = list(score)
+        if avoid:
+            near = [v for v in near
+                    if avoid.isdisjoint(footprint_nodes(v, mv.k, self.cols))]
+        return sorted(near, key=lambda v: (score[v] + tie[v], v != here))
 
     def try_target(self, i: int, target: int) -> bool:
         """Take ``target`` for agent ``i`` if every agent in the way can be pushed aside."""
@@ -188,12 +328,15 @@ class _Step:
         cells = pose_cells(pose, mv.k, self.cols)
         if not self.fits(i, cells):
             return False
+        turn = self.turn_claim(i, target)
+        if turn is None:
+            return False
         ahead = self.blockers(i, cells)
         if ahead is None or (ahead and self.budget <= 0):
             return False
         self.budget -= len(ahead)
         mark = len(self.log)
-        self.decide(i, pose, cells)
+        self.decide(i, pose, cells, turn)
         for x in ahead:
             if self.nxt[x] is None and not self.push(x):
                 self.rollback(mark)
@@ -243,13 +386,21 @@ class _Step:
 
     def can_step_aside(self, j: int, i: int, best: int) -> bool:
         """Has ``j`` a neighbouring anchor off ``i``'s way (clear of ``i``'s cells and of
-        ``best``, no closer to ``i``'s goal) that nothing immovable covers?"""
+        ``best``, no closer to ``i``'s goal) that nothing immovable covers? (A turn-aware
+        ``j`` only where it may drive: no turn where it may not turn, no dead end.)"""
         mj, mi = self.movers[j], self.movers[i]
         blocked = self.cur_set[i].union(footprint_nodes(best, mi.k, self.cols))
         ref = mi.dist[best]
-        for u in mj.neighbors[self.poses[j][1]]:
+        here = self.poses[j][1]
+        for u in mj.neighbors[here]:
             if mj.dist[u] >= UNREACHABLE or mi.dist[u] < ref:
                 continue
+            if self.turning and mj.turns:
+                assert self.headings is not None
+                d = move_dir(here, u, self.cols)
+                if (u, d) in mj.dead or (d != self.headings[j] and here in mj.no_turn) or (
+                        mj.tdist is not None and (u, d) not in mj.tdist):
+                    continue
             cells = footprint_nodes(u, mj.k, self.cols)
             if blocked.isdisjoint(cells) and not any(self.immovable(c, j) for c in cells):
                 return True
@@ -270,12 +421,20 @@ class _Step:
         Their moves (and the pushes they need) are kept even if a decision of this chain is
         rolled back later, so they keep clear of the cells of ``i`` and of every agent with
         a decision in this chain: each of those may still stay where it is.
+
+        A turn-aware agent whose move to ``target`` is a turn nudges every agent at rest
+        there the same way: such an agent often has to turn to get out of the way, and two
+        neighbours may not turn in the same tick, so it moves first and ``i`` follows a
+        tick later.
         """
         mv = self.movers[i]
         dest = footprint_nodes(target, mv.k, self.cols)
+        turn_first = self.turning and mv.turns and self.poses[i][2] == 0 and \
+            target != self.poses[i][1] and self.headings is not None and \
+            move_dir(self.poses[i][1], target, self.cols) != self.headings[i]
         slow = [x for x in dict.fromkeys(self.occ_now.get(c) for c in dest)
                 if x is not None and x != i and self.nxt[x] is None
-                and self.movers[x].m > 1 and x not in self.stuck]
+                and (self.movers[x].m > 1 or turn_first) and x not in self.stuck]
         if not slow or self.budget <= 0:
             return
         self.budget -= len(slow)
@@ -297,23 +456,30 @@ class _Step:
         cells = pose_cells(pose, self.movers[i].k, self.cols)
         if not self.fits(i, cells):
             return False
-        self.decide(i, pose, cells)
+        turn = self.turn_claim(i, target)
+        if turn is None:
+            return False
+        self.decide(i, pose, cells, turn)
         return True
 
 
 def footprint_step(movers: Sequence[Mover], poses: Sequence[Pose], prio: Sequence[float],
                    tie: np.ndarray, cols: int, forced: Mapping[int, int] | None = None,
-                   budget: int | None = None) -> list[Pose] | None:
+                   budget: int | None = None, headings: Sequence[int] | None = None,
+                   ) -> list[Pose] | None:
     """Next pose of every agent, or None if the ``forced`` targets (agent -> node; the
     agent's own node to stay) contradict each other or cannot be made room for.
 
     Agents in the middle of a move always take their forced next pose. ``tie`` (one value
     in [0, 0.5) per node) breaks ties between equally good targets; ``budget`` caps the
     number of pushes (default ``50 * len(poses) + 100``); when it runs out, agents only
-    take targets nobody stands on.
+    take targets nobody stands on. ``headings``: per agent the direction index it faces
+    (:func:`~warerover_phys.planning.sweep.move_dir`; 4: unknown), needed for turn-aware
+    movers (see the module doc).
     """
     n = len(poses)
-    step = _Step(movers, poses, cols, tie, 50 * n + 100 if budget is None else budget)
+    step = _Step(movers, poses, cols, tie, 50 * n + 100 if budget is None else budget,
+                 headings)
     fixed = {i: p[1] for i, p in enumerate(poses) if p[2] > 0}
     fixed.update(forced or {})
     for i in sorted(fixed):

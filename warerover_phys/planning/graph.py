@@ -29,6 +29,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order
 
 from ..layout import CellType, Layout
+from .headings import dead_ends, turn_dist
 
 __all__ = ["MotionGraph", "GraphSet", "UNREACHABLE"]
 
@@ -231,6 +232,32 @@ class MotionGraph:
                                       else UNREACHABLE, v))
             path.append(node)
         return path
+
+    def dead_ends(self, no_turn: frozenset[int]) -> frozenset[tuple[int, int]]:
+        """States ``(anchor, direction index)`` a turn-aware AGV must never enter on this
+        graph (:func:`~warerover_phys.planning.sweep.dead_ends`), cached per mask."""
+        if not no_turn:
+            return frozenset()
+        cache = self.__dict__.setdefault("_dead_cache", {})
+        out = cache.get(no_turn)
+        if out is None:
+            out = cache[no_turn] = dead_ends(self.neighbors, no_turn, self.cols,
+                                             self.expandable_flat)
+        return out
+
+    def turn_dist(self, no_turn: frozenset[int], goal: int,
+                  goal_dead: frozenset[int] | None = None) -> dict[tuple[int, int], int]:
+        """Moves to ``goal`` from each state ``(anchor, heading index)`` of a turn-aware AGV
+        on this graph (:func:`~warerover_phys.planning.sweep.turn_dist`), cached."""
+        cache = self.__dict__.setdefault("_reach_cache", OrderedDict())
+        key = (no_turn, goal, goal_dead)
+        out = cache.get(key)
+        if out is None:
+            out = cache[key] = turn_dist(self.neighbors, no_turn, self.dead_ends(no_turn),
+                                         self.cols, goal, goal_dead, self.expandable_flat)
+            if len(cache) > 256:
+                cache.popitem(last=False)
+        return out
 
     def reachable_from(self, start: Cell) -> np.ndarray:
         """Boolean (rows, cols) mask of anchors reachable from ``start`` (unloaded graphs

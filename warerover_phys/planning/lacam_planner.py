@@ -22,7 +22,9 @@ step is taken without a search and without a budget hit.
 A fleet of 1x1 AGVs that move one cell per tick takes the fast path (:func:`lacam_nodes`).
 Any other fleet is solved by :func:`footprint_lacam` over poses (an AGV in the middle of a
 multi-tick move has one successor; its progress is read back from its committed path), with
-footprint-aware effective goals: goal footprints of different AGVs never overlap.
+footprint-aware effective goals: goal footprints of different AGVs never overlap. A fleet
+with turn-aware AGVs takes that path too (headings kept per search node; see
+:mod:`footprint_lacam`).
 """
 
 from __future__ import annotations
@@ -40,7 +42,7 @@ from .footprint_pibt import footprint_step, pose_states
 from .graph import UNREACHABLE, MotionGraph
 from .lacam import lacam_nodes
 from .pibt import pibt_step
-from .pibt_planner import current_pose, movers_for, uniform_fleet
+from .pibt_planner import current_pose, headings_for, movers_for, uniform_fleet
 from .reservation import ReservationTable
 
 __all__ = ["LaCAMPlanner", "effective_goals", "on_plan", "solve_footprints"]
@@ -131,17 +133,20 @@ def solve_footprints(request: PlanRequest, agents: list[AgentRequest], deadline:
     held = [i for i, a in enumerate(agents) if a.hold and poses[i][2] == 0]
     prio = [float(a.priority[0]) if a.priority else 0.0 for a in agents]
     rng = request.rng if request.rng is not None else np.random.default_rng(0)
+    headings = headings_for(agents)
     configs, stats = footprint_lacam(movers, poses, res.cols, deadline, rng, held=held,
-                                     prio=prio, max_iterations=max_iterations)
+                                     prio=prio, max_iterations=max_iterations,
+                                     headings=headings)
     _report_stop(stats, deadline - time.monotonic())
     if configs is None:
         result.budget_hits += not stats.get("exhausted", False)
         nxt = footprint_step(movers, poses, prio, rng.random(len(movers[0].dist)) * 0.5,
-                             res.cols, forced={i: poses[i][1] for i in held})
+                             res.cols, forced={i: poses[i][1] for i in held},
+                             headings=headings)
         configs = [tuple(poses), tuple(nxt if nxt is not None else poses)]
     for i, a in enumerate(agents):
         path = TimedPath(a.agv, tick, pose_states([c[i] for c in configs]))
-        res.commit(path, a.k)
+        res.commit(path, a.k, a.heading)
         result.paths[a.agv] = path
         if goals[i] != a.goal:
             result.detours.append(a.agv)

@@ -11,7 +11,11 @@ A fleet of 1x1 AGVs that move one cell per tick takes the fast path (:func:`pibt
 with swap). Any other fleet (``k x k`` AGVs, slow AGVs) is stepped by the footprint-aware
 PIBT of :mod:`footprint_pibt`: an AGV in the middle of a multi-tick move keeps going, one
 that starts a move gets the whole move as its path (the next tick reads its progress back
-from that path in the reservation table).
+from that path in the reservation table). So are fleets with turn-aware AGVs (bodies whose
+turns in place must be reserved, :func:`~warerover_phys.planning.sweep.turn_aware`): the
+footprint-aware step then tracks headings, turn locks, swept cells and no-turn anchors, and
+ranks moves by heading-aware distances (:meth:`~warerover_phys.planning.graph.MotionGraph.
+turn_dist`).
 """
 
 from __future__ import annotations
@@ -24,13 +28,15 @@ from .base import AgentRequest, PlanRequest, PlanResult, TimedPath
 from .footprint_pibt import Mover, Pose, footprint_step, pose_states, successor
 from .pibt import pibt_step
 from .reservation import ReservationTable
+from .sweep import turn_aware
+from .turns import heading_index
 
-__all__ = ["PIBTPlanner", "uniform_fleet", "movers_for", "current_pose"]
+__all__ = ["PIBTPlanner", "uniform_fleet", "movers_for", "current_pose", "headings_for"]
 
 
 def uniform_fleet(agents: Sequence[AgentRequest]) -> bool:
-    """Only 1x1 AGVs that move one cell per tick (the fast path)?"""
-    return all(a.k == 1 and a.ticks_per_move == 1 for a in agents)
+    """Only 1x1 AGVs that move one cell per tick, none turn-aware (the fast path)?"""
+    return all(a.k == 1 and a.ticks_per_move == 1 and not turn_aware(a) for a in agents)
 
 
 def movers_for(request: PlanRequest, agents: Sequence[AgentRequest],
@@ -40,9 +46,28 @@ def movers_for(request: PlanRequest, agents: Sequence[AgentRequest],
     out = []
     for a, goal in zip(agents, goals, strict=True):
         graph = request.graphs.get(a.k, a.loaded, a.shelf)
-        out.append(Mover(a.k, a.ticks_per_move, graph.neighbors,
-                         graph.dist_to(graph.cell(goal)), goal))
+        if turn_aware(a):
+            sw = a.sweep
+            out.append(Mover(a.k, a.ticks_per_move, graph.neighbors,
+                             graph.dist_to(graph.cell(goal)), goal,
+                             sweep=sw.cells if sw is not None else (),
+                             locks=sw.locks if sw is not None else (), no_turn=a.no_turn,
+                             dead=graph.dead_ends(a.no_turn), rows=graph.rows,
+                             goal_dead=a.goal_dead if goal == a.goal else None,
+                             tdist=graph.turn_dist(a.no_turn, goal, a.goal_dead
+                                                   if goal == a.goal else None)
+                             if a.no_turn else None))
+        else:
+            out.append(Mover(a.k, a.ticks_per_move, graph.neighbors,
+                             graph.dist_to(graph.cell(goal)), goal))
     return out
+
+
+def headings_for(agents: Sequence[AgentRequest]) -> tuple[int, ...] | None:
+    """Direction indices the agents face, if any is turn-aware (else None)."""
+    if not any(turn_aware(a) for a in agents):
+        return None
+    return tuple(heading_index(a.heading) for a in agents)
 
 
 def current_pose(res: ReservationTable, agent: AgentRequest, tick: int) -> Pose:
@@ -108,12 +133,13 @@ class PIBTPlanner:
         held = {i: a.start for i, a in enumerate(agents) if a.hold and poses[i][2] == 0}
         rng = request.rng if request.rng is not None else np.random.default_rng(0)
         tie = rng.random(len(movers[0].dist)) * 0.5
-        nxt = footprint_step(movers, poses, prio, tie, res.cols, forced=held)
+        nxt = footprint_step(movers, poses, prio, tie, res.cols, forced=held,
+                             headings=headings_for(agents))
         if nxt is None:  # holds never contradict each other; be safe and keep still
             nxt = [successor(p, p[1], mv.m) for p, mv in zip(poses, movers, strict=True)]
         result = PlanResult()
         for a, here, there in zip(agents, poses, nxt, strict=True):
             path = TimedPath(a.agv, tick, pose_states([here, there]))
-            res.commit(path, a.k)
+            res.commit(path, a.k, a.heading)
             result.paths[a.agv] = path
         return result

@@ -1,8 +1,20 @@
-"""Space-time reservation table: which AGV holds which cell at which tick."""
+"""Space-time reservation table: which AGV holds which cell at which tick.
+
+Turns in place (issue 13). For AGVs registered with :meth:`ReservationTable.configure_turns`
+(differential-drive bodies whose turn sweeps beyond their footprint) a committed path also
+holds, for each of its turns (:func:`~warerover_phys.planning.sweep.turn_sweeps`, from the
+heading the AGV has at the path's start), the turn's swept cells at the turn's tick and the
+next one (as if the AGV occupied them, so every check of ``free`` keeps other AGVs out),
+and its turn locks at the turn's tick (:meth:`ReservationTable.locks_free`). Nothing
+changes for AGVs that are not registered.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 from .paths import TimedPath, occupancy
+from .sweep import EAST, Sweep, lock_keys, sweep_cells, turn_sweeps
 
 __all__ = ["ReservationTable", "FOREVER"]
 
@@ -16,8 +28,14 @@ class ReservationTable:
     path; :meth:`commit` replaces the previous one.
     """
 
-    def __init__(self, cols: int) -> None:
+    def __init__(self, cols: int, rows: int | None = None) -> None:
         self.cols = cols
+        self.rows = rows
+        self.turning: dict[int, Sweep] = {}
+        """Per AGV what its turns hold (only AGVs whose turns hold cells or locks)."""
+        self._head0: dict[int, tuple[int, int] | None] = {}
+        self._locks: dict[int, dict[int, int]] = {}
+        self._lock_keys: dict[int, list[tuple[int, int]]] = {}
         self._occ: dict[int, dict[int, int]] = {}
         self._rest: dict[int, tuple[int, int]] = {}
         self._keys: dict[int, list[tuple[int, int]]] = {}
@@ -25,12 +43,30 @@ class ReservationTable:
         self.paths: dict[int, TimedPath] = {}
         self.sizes: dict[int, int] = {}
 
-    def commit(self, path: TimedPath, k: int) -> int:
+    def configure_turns(self, sweeps: Mapping[int, Sweep], rows: int) -> None:
+        """Register the AGVs whose turns in place hold cells or locks (``agv -> Sweep``;
+        see the module doc) on a grid of ``rows`` rows. Paths committed from now on hold
+        their turns too."""
+        self.rows = rows
+        self.turning = {a: sw for a, sw in sweeps.items() if sw.cells or sw.locks}
+
+    def heading_at_start(self, agv: int) -> tuple[int, int] | None:
+        """The heading ``agv`` had at the start of its committed path (east if never
+        given)."""
+        return self._head0.get(agv, EAST)
+
+    def commit(self, path: TimedPath, k: int, heading: tuple[int, int] | None | str = "keep",
+               ) -> int:
         """Reserve ``path`` for its AGV (footprint ``k``), dropping its previous path.
+        ``heading``: the direction the AGV faces at the path's start, for its turns
+        (``"keep"``: the one given with its previous path, east if none).
 
         Returns how many (cell, tick) entries already belonged to another AGV: 0 for a
         conflict-free plan.
         """
+        if heading == "keep":
+            heading = self._head0.get(path.agv, EAST)
+        self._head0[path.agv] = heading  # type: ignore[assignment]
         self.release(path.agv)
         agv, occ, clashes = path.agv, self._occ, 0
         keys: list[tuple[int, int]] = []
@@ -51,17 +87,66 @@ class ReservationTable:
             if other is not None and other[1] != agv:
                 clashes += 1
             self._rest[cell] = (path.end_tick, agv)
+        sweep = self.turning.get(agv)
+        if sweep is not None:
+            clashes += self._commit_turns(path, sweep, heading, keys)  # type: ignore[arg-type]
         self._keys[agv] = keys
         self._rest_keys[agv] = rest_cells
         self.paths[agv] = path
         self.sizes[agv] = k
         return clashes
 
+    def _commit_turns(self, path: TimedPath, sweep: Sweep, heading: tuple[int, int] | None,
+                      keys: list[tuple[int, int]]) -> int:
+        agv, occ, cols, clashes = path.agv, self._occ, self.cols, 0
+        lkeys: list[tuple[int, int]] = []
+        rows = self.rows if self.rows is not None else 1 << 30
+        for i, anchor in turn_sweeps(path.states, cols, heading):
+            t = path.start_tick + i
+            for cell in sweep_cells(anchor, sweep.cells, rows, cols):
+                for tt in (t, t + 1):
+                    slot = occ.get(cell)
+                    if slot is None:
+                        slot = occ[cell] = {}
+                    other = slot.get(tt)
+                    if other is None:
+                        slot[tt] = agv
+                        keys.append((cell, tt))
+                    elif other != agv:
+                        clashes += 1
+            for key in lock_keys(anchor, sweep.locks, self.rows, cols):
+                slot = self._locks.setdefault(key, {})
+                other = slot.get(t)
+                if other is not None and other != agv:
+                    clashes += 1
+                    continue
+                slot[t] = agv
+                lkeys.append((key, t))
+        self._lock_keys[agv] = lkeys
+        return clashes
+
+    def locks_free(self, keys, t: int, me: int) -> bool:
+        """Is no turn lock of ``keys`` (flat anchors) taken by another AGV's turn at
+        tick ``t``?"""
+        locks = self._locks
+        for key in keys:
+            slot = locks.get(key)
+            if slot is not None:
+                a = slot.get(t)
+                if a is not None and a != me:
+                    return False
+        return True
+
     def copy(self) -> ReservationTable:
         """An independent copy: what a planner gets to work in (the loop commits the paths
         the planner returns into the world's own table)."""
         new = ReservationTable.__new__(ReservationTable)
         new.cols = self.cols
+        new.rows = self.rows
+        new.turning = self.turning
+        new._head0 = dict(self._head0)
+        new._locks = {key: dict(slot) for key, slot in self._locks.items()}
+        new._lock_keys = {agv: list(keys) for agv, keys in self._lock_keys.items()}
         new._occ = {cell: dict(slot) for cell, slot in self._occ.items()}
         new._rest = dict(self._rest)
         new._keys = {agv: list(keys) for agv, keys in self._keys.items()}
@@ -78,6 +163,12 @@ class ReservationTable:
                 del slot[t]
                 if not slot:
                     del self._occ[cell]
+        for key, t in self._lock_keys.pop(agv, ()):
+            slot = self._locks.get(key)
+            if slot is not None and slot.get(t) == agv:
+                del slot[t]
+                if not slot:
+                    del self._locks[key]
         for cell in self._rest_keys.pop(agv, ()):
             if self._rest.get(cell, (0, -1))[1] == agv:
                 del self._rest[cell]

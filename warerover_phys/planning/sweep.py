@@ -52,9 +52,13 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .headings import dead_ends, turn_dist
+
 __all__ = ["turn_locks", "BodyShape", "SweepError", "disc_overlaps_rect", "discs_overlap", "sweep_offsets",
            "fleet_sweeps", "agv_sweeps", "Sweep", "check_fleet_sweeps", "static_sweep_hits", "turn_sweeps", "sweep_cells",
-           "sweep_conflicts", "SweepConflict", "EAST"]
+           "sweep_conflicts", "SweepConflict", "EAST", "no_turn_anchors", "dead_ends", "move_dir",
+           "DIR_OF", "turn_aware", "lock_keys", "turn_fields", "heading_after", "turn_dist",
+           "TurnMasks", "SHELF_BOX"]
 
 EAST = (0, 1)
 """``(drow, dcol)`` an AGV faces when it is placed (heading 0 = +x)."""
@@ -231,6 +235,23 @@ def agv_sweeps(specs: Sequence, cell_m: float) -> dict[int, Sweep]:
     return out
 
 
+def turn_fields(layout, specs: Sequence) -> dict[int, tuple[Sweep | None, frozenset[int]]]:
+    """Per AGV (index into ``specs``, one ``AgvTypeSpec`` each) what a planner needs to
+    plan its turns (:class:`~warerover_phys.planning.base.AgentRequest`'s ``sweep`` and
+    ``no_turn``); AGVs whose turns need nothing are left out (all of them for the default
+    0.7 m bodies on 1 m cells)."""
+    sweeps = agv_sweeps(specs, layout.cell_m)
+    masks: dict[BodyShape, frozenset[int]] = {}
+    out = {}
+    for i, spec in enumerate(specs):
+        shape = BodyShape.of(spec)
+        if shape not in masks:
+            masks[shape] = no_turn_anchors(layout, shape)
+        if i in sweeps or masks[shape]:
+            out[i] = (sweeps.get(i), masks[shape])
+    return out
+
+
 def check_fleet_sweeps(types: Mapping[str, object], cell_m: float) -> list[str]:
     """Problems with the fleet's turning sweeps, one sentence each (empty if none): a type
     whose swept disc reaches bodies the reservation cannot hold (see the module doc)."""
@@ -249,45 +270,188 @@ def check_fleet_sweeps(types: Mapping[str, object], cell_m: float) -> list[str]:
     return out
 
 
-def static_sweep_hits(layout, types: Mapping[str, object]) -> list[str]:
-    """Problems, one sentence per AGV type: a differential-drive type whose swept disc
-    reaches an obstacle or the map's edge from an anchor where it can stand (no
-    reservation can clear those; a turn there hits the static world)."""
+def no_turn_anchors(layout, shape: BodyShape) -> frozenset[int]:
+    """Flat anchors (``row * cols + col``) where the swept disc of a turn in place of
+    ``shape`` reaches an obstacle or the map's edge (the physics world has walls there):
+    no reservation can clear those, so planners must not turn such an AGV there. Empty for
+    AGVs that never turn and for discs that stay inside the footprint."""
     from ..layout import CellType
+
+    s, m = shape, layout.cell_m
+    if not s.turns or s.radius_m <= s.k * m / 2 + 1e-12:
+        return frozenset()
+    rows, cols = layout.rows, layout.cols
+    obstacle = layout.grid == CellType.OBSTACLE
+    out = set()
+    for r in range(rows - s.k + 1):
+        for c in range(cols - s.k + 1):
+            cx, cy = _centre(r, c, s.k, m)
+            if cx - s.radius_m < 0 or cy - s.radius_m < 0 or \
+                    cx + s.radius_m > cols * m or cy + s.radius_m > rows * m:
+                out.add(r * cols + c)
+                continue
+            if any(0 <= r + dr < rows and 0 <= c + dc < cols and obstacle[r + dr, c + dc]
+                   and disc_overlaps_rect(cx, cy, s.radius_m, (c + dc) * m, (r + dr) * m,
+                                          (c + dc + 1) * m, (r + dr + 1) * m)
+                   for dr in range(-1, s.k + 1) for dc in range(-1, s.k + 1)):
+                out.add(r * cols + c)
+    return frozenset(out)
+
+
+SHELF_BOX = 0.9
+"""A shelf's box, as a fraction of its footprint's side (the physics executor's shelf
+sensor: a loaded AGV touching another shelf is a static contact)."""
+
+
+class TurnMasks:
+    """Where one body shape may not turn in place on one layout: ``walls`` (the swept disc
+    reaches an obstacle or the map edge: :func:`no_turn_anchors`), and, while carrying a
+    shelf, also where it reaches another shelf's box (:meth:`carrying`)."""
+
+    def __init__(self, layout, shape: BodyShape) -> None:
+        self.layout, self.shape = layout, shape
+        self.walls = no_turn_anchors(layout, shape)
+        self._hits: dict[int, set[int]] | None = None
+        self._carrying: dict[int | None, frozenset[int]] = {}
+
+    def _shelf_hits(self) -> dict[int, set[int]]:
+        """Anchor -> shelves whose box the swept disc there reaches."""
+        if self._hits is None:
+            lay, s = self.layout, self.shape
+            m, cols = lay.cell_m, lay.cols
+            hits: dict[int, set[int]] = {}
+            if s.turns and s.radius_m > s.k * m / 2 * SHELF_BOX + 1e-12:
+                for shelf in lay.shelves:
+                    r0, c0 = shelf.anchor
+                    ks = shelf.size
+                    cx, cy = (c0 + ks / 2) * m, (r0 + ks / 2) * m
+                    half = ks * m * SHELF_BOX / 2
+                    reach = int(math.ceil(s.radius_m / m)) + 1
+                    for r in range(r0 - s.k - reach, r0 + ks + reach + 1):
+                        for c in range(c0 - s.k - reach, c0 + ks + reach + 1):
+                            if not (0 <= r <= lay.rows - s.k and 0 <= c <= lay.cols - s.k):
+                                continue
+                            ax, ay = _centre(r, c, s.k, m)
+                            if disc_overlaps_rect(ax, ay, s.radius_m, cx - half, cy - half,
+                                                  cx + half, cy + half):
+                                hits.setdefault(r * cols + c, set()).add(shelf.id)
+            self._hits = hits
+        return self._hits
+
+    def carrying(self, shelf: int | None) -> frozenset[int]:
+        """No-turn anchors while carrying ``shelf``: the walls' and where the disc reaches
+        the box of any other shelf (cached per shelf)."""
+        out = self._carrying.get(shelf)
+        if out is None:
+            extra = {a for a, ids in self._shelf_hits().items() if ids - {shelf}}
+            out = self._carrying[shelf] = self.walls | frozenset(extra)
+        return out
+
+
+DIR_OF = {d: i for i, d in enumerate(_DIRS)}
+"""Direction ``(drow, dcol)`` -> index (0 east, 1 south, 2 west, 3 north)."""
+
+
+def move_dir(a: int, b: int, cols: int) -> int:
+    """Index of the direction of the move from anchor ``a`` to its 4-neighbour ``b``."""
+    d = b - a
+    return 0 if d == 1 else 1 if d == cols else 2 if d == -1 else 3
+
+
+def static_sweep_hits(layout, types: Mapping[str, object],
+                      starts: Mapping[str, Sequence[tuple[int, int]]] | None = None,
+                      ) -> list[str]:
+    """Problems, one sentence per AGV type: a differential-drive type that cannot do its
+    work because turning in place is impossible where its swept disc reaches an obstacle
+    or the map's edge (see :func:`no_turn_anchors`; planners never turn it there).
+
+    For each such type, over its unloaded motion graph with headings: every anchor it
+    starts on must let it reach an anchor where it may turn, and every station, parking
+    spot and shelf anchor it can stand on must be reachable in a state from which it can
+    leave again (not facing a wall where it cannot turn). ``starts``: per type the anchors
+    its AGVs start on (facing east, as they are placed). Types that turn nowhere near the
+    static world, or whose every required place passes this test, are not reported."""
     from .graph import MotionGraph
 
     m = layout.cell_m
-    obstacle = layout.grid == CellType.OBSTACLE
     out = []
     for name, spec in types.items():
         s = BodyShape.of(spec)
-        if not s.turns or s.radius_m <= s.k * m / 2 + 1e-12:
+        no_turn = no_turn_anchors(layout, s)
+        if not no_turn:
             continue
-        valid = MotionGraph(layout, s.k, False).valid
-        hits = []
-        for r, c in zip(*np.nonzero(valid), strict=True):
-            cx, cy = _centre(int(r), int(c), s.k, m)
-            if cx - s.radius_m < 0 or cy - s.radius_m < 0 or \
-                    cx + s.radius_m > layout.cols * m or cy + s.radius_m > layout.rows * m:
-                hits.append((int(r), int(c)))
+        graph = MotionGraph(layout, s.k, False)
+        cols = layout.cols
+        dead = dead_ends(graph.neighbors, no_turn, cols)
+        free = [int(n) for n in np.flatnonzero(graph.valid.ravel()) if int(n) not in no_turn]
+        # Anchors reachable from a free anchor (where it can take any heading), in a state
+        # it can leave: breadth-first over (anchor, heading) states.
+        seen = {(n, d) for n in free for d in range(4)}
+        frontier = list(seen)
+        while frontier:
+            nxt_front = []
+            for v, h in frontier:
+                for u in graph.neighbors[v]:
+                    d = move_dir(v, u, cols)
+                    if d != h and v in no_turn:
+                        continue
+                    key = (u, d)
+                    if key in seen or key in dead:
+                        continue
+                    seen.add(key)
+                    nxt_front.append(key)
+            frontier = nxt_front
+        usable = {v for v, _ in seen}
+        k = s.k
+        places = [("station", cell) for cell in layout.stations] + \
+            [("parking spot", p) for p in layout.parking] + \
+            [("shelf", sh.anchor) for sh in layout.shelves if sh.size == k]
+        bad: dict[str, list[tuple[int, int]]] = {}
+        for what, (r, c) in places:
+            anchor = graph.goal_anchor((r, c))
+            if anchor is None:
                 continue
-            for dr in range(-1, s.k + 1):
-                for dc in range(-1, s.k + 1):
-                    rr, cc = int(r) + dr, int(c) + dc
-                    if 0 <= rr < layout.rows and 0 <= cc < layout.cols and obstacle[rr, cc] \
-                            and disc_overlaps_rect(cx, cy, s.radius_m, cc * m, rr * m,
-                                                   (cc + 1) * m, (rr + 1) * m):
-                        hits.append((int(r), int(c)))
-        if hits:
-            hits = sorted(set(hits))
+            node = anchor[0] * cols + anchor[1]
+            if node not in usable:
+                bad.setdefault(what, []).append((r, c))
+        for r, c in (starts or {}).get(name, ()):
+            if (r * cols + c, DIR_OF[EAST]) in dead:
+                bad.setdefault("start", []).append((r, c))
+        if not free:
+            bad = {"anchor": [(-1, -1)]}
+        if bad:
+            words = []
+            for what, cells in bad.items():
+                more = f" and {len(cells) - 3} more" if len(cells) > 3 else ""
+                east = " (facing east)" if what == "start" else ""
+                words.append(f"{what}{'s' if len(cells) > 1 else ''} "
+                             f"{', '.join(str(x) for x in cells[:3])}{more}{east}"
+                             if cells[0] != (-1, -1) else "every anchor")
             out.append(f"fleet.types.{name}: a {s.length_m} x {s.width_m} m body on a "
                        f"{s.k}x{s.k} footprint turning in place sweeps a disc of radius "
                        f"{s.radius_m:.3f} m on {m} m cells, which reaches an obstacle or "
-                       f"the map edge from {len(hits)} anchors it can stand on (first "
-                       f"{hits[0]}); no reservation can clear those, so a turn there hits "
-                       "the static world (use a body whose half-diagonal is at most "
-                       f"{s.k * m / 2} m, drive: omni, or larger cells)")
+                       f"the map edge from {len(no_turn)} anchors, where it must never "
+                       f"turn; then {'; '.join(words)} cannot be used: an AGV there "
+                       "ends up facing a wall where it cannot turn, so it could never "
+                       "leave (use a body whose half-diagonal is at most "
+                       f"{s.k * m / 2} m, drive: omni, larger cells, or a layout with a "
+                       "free cell between those places and the walls)")
     return out
+
+
+def turn_aware(agent) -> bool:
+    """Must a planner track this :class:`~warerover_phys.planning.base.AgentRequest`'s
+    heading? (Its turns hold cells or locks, or there are anchors where it may not turn.)"""
+    sw = agent.sweep
+    return bool(agent.no_turn) or (sw is not None and bool(sw.cells or sw.locks))
+
+
+def lock_keys(anchor: int, locks: Sequence[tuple[int, int]], rows: int | None,
+              cols: int) -> tuple[int, ...]:
+    """Flat anchors of the turn locks of a turn at ``anchor`` that lie inside the grid."""
+    r, c = divmod(anchor, cols)
+    return tuple((r + dr) * cols + c + dc for dr, dc in locks
+                 if 0 <= c + dc < cols and r + dr >= 0 and (rows is None or r + dr < rows))
 
 
 def sweep_cells(anchor: int, offsets: Sequence[tuple[int, int]], rows: int,
@@ -322,16 +486,49 @@ def turn_sweeps(states: Sequence[tuple[int, int]], cols: int,
     return out
 
 
+def heading_after(states: Sequence[tuple[int, int]], cols: int,
+                  heading: tuple[int, int] | None = EAST) -> tuple[int, int] | None:
+    """The direction an AGV faces after the per-tick ``states`` (its last move's; a
+    moving state counts as its move), starting from ``heading``."""
+    out = heading
+    prev = None
+    for a, b in states:
+        src, dst = (a, b) if a != b else ((prev[0], a) if prev is not None and
+                                          prev[0] == prev[1] else (a, a))
+        if src != dst:
+            r0, c0 = divmod(src, cols)
+            r1, c1 = divmod(dst, cols)
+            if abs(r1 - r0) + abs(c1 - c0) == 1:
+                out = (r1 - r0, c1 - c0)
+        prev = (a, b)
+    return out
+
+
 @dataclass(frozen=True, slots=True)
 class SweepConflict:
     tick: int
-    agvs: tuple[int, int]
-    """(turning AGV, AGV in the swept cells)."""
+    agvs: tuple[int, ...]
+    """(turning AGV, AGV in the swept cells); (one turning AGV, the other) for ``turn_lock``;
+    (the turning AGV,) for ``turn_wall``."""
     cell: tuple[int, int]
-
-    kind = "sweep"
+    """The swept cell held by the other AGV; the first turn's anchor for ``turn_lock`` and
+    ``turn_wall``."""
+    kind: str = "sweep"
+    """``sweep``: a turn's swept cell is held by another AGV at the turn's tick or the next;
+    ``turn_lock``: two turns at one tick share a turn lock (their swept discs may touch);
+    ``turn_wall``: a turn where the swept disc reaches an obstacle or the map edge."""
+    other: tuple[int, int] | None = None
+    """The second turn's anchor (``turn_lock``)."""
 
     def __str__(self) -> str:
+        if self.kind == "turn_lock":
+            return (f"turn lock conflict at tick {self.tick}: AGVs {self.agvs[0]} and "
+                    f"{self.agvs[1]} turn in place at once at {self.cell} and {self.other}, "
+                    "whose turn locks overlap (their swept discs may touch)")
+        if self.kind == "turn_wall":
+            return (f"turn-at-wall conflict at tick {self.tick}: AGV {self.agvs[0]} turns in "
+                    f"place at {self.cell}, where its swept disc reaches an obstacle or the "
+                    "map edge")
         return (f"sweep conflict at tick {self.tick}: AGV {self.agvs[0]} turns in place "
                 f"while AGV {self.agvs[1]} holds {self.cell}")
 
@@ -339,8 +536,14 @@ class SweepConflict:
 def sweep_conflicts(trajectories: Mapping[int, Sequence[tuple[int, int]]], rows: int,
                     cols: int, sizes: Mapping[int, int], offsets: Mapping[int, Sequence],
                     *, start_tick: int = 0, headings: Mapping[int, tuple[int, int] | None]
-                    | None = None, max_conflicts: int = 100) -> list[SweepConflict]:
-    """Turns whose swept cells another AGV occupies at the turn's tick or the next one.
+                    | None = None, max_conflicts: int = 100,
+                    locks: Mapping[int, Sequence[tuple[int, int]]] | None = None,
+                    no_turn: Mapping[int, frozenset[int]] | None = None,
+                    ) -> list[SweepConflict]:
+    """Turns whose swept cells another AGV occupies at the turn's tick or the next one
+    (kind ``sweep``), pairs of turns at one tick that share a turn lock (``turn_lock``,
+    with ``locks``: per AGV its turn locks, :func:`turn_locks`), and turns at anchors in
+    the AGV's ``no_turn`` set (``turn_wall``, :func:`no_turn_anchors`).
 
     Independent of the planners: it rebuilds every AGV's cells per tick from its states
     (``(a, b)`` flat anchors, moving if different; the last state holds). ``offsets``:
@@ -348,6 +551,8 @@ def sweep_conflicts(trajectories: Mapping[int, Sequence[tuple[int, int]]], rows:
     sweeps). ``headings``: the direction each AGV faces before its first move (default
     east, as AGVs are placed; None: unknown)."""
     headings = headings or {}
+    locks = locks or {}
+    no_turn = no_turn or {}
     horizon = max((len(s) for s in trajectories.values()), default=0)
 
     def cells_at(agv: int, i: int) -> set[int]:
@@ -361,11 +566,23 @@ def sweep_conflicts(trajectories: Mapping[int, Sequence[tuple[int, int]]], rows:
         return out
 
     out: list[SweepConflict] = []
+    turns_at: dict[int, list[tuple[int, int, set[tuple[int, int]]]]] = {}
     for agv, states in sorted(trajectories.items()):
         off = offsets.get(agv)
-        if not off:
+        lk = locks.get(agv)
+        walls = no_turn.get(agv, frozenset())
+        if not off and not lk and not walls:
             continue
         for i, anchor in turn_sweeps(states, cols, headings.get(agv, EAST)):
+            if anchor in walls:
+                out.append(SweepConflict(start_tick + i, (agv,), divmod(anchor, cols),
+                                         "turn_wall"))
+            if lk:
+                r, c = divmod(anchor, cols)
+                turns_at.setdefault(i, []).append(
+                    (agv, anchor, {(r + dr, c + dc) for dr, dc in lk}))
+            if not off:
+                continue
             swept = set(sweep_cells(anchor, off, rows, cols))
             for j in (i, i + 1):
                 if j >= horizon:
@@ -377,6 +594,11 @@ def sweep_conflicts(trajectories: Mapping[int, Sequence[tuple[int, int]]], rows:
                     if hit:
                         out.append(SweepConflict(start_tick + j, (agv, other),
                                                  divmod(min(hit), cols)))
-                        if len(out) >= max_conflicts:
-                            return out
-    return out
+    for i, turns in sorted(turns_at.items()):
+        for x, (a, na, la) in enumerate(turns):
+            for b, nb, lb in turns[x + 1:]:
+                if la & lb:
+                    out.append(SweepConflict(start_tick + i, (a, b), divmod(na, cols),
+                                             "turn_lock", divmod(nb, cols)))
+    out.sort(key=lambda c: c.tick)
+    return out[:max_conflicts]

@@ -1,0 +1,280 @@
+"""Space-time A* with headings, for AGVs whose turns in place must be reserved (issue 13).
+
+A differential-drive AGV turns in place before every move whose direction differs from the
+one it faces (its last move's). When its body's swept disc leaves its footprint
+(:mod:`~warerover_phys.planning.sweep`), such a turn is a reservation of its own, and
+:func:`turning_astar` searches over states ``(anchor, heading, tick)``:
+
+- a move from ``a`` in a new direction at tick ``t`` is a turn at ``a``: allowed only if
+  ``a`` is not a no-turn anchor (``agent.no_turn``: the disc would reach a wall), the
+  turn's swept cells are free of other AGVs at ``t`` and ``t + 1``, and no other AGV's
+  turn at ``t`` holds one of its turn locks (both read from the reservation table, which
+  holds the committed turns of the other AGVs the same way);
+- no move enters a *dead end* (:func:`~warerover_phys.planning.sweep.dead_ends`): a
+  no-turn anchor faced so that straight ahead never leads to a place to turn;
+- everything else is the space-time A* of :mod:`astar` and, with CBS constraints and a
+  conflict-avoidance table, the low level of :mod:`cbs` (same moves, footprints, slow
+  moves, sinks, swaps, goal rules and work budgets). CBS adds *no-turn* constraints
+  ``(anchor, tick)``: the AGV may not start a turn there then.
+
+Turns take no ticks of their own in the plan (the physics executor spends the turn's time
+inside the move, and its dependency graph orders overlapping turns).
+
+Only AGVs that need it are searched this way (:func:`~warerover_phys.planning.sweep.
+turn_aware`): for the default 0.7 m bodies on 1 m cells nothing changes.
+"""
+
+from __future__ import annotations
+
+import heapq
+from collections.abc import Sequence
+
+from .base import AgentRequest, State, TimedPath, footprint_nodes
+from .graph import UNREACHABLE, MotionGraph
+from .reservation import FOREVER, ReservationTable
+from .sweep import DIR_OF, lock_keys, move_dir, sweep_cells
+
+__all__ = ["turning_astar", "turn_ok", "heading_index", "request_turn_fields"]
+
+_NONE = 4
+"""Heading index for "unknown" (the first move counts as a turn)."""
+
+
+def heading_index(heading: tuple[int, int] | None) -> int:
+    return _NONE if heading is None else DIR_OF[heading]
+
+
+def request_turn_fields(graphs, masks, sweep, heading: tuple[int, int] | None, k: int,
+                        loaded: bool, shelf: int | None, goal: int,
+                        after: tuple[bool, int | None] | None) -> dict:
+    """The :class:`~warerover_phys.planning.base.AgentRequest` fields of a turn-aware AGV:
+    ``heading``, ``sweep``, ``no_turn`` for how it drives now (``masks``: its
+    :class:`~warerover_phys.planning.sweep.TurnMasks`; loaded: carrying ``shelf``), and
+    ``goal_dead`` for ``after`` = (loaded, shelf) once its work at the goal is done (None:
+    unchanged)."""
+    no_turn = masks.carrying(shelf) if loaded else masks.walls
+    goal_dead = None
+    if after is not None and after != (loaded, shelf if loaded else None):
+        loaded2, shelf2 = after
+        no_turn2 = masks.carrying(shelf2) if loaded2 else masks.walls
+        dead2 = graphs.get(k, loaded2, shelf2).dead_ends(no_turn2)
+        goal_dead = frozenset(d for d in range(4) if (goal, d) in dead2)
+    return {"heading": heading, "sweep": sweep, "no_turn": no_turn, "goal_dead": goal_dead}
+
+
+def turn_ok(res: ReservationTable, agent: AgentRequest, node: int, t: int, rows: int,
+            cols: int) -> bool:
+    """May ``agent`` turn in place at anchor ``node`` at tick ``t`` given the committed
+    paths of ``res``? (Not a no-turn anchor, swept cells free at ``t`` and ``t + 1``,
+    turn locks free at ``t``.)"""
+    if node in agent.no_turn:
+        return False
+    sw = agent.sweep
+    if sw is None:
+        return True
+    me = agent.agv
+    for c in sweep_cells(node, sw.cells, rows, cols):
+        if not (res.free(c, t, me) and res.free(c, t + 1, me)):
+            return False
+    return not sw.locks or res.locks_free(lock_keys(node, sw.locks, rows, cols), t, me)
+
+
+def turning_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest, t0: int,
+                  constraints=None, avoid=None, max_expansions: int = 50_000,
+                  budget_per_move: int | None = 40, cbs: bool = False,
+                  ) -> tuple[TimedPath | None, int]:
+    """Search one turn-aware AGV's path from tick ``t0`` (see the module doc). With
+    ``cbs`` the budgets and limits of :func:`~warerover_phys.planning.cbs.constrained_astar`
+    apply (``constraints``: its :class:`~warerover_phys.planning.cbs.Constraints`;
+    ``avoid``: its conflict-avoidance table), else those of
+    :func:`~warerover_phys.planning.astar.space_time_astar`. Returns (path or None,
+    expansions)."""
+    cols, rows, k, m, me = graph.cols, graph.rows, agent.k, agent.ticks_per_move, agent.agv
+    start, goal = agent.start, agent.goal
+    occ, rest = res._occ, res._rest
+    vertex = constraints.vertex if constraints is not None else {}
+    edge = constraints.edge if constraints is not None else set()
+    never = constraints.never if constraints is not None else {}
+    noturn = constraints.noturn if constraints is not None else set()
+    cat, cat_rest = avoid if avoid is not None else ({}, {})
+    no_turn = agent.no_turn
+    dead = graph.dead_ends(no_turn)
+    sw = agent.sweep
+    sw_cells = sw.cells if sw is not None else ()
+    sw_locks = sw.locks if sw is not None else ()
+
+    def fp(node: int) -> tuple[int, ...]:
+        return footprint_nodes(node, k, cols)
+
+    def ok(cells: Sequence[int], t: int) -> bool:
+        banned = vertex.get(t)
+        for c in cells:
+            slot = occ.get(c)
+            if slot is not None:
+                a = slot.get(t)
+                if a is not None and a != me:
+                    return False
+            r = rest.get(c)
+            if r is not None and t >= r[0] and r[1] != me:
+                return False
+            if banned is not None and c in banned:
+                return False
+            if never and t >= never.get(c, FOREVER):
+                return False
+        return True
+
+    def hits(cells: Sequence[int], t: int) -> int:
+        if not cat and not cat_rest:
+            return 0
+        row = cat.get(t)
+        n = 0
+        for c in cells:
+            if row is not None and c in row:
+                n += row[c]
+            else:
+                r = cat_rest.get(c)
+                if r is not None and t >= r:
+                    n += 1
+        return n
+
+    def can_turn(node: int, t: int) -> bool:
+        if node in no_turn or (noturn and (node, t) in noturn):
+            return False
+        if sw_cells:
+            cells = sweep_cells(node, sw_cells, rows, cols)
+            if not (ok(cells, t) and ok(cells, t + 1)):
+                return False
+        return not sw_locks or res.locks_free(lock_keys(node, sw_locks, rows, cols), t, me)
+
+    goal_cells = fp(goal)
+    if any(c in never for c in goal_cells):
+        return None, 0
+    goal_dead = agent.goal_dead
+    if no_turn and (start, heading_index(agent.heading)) not in graph.turn_dist(
+            no_turn, goal, goal_dead):
+        return None, 0  # no way there without turning where it may not
+    t_free = max((res.last_use(c, me) for c in goal_cells), default=-1) + 1
+    if t_free >= FOREVER:
+        return None, 0
+    if constraints is not None:
+        t_free = max(t_free, constraints.finish_after + 1)
+        for t, cells in vertex.items():
+            if t >= t_free and not cells.isdisjoint(goal_cells):
+                t_free = t + 1
+    t_max = constraints.finish_by if constraints is not None else FOREVER
+    h_table = graph.dist_to(graph.cell(goal))
+    h0 = graph.distance(graph.cell(start), graph.cell(goal))
+    if h0 >= UNREACHABLE or max(t_free, t0 + h0 * m) > t_max:
+        return None, 0
+    if cbs:
+        last = constraints.last_tick(t0) + 1 if constraints is not None else t0
+        t_limit = max(t_free, t0 + h0 * m, last) + h0 * m + 64
+        n_cons = len(constraints) if constraints is not None else 0
+        max_expansions = min(max_expansions, 40 * (h0 * m + 25 + n_cons))
+    else:
+        t_limit = max(t_free, t0 + h0 * m) + h0 * m + 64
+        if budget_per_move is not None:
+            max_expansions = min(max_expansions, budget_per_move * (h0 * m + 25))
+
+    def h(node: int) -> int:
+        v = int(h_table[node])
+        return v * m if v < UNREACHABLE else (h0 * m if node == start else UNREACHABLE)
+
+    loaded_sinks = graph.has_sinks
+    expandable = graph.expandable_flat
+    neighbors = graph.neighbors
+    s0 = start * 5 + heading_index(agent.heading)
+    open_heap: list[tuple[int, int, int, int, int]] = [(t0 + h(start), 0, -t0, s0, t0)]
+    parent: dict[tuple[int, int], tuple[int, int] | None] = {(s0, t0): None}
+    best: dict[tuple[int, int], int] = {(s0, t0): 0}
+    closed: set[tuple[int, int]] = set()
+
+    def push(sid: int, t: int, conf: int, hn: int, frm: tuple[int, int]) -> None:
+        key = (sid, t)
+        if key in closed or conf >= best.get(key, UNREACHABLE) or t + hn > t_max:
+            return
+        best[key] = conf
+        parent[key] = frm
+        heapq.heappush(open_heap, (t + hn, conf, -t, sid, t))
+
+    expansions = 0
+    while open_heap:
+        _, conf, _, sid, t = heapq.heappop(open_heap)
+        key = (sid, t)
+        if key in closed or conf > best[key]:
+            continue
+        closed.add(key)
+        node, hd = divmod(sid, 5)
+        if node == goal and t >= t_free and (goal_dead is None or hd not in goal_dead):
+            return _reconstruct(parent, key, me), expansions
+        expansions += 1
+        if expansions > max_expansions:
+            break
+        if t >= t_limit:
+            continue
+        here = fp(node)
+        if ok(here, t + 1):  # wait one tick
+            push(sid, t + 1, conf + hits(here, t + 1), h(node), key)
+        for nxt in (neighbors[node] if node == start or expandable[node] else ()):
+            if loaded_sinks and nxt != goal and not expandable[nxt]:
+                continue  # never drive into another shelf's home
+            d = move_dir(node, nxt, cols)
+            if nxt == goal and goal_dead is not None:
+                if d in goal_dead:
+                    continue  # it would start its work there facing the wrong way
+            elif (nxt, d) in dead:
+                continue
+            t_arr = t + m
+            nsid = nxt * 5 + d
+            if (nsid, t_arr) in closed:
+                continue
+            hn = h(nxt)
+            if hn >= UNREACHABLE:
+                continue
+            there = fp(nxt)
+            if not ok(there, t_arr):
+                continue
+            if m > 1:
+                both = tuple(dict.fromkeys(here + there))
+                if not all(ok(both, t + i) for i in range(1, m)):
+                    continue
+                if edge and ((t + 1, (node, node), (node, nxt)) in edge
+                             or (t_arr, (node, nxt), (nxt, nxt)) in edge):
+                    continue
+                extra = sum(hits(both, t + i) for i in range(1, m))
+            else:
+                if _swaps(res, here, there, t, me):
+                    continue
+                if edge and (t_arr, (node, node), (nxt, nxt)) in edge:
+                    continue
+                extra = 0
+            if d != hd and not can_turn(node, t):
+                continue
+            push(nsid, t_arr, conf + extra + hits(there, t_arr), hn, key)
+    return None, expansions
+
+
+def _swaps(res: ReservationTable, here: tuple[int, ...], there: tuple[int, ...], t: int,
+           me: int) -> bool:
+    for c in there:
+        other = res.owner(c, t)
+        if other is not None and other != me:
+            for c2 in here:
+                if res.owner(c2, t + 1) == other:
+                    return True
+    return False
+
+
+def _reconstruct(parent: dict, key: tuple[int, int], agv: int) -> TimedPath:
+    chain: list[tuple[int, int]] = []
+    walk: tuple[int, int] | None = key
+    while walk is not None:
+        chain.append((walk[0] // 5, walk[1]))
+        walk = parent[walk]
+    chain.reverse()
+    states: list[State] = [(chain[0][0], chain[0][0])]
+    for (a, ta), (b, tb) in zip(chain, chain[1:], strict=False):
+        for _ in range(tb - ta - 1):
+            states.append((a, b))
+        states.append((b, b))
+    return TimedPath(agv=agv, start_tick=chain[0][1], states=tuple(states))
