@@ -200,11 +200,15 @@ class ActionGraph:
     def __init__(self, cols: int, sizes: Mapping[int, int], *,
                  sweeps: Mapping[int, Sweep] | None = None,
                  rows: int | None = None,
-                 heading: tuple[int, int] | None = (0, 1)) -> None:
+                 heading: tuple[int, int] | None = (0, 1),
+                 latency_s: float = 0.0) -> None:
         """``sweeps``: per AGV the cells its turns in place hold (offsets from its anchor;
         see the module doc), ``rows`` bounds them (cells outside the grid are dropped);
         ``heading``: the direction every AGV faces when registered (east, as the physics
-        executor places them; None: unknown, so its first move counts as a turn)."""
+        executor places them; None: unknown, so its first move counts as a turn);
+        ``latency_s``: communication latency (seconds of :attr:`now`) before the other AGVs
+        hear that an action finished: a cell it left is free for another AGV's action only
+        ``latency_s`` after the finish (see :meth:`listening`)."""
         self.cols = cols
         self.rows = rows
         self._sizes = dict(sizes)
@@ -218,6 +222,11 @@ class ActionGraph:
         self.woken: set[int] = set()
         """AGVs registered with :meth:`wait_on` whose blocking queue head has changed (or
         whose plan changed) since; the executor clears it after it has looked at them."""
+        self.latency_s = float(latency_s)
+        self.now = 0.0
+        """Simulated time (seconds), set by the executor; used only with a latency."""
+        self._heard_at: dict[int, tuple[int, float]] = {}
+        """Cell -> (AGV that left it, time the others hear of it), with a latency."""
 
     # ----------------------------------------------------------------- building
 
@@ -457,7 +466,31 @@ class ActionGraph:
         rec = self._rec(agv)
         if rec.running is not None or not rec.pending:
             return False
-        return all(self._queues[v.cell][0] is v for v in rec.pending[0].enter_visits)
+        step = rec.pending[0]
+        return all(self._queues[v.cell][0] is v for v in step.enter_visits) and \
+            self._heard(agv, step)
+
+    def _heard(self, agv: int, step: _Step) -> bool:
+        """Whether the AGV has heard that the cells ``step`` enters were left by the AGVs
+        before it (always, without a latency)."""
+        if not self._heard_at:
+            return True
+        now = self.now
+        for v in step.enter_visits:
+            left = self._heard_at.get(v.cell)
+            if left is not None and left[0] != agv and now < left[1]:
+                return False
+        return True
+
+    def listening(self, agv: int) -> bool:
+        """The next action's cells are free (its visits head their queues) but the AGV has
+        not yet heard so: another AGV left one of them less than ``latency_s`` ago."""
+        rec = self._rec(agv)
+        if rec.running is not None or not rec.pending or not self._heard_at:
+            return False
+        step = rec.pending[0]
+        return all(self._queues[v.cell][0] is v for v in step.enter_visits) and \
+            not self._heard(agv, step)
 
     def released(self, agv: int, limit: int | None = None) -> list[Action]:
         """The leading upcoming actions that are each ready once the AGV's own earlier actions
@@ -471,6 +504,8 @@ class ActionGraph:
                         break
                     if w.agv != agv:
                         return out
+            if not self._heard(agv, step):
+                return out
             out.append(step.action)
         return out
 
@@ -528,6 +563,8 @@ class ActionGraph:
                 q.remove(v)
             del rec.held[v.cell]
             self._touch(v.cell)
+            if self.latency_s > 0:
+                self._heard_at[v.cell] = (agv, self.now + self.latency_s)
         rec.running = None
         rec.node = step.action.dst
         rec.heading = step.action.direction

@@ -164,6 +164,13 @@ class PhysicalFleet:
         half = np.array(sizes, dtype=float) / 2
         return cls(bodies, ctrls, shapes, half)
 
+    def set_mass(self, i: int, mass: float) -> None:
+        """Give AGV ``i``'s body a new mass (kg; a shelf picked up or put down), its moment
+        of inertia scaled with it. The drive force (the pivot's ``max_force``) stays."""
+        body = self.bodies[i]
+        body.moment = body.moment * mass / body.mass
+        body.mass = mass
+
 
 class BodyIO:
     """Read every AGV's pose and velocity, and set every control body's velocity, in one
