@@ -158,20 +158,22 @@ def steer(st: FleetState, pos: np.ndarray, ang: np.ndarray, delayed: np.ndarray,
     if st.no_slip is not None and st.no_slip.any():
         ns = np.flatnonzero(st.no_slip)
         cmd[ns], w[ns] = _no_slip(st, ns, ang[ns], v_now[ns], vel[ns], w[ns],
-                                  v_along[ns], lateral[ns], drive[ns])
+                                  v_along[ns], lateral[ns], along[ns], drive[ns])
     return cmd, w
 
 
 def _no_slip(st: FleetState, ns: np.ndarray, ang: np.ndarray, v_now: np.ndarray,
              vel: np.ndarray, w: np.ndarray, v_along: np.ndarray, lateral: np.ndarray,
-             drive: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+             along: np.ndarray, drive: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Commands for bodies that cannot move sideways (rows ``ns``): a speed along the
     heading only. Driving, the lateral error is corrected by steering (a heading offset
     ``atan(-LATERAL_GAIN x lateral / speed)``, at most :data:`MAX_STEER_RAD`), with the turn
     rate capped so that the centripetal acceleration ``speed x turn rate`` takes at most
     :data:`STEER_ACCEL_SHARE` of the acceleration limit; the speed then changes by at most
     what is left, so the velocity vector changes by at most ``max_accel dt`` per step.
-    Standing or turning, the hold pull is projected onto the heading."""
+    The speed is also kept to what still stops the *body* at the stop point (a body that
+    steered back onto the line lags its reference and would otherwise catch up and brake
+    too late). Standing or turning, the hold pull is projected onto the heading."""
     dt, a, vmax = st.dt, st.amax[ns], st.vmax[ns]
     hx, hy = np.cos(ang), np.sin(ang)
     u_now = v_now[:, 0] * hx + v_now[:, 1] * hy
@@ -182,7 +184,8 @@ def _no_slip(st: FleetState, ns: np.ndarray, ang: np.ndarray, v_now: np.ndarray,
     cap = np.minimum(st.wmax[ns], STEER_ACCEL_SHARE * a / np.maximum(np.abs(u_now), 1e-6))
     w_drive = np.clip(HEADING_GAIN * wrap(path + steer_off - ang), -cap, cap)
     w = np.where(drive, w_drive, w)
-    u_want = np.where(drive, v_along, vel[:, 0] * hx + vel[:, 1] * hy)
+    stop = stop_speed(st.stop_s[ns] - along, a, dt, np.maximum(u_now, 0.0))
+    u_want = np.where(drive, np.minimum(v_along, stop), vel[:, 0] * hx + vel[:, 1] * hy)
     room = np.sqrt(np.maximum(a * a - (u_now * w) ** 2, (0.1 * a) ** 2)) * dt
     u = np.clip(np.clip(u_want, u_now - room, u_now + room), -vmax, vmax)
     # Along the heading the body will have in the middle of the next move.

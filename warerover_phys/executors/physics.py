@@ -108,8 +108,8 @@ class PhysicsExecutor:
         """Simulated time until which an AGV brakes after an AGV-AGV contact began."""
         self._tick = 0
         self._last_contact: tuple | None = None
-        unsolved_agv_contacts(self.space, {id(s): i for i, s in enumerate(self.fleet.shapes)},
-                              self._contact)
+        unsolved_agv_contacts(self.space, self.fleet.agv_of_shape, self._contact)
+        self._shelf_contacts = bool(getattr(spec, "shelf_contacts", False))
         self._bound = True
 
     def _contact(self, a: int, b: int, point: tuple[float, float]) -> None:
@@ -134,6 +134,8 @@ class PhysicsExecutor:
         acc.begin_tick(view)
         self._tick = view.tick
         self._apply_payload(view.loaded)
+        if self._shelf_contacts:
+            self.fleet.carry_shelves(self.space, self.acc.shelf_m[:, 0], self.io.read()[1])
         follow.sync_plans(view)
         acc.events.extend(follow.draw_delays())
         follow.sync_failed(view.failed)
@@ -183,6 +185,8 @@ class PhysicsExecutor:
         self.follow.advance(pos, ang, delayed, decide)
         self._comm_wait_s += float(np.count_nonzero(st.listening)) * st.dt
         vel, w = steer(st, pos, ang, delayed, v_now)
+        if self._shelf_contacts:
+            self.fleet.orient_shelves(ang)
         self.io.write(vel, w)
         self.space.step(st.dt)
         st.sim_s = t + st.dt
