@@ -238,7 +238,9 @@ class PhysicsExecutor:
             return {}
         out = self.acc.summary()
         spec = self.spec
-        lateral = self.acc.limits.lateral
+        # Omnidirectional AGVs drive sideways by design: the slip figure is the
+        # differential-drive AGVs' (trajectories.npz has every AGV's).
+        lateral = self.acc.limits.lateral[~self.state.omni]
         out.update({
             "peak_lateral_speed_mps": float(lateral.max()) if len(lateral) else 0.0,
             "no_slip": bool(getattr(spec, "no_slip", False)),
