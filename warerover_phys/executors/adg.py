@@ -28,6 +28,12 @@ that keeps the swept cells free of other AGVs at the turn's tick and the next on
 :func:`warerover_phys.planning.sweep.sweep_conflicts` checks) gets only edges that go
 strictly forward in planned time from them, so they add no cycle.
 
+Communication latency (``latency_s``, ``executor.comm_latency_s``): an AGV hears that
+another AGV's action finished ``latency_s`` after it did (:attr:`ActionGraph.now` is the
+executor's clock). Until then a cell that action left counts as not yet free for the AGV's
+next action (:meth:`ActionGraph.ready`, :meth:`ActionGraph.released`), although the queue
+says it is (:meth:`ActionGraph.listening`). Its own actions need no message.
+
 >>> from warerover_phys.planning.base import TimedPath
 >>> # A 1 x 4 corridor: AGV 0 at cell 1 goes to 3, AGV 1 follows it from 0 to 2.
 >>> g = build({0: TimedPath(0, 0, ((1, 1), (2, 2), (3, 3))),
@@ -461,8 +467,9 @@ class ActionGraph:
         return [s.action for s in islice(self._rec(agv).pending, limit)]
 
     def ready(self, agv: int) -> bool:
-        """The next action exists, no action runs, and for every cell it enters the AGV's
-        visit is at the head of the queue."""
+        """The next action exists, no action runs, for every cell it enters the AGV's visit
+        is at the head of the queue, and (with a latency) it has heard that the AGVs before
+        it left those cells."""
         rec = self._rec(agv)
         if rec.running is not None or not rec.pending:
             return False
