@@ -136,6 +136,15 @@ class AgvTypeSpec(_Model):
     cargo_class: PosInt | None = None
     """Largest container / shelf size class the AGV may carry (default: its footprint)."""
     drive: Literal["diff", "omni"] = "diff"
+    payload_kg: NonNegFloat = 0.0
+    """Mass of the shelf it carries (kg). Physics with ``executor.payload: true``: a loaded
+    AGV's acceleration limit is its drive force over the loaded mass,
+    ``mass_kg x max_accel_mps2 / (mass_kg + payload_kg)``; 0 (default) = no change."""
+
+    @property
+    def loaded_accel_mps2(self) -> float:
+        """Acceleration limit while carrying a shelf (m/s^2), when payloads count."""
+        return self.mass_kg * self.max_accel_mps2 / (self.mass_kg + self.payload_kg)
 
     @property
     def carries(self) -> int:
@@ -453,6 +462,24 @@ class ExecutorSpec(_Model):
     many simulated seconds while nothing they wait on can still move (``freeze.py``); it
     is counted in ``deadlocks`` / ``freezes``, logged (``freeze`` event) and the AGVs are
     replanned from where they stand. 0 turns the detector off."""
+    payload: Bool = False
+    """Physics: a loaded AGV's acceleration limit drops to
+    ``mass_kg x max_accel_mps2 / (mass_kg + payload_kg)`` of its type (and its body's mass
+    grows by ``payload_kg``) while it carries a shelf; the command limiter, the braking
+    profile and the measured-limit checks use the limit in force."""
+    no_slip: Bool = False
+    """Physics: differential-drive AGVs cannot move sideways: the control law commands
+    velocity only along the body's heading and corrects lateral error by steering. Off: the
+    default controller also pulls sideways (``peak_lateral_speed_mps`` shows how much)."""
+    comm_latency_s: NonNegFloat = 0.0
+    """Physics with ``adg: true``: seconds before an AGV hears that another AGV's action it
+    depends on is done (the dependency graph's messages arrive late): an action whose
+    dependency finished at time t starts at t + latency at the earliest."""
+    shelf_contacts: Bool = False
+    """Physics: a loaded AGV's collision shape includes its carried shelf (a square
+    ``0.9 x shelf size x cell_m`` with sides along the grid, as in ``min_clearance_m``);
+    contacts of a carried shelf with another AGV or its shelf count as AGV contacts, with a
+    wall as static contacts."""
 
     @model_validator(mode="after")
     def _physics_fields(self) -> ExecutorSpec:

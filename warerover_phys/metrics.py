@@ -42,7 +42,13 @@ shelves included, over every physics step; negative = overlap depth; ``min_separ
 is its deprecated alias), ``min_clearance_t_s``, ``limit_violations`` (a measured speed,
 acceleration or turn rate more than 5% above its limit, counted each time it rises above)
 and ``peak_speed_ratio`` / ``peak_accel_ratio`` / ``peak_turn_rate_ratio`` (fleet maximum of
-measured peak / limit); the per-AGV peaks are in ``trajectories.npz``.
+measured peak / limit, against the limit in force when it was measured: a loaded AGV's
+acceleration limit is lower with ``executor.payload``); the per-AGV peaks are in
+``trajectories.npz``. Also ``peak_lateral_speed_mps`` (highest speed across its heading of
+any differential-drive AGV: how much the controller slips sideways; ~0 with
+``executor.no_slip``), the switches ``no_slip``, ``payload``, ``comm_latency_s``, and
+``delay_comm_latency_s`` (AGV-seconds spent with the next action's cells free but the
+dependency graph's message saying so not yet arrived).
 
 CT keys, wall seconds and the physics executor's ``real_time_factor`` are the only ones that
 change between two runs with the same scenario and seed; :data:`TIMING_KEYS` lists every

@@ -49,7 +49,7 @@ class Accounting:
         self.st, self.space, self.fleet, self.io, self.adg = st, space, fleet, io, adg
         self.layout = layout
         self._shelf_of = shelf_of
-        self._agv_of_shape = {id(s): i for i, s in enumerate(fleet.shapes)}
+        self._agv_of_shape = fleet.agv_of_shape  # carried shelves' shapes join it
         self.view: TickView | None = None
         # per tick
         self.events: list[tuple[str, dict]] = []
@@ -184,10 +184,10 @@ class Accounting:
 
         for i in np.flatnonzero(step > self.fleet.half_size.min(axis=1)):
             self.swept_checks += 1
-            me = self.fleet.shapes[i]
+            me = self.fleet.bodies[i]  # its body shape and its carried shelf's
             hits = self.space.segment_query(tuple(prev[i]), tuple(pos[i]), 0.0,
                                             pymunk.ShapeFilter())
-            if any(h.shape is not me and h.shape is not None and not h.shape.sensor
+            if any(h.shape is not None and h.shape.body is not me and not h.shape.sensor
                    for h in hits):
                 self.swept_hits += 1
 

@@ -28,6 +28,12 @@ that keeps the swept cells free of other AGVs at the turn's tick and the next on
 :func:`warerover_phys.planning.sweep.sweep_conflicts` checks) gets only edges that go
 strictly forward in planned time from them, so they add no cycle.
 
+Communication latency (``latency_s``, ``executor.comm_latency_s``): an AGV hears that
+another AGV's action finished ``latency_s`` after it did (:attr:`ActionGraph.now` is the
+executor's clock). Until then a cell that action left counts as not yet free for the AGV's
+next action (:meth:`ActionGraph.ready`, :meth:`ActionGraph.released`), although the queue
+says it is (:meth:`ActionGraph.listening`). Its own actions need no message.
+
 >>> from warerover_phys.planning.base import TimedPath
 >>> # A 1 x 4 corridor: AGV 0 at cell 1 goes to 3, AGV 1 follows it from 0 to 2.
 >>> g = build({0: TimedPath(0, 0, ((1, 1), (2, 2), (3, 3))),
@@ -200,11 +206,15 @@ class ActionGraph:
     def __init__(self, cols: int, sizes: Mapping[int, int], *,
                  sweeps: Mapping[int, Sweep] | None = None,
                  rows: int | None = None,
-                 heading: tuple[int, int] | None = (0, 1)) -> None:
+                 heading: tuple[int, int] | None = (0, 1),
+                 latency_s: float = 0.0) -> None:
         """``sweeps``: per AGV the cells its turns in place hold (offsets from its anchor;
         see the module doc), ``rows`` bounds them (cells outside the grid are dropped);
         ``heading``: the direction every AGV faces when registered (east, as the physics
-        executor places them; None: unknown, so its first move counts as a turn)."""
+        executor places them; None: unknown, so its first move counts as a turn);
+        ``latency_s``: communication latency (seconds of :attr:`now`) before the other AGVs
+        hear that an action finished: a cell it left is free for another AGV's action only
+        ``latency_s`` after the finish (see :meth:`listening`)."""
         self.cols = cols
         self.rows = rows
         self._sizes = dict(sizes)
@@ -218,6 +228,11 @@ class ActionGraph:
         self.woken: set[int] = set()
         """AGVs registered with :meth:`wait_on` whose blocking queue head has changed (or
         whose plan changed) since; the executor clears it after it has looked at them."""
+        self.latency_s = float(latency_s)
+        self.now = 0.0
+        """Simulated time (seconds), set by the executor; used only with a latency."""
+        self._heard_at: dict[int, tuple[int, float]] = {}
+        """Cell -> (AGV that left it, time the others hear of it), with a latency."""
 
     # ----------------------------------------------------------------- building
 
@@ -452,12 +467,37 @@ class ActionGraph:
         return [s.action for s in islice(self._rec(agv).pending, limit)]
 
     def ready(self, agv: int) -> bool:
-        """The next action exists, no action runs, and for every cell it enters the AGV's
-        visit is at the head of the queue."""
+        """The next action exists, no action runs, for every cell it enters the AGV's visit
+        is at the head of the queue, and (with a latency) it has heard that the AGVs before
+        it left those cells."""
         rec = self._rec(agv)
         if rec.running is not None or not rec.pending:
             return False
-        return all(self._queues[v.cell][0] is v for v in rec.pending[0].enter_visits)
+        step = rec.pending[0]
+        return all(self._queues[v.cell][0] is v for v in step.enter_visits) and \
+            self._heard(agv, step)
+
+    def _heard(self, agv: int, step: _Step) -> bool:
+        """Whether the AGV has heard that the cells ``step`` enters were left by the AGVs
+        before it (always, without a latency)."""
+        if not self._heard_at:
+            return True
+        now = self.now
+        for v in step.enter_visits:
+            left = self._heard_at.get(v.cell)
+            if left is not None and left[0] != agv and now < left[1]:
+                return False
+        return True
+
+    def listening(self, agv: int) -> bool:
+        """The next action's cells are free (its visits head their queues) but the AGV has
+        not yet heard so: another AGV left one of them less than ``latency_s`` ago."""
+        rec = self._rec(agv)
+        if rec.running is not None or not rec.pending or not self._heard_at:
+            return False
+        step = rec.pending[0]
+        return all(self._queues[v.cell][0] is v for v in step.enter_visits) and \
+            not self._heard(agv, step)
 
     def released(self, agv: int, limit: int | None = None) -> list[Action]:
         """The leading upcoming actions that are each ready once the AGV's own earlier actions
@@ -471,6 +511,8 @@ class ActionGraph:
                         break
                     if w.agv != agv:
                         return out
+            if not self._heard(agv, step):
+                return out
             out.append(step.action)
         return out
 
@@ -528,6 +570,8 @@ class ActionGraph:
                 q.remove(v)
             del rec.held[v.cell]
             self._touch(v.cell)
+            if self.latency_s > 0:
+                self._heard_at[v.cell] = (agv, self.now + self.latency_s)
         rec.running = None
         rec.node = step.action.dst
         rec.heading = step.action.direction

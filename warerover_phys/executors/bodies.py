@@ -14,6 +14,9 @@ Kept apart from the executor's logic so the physical set-up reads in one place:
   A pushed body would leave its speed and acceleration limits (4x and 200x were measured
   with 0.8 m bodies turning next to each other); a body that passes through another keeps
   its limits, and the contact is counted and reported, not hidden;
+- with ``executor.shelf_contacts`` a loaded AGV's body also carries the shape of its shelf
+  (:meth:`PhysicalFleet.carry_shelves`), kept parallel to the grid while the body turns
+  under it (:meth:`PhysicalFleet.orient_shelves`); its contacts are the AGV's;
 - :class:`BodyIO` moves poses and velocities in and out through pymunk's batch API (one call
   per step for the whole fleet instead of a Python loop; the module is experimental, so it is
   wrapped here and nowhere else).
@@ -21,7 +24,7 @@ Kept apart from the executor's logic so the physical set-up reads in one place:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pymunk
@@ -37,6 +40,9 @@ AGV, OBSTACLE, SHELF = 1, 2, 3
 FORCE_HEADROOM = 2.0
 """Pivot force = mass x max acceleration x this: the commanded profile obeys the limit; the
 headroom lets the joint correct small errors and push back on contacts."""
+SHELF_ANGLE_EPS_RAD = 1e-3
+"""A carried shelf's shape is turned back parallel to the grid once its body has turned this
+much (``executor.shelf_contacts``)."""
 SHELF_SIDE = 0.9
 """A shelf of size ``k`` is a square ``SHELF_SIDE x k x cell_m`` on a side (its sensor box
 here, and its footprint while carried in the clearance figures)."""
@@ -116,6 +122,14 @@ def unsolved_agv_contacts(space: pymunk.Space, agv_of_shape: dict[int, int],
     space.on_collision(AGV, None, pre_solve=pre_solve)
 
 
+def _grid_square(h: float, angle: float) -> list[tuple[float, float]]:
+    """Body-frame vertices of a square of half side ``h`` whose sides are along the world
+    axes while the body is turned by ``angle``."""
+    c, s = np.cos(angle), np.sin(angle)
+    return [(float(c * x + s * y), float(-s * x + c * y))
+            for x, y in ((-h, -h), (h, -h), (h, h), (-h, h))]
+
+
 def _box(body: pymunk.Body, centre: tuple[float, float], size: tuple[float, float]) -> pymunk.Poly:
     cx, cy = centre
     hw, hh = size[0] / 2, size[1] / 2
@@ -132,6 +146,15 @@ class PhysicalFleet:
     shapes: list[pymunk.Poly]
     half_size: np.ndarray
     """(N, 2) half length / width in metres."""
+    agv_of_shape: dict[int, int] = field(default_factory=dict)
+    """``id(shape)`` -> AGV id, for every AGV shape (bodies, and carried shelves with
+    ``executor.shelf_contacts``)."""
+    shelf_shapes: dict[int, pymunk.Poly] = field(default_factory=dict)
+    """AGV id -> the shape of the shelf it carries (in the space while carried)."""
+    shelf_side: np.ndarray | None = None
+    """(N,) side (metres) of the shelf shape each AGV carries now (0: none)."""
+    shelf_ang: np.ndarray | None = None
+    """(N,) body angle for which each carried shelf's vertices were last set."""
 
     @classmethod
     def add_to(cls, space: pymunk.Space, poses: list[tuple[float, float, float]],
@@ -162,7 +185,53 @@ class PhysicalFleet:
             ctrls.append(ctrl)
             shapes.append(shape)
         half = np.array(sizes, dtype=float) / 2
-        return cls(bodies, ctrls, shapes, half)
+        return cls(bodies, ctrls, shapes, half, {id(s): i for i, s in enumerate(shapes)})
+
+    def carry_shelves(self, space: pymunk.Space, side: np.ndarray, ang: np.ndarray) -> None:
+        """``executor.shelf_contacts``: give each AGV the collision shape of the shelf it
+        carries, a square ``side[i]`` metres on a side (0: none) centred on its body with
+        sides along the grid; shapes of shelves put down leave the space. The shape is an
+        :data:`AGV` shape of the AGV's body, so its contacts count as the AGV's."""
+        n = len(self.bodies)
+        if self.shelf_side is None:
+            self.shelf_side = np.zeros(n)
+            self.shelf_ang = np.zeros(n)
+        for i in np.flatnonzero(side != self.shelf_side):
+            i = int(i)
+            old = self.shelf_shapes.pop(i, None)
+            if old is not None:
+                space.remove(old)
+                self.agv_of_shape.pop(id(old), None)
+            self.shelf_side[i] = side[i]
+            if side[i] > 0:
+                shape = pymunk.Poly(self.bodies[i], _grid_square(side[i] / 2, float(ang[i])))
+                shape.collision_type = AGV
+                shape.friction = 0.0
+                shape.elasticity = 0.0
+                space.add(shape)
+                self.shelf_shapes[i] = shape
+                self.agv_of_shape[id(shape)] = i
+                self.shelf_ang[i] = ang[i]
+
+    def orient_shelves(self, ang: np.ndarray) -> None:
+        """Keep carried shelves parallel to the grid while their bodies (at angles ``ang``)
+        turn under them: reset the vertices of those whose body turned by more than
+        :data:`SHELF_ANGLE_EPS_RAD` since."""
+        if not self.shelf_shapes:
+            return
+        turned = np.abs((ang - self.shelf_ang + np.pi) % (2 * np.pi) - np.pi) > SHELF_ANGLE_EPS_RAD
+        for i in np.flatnonzero(turned & (self.shelf_side > 0)):
+            i = int(i)
+            self.shelf_shapes[i].unsafe_set_vertices(
+                _grid_square(self.shelf_side[i] / 2, float(ang[i])))
+            self.shelf_ang[i] = ang[i]
+
+    def set_mass(self, i: int, mass: float) -> None:
+        """Give AGV ``i``'s body a new mass (kg; a shelf picked up or put down), its moment
+        of inertia scaled with it. The drive force (the pivot's ``max_force``) stays."""
+        body = self.bodies[i]
+        body.moment = body.moment * mass / body.mass
+        body.mass = mass
 
 
 class BodyIO:

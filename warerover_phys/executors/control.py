@@ -11,7 +11,9 @@ up to ``dt / 2`` ahead of the continuous profile). The body follows the referenc
 through its pivot joint with a small proportional pull on the along-track and lateral
 errors; a delayed or failed AGV brakes at its limit. Standing AGVs hold their cell centre.
 Differential-drive AGVs hold their heading, and turn in place behind a reference heading
-that turns at ``max_turn_rate``; omnidirectional AGVs never turn.
+that turns at ``max_turn_rate``; omnidirectional AGVs never turn. With
+``executor.no_slip`` a differential-drive body gets velocity only along its heading and
+steers back onto the path line instead of being pulled sideways (:func:`_no_slip`).
 
 Whatever the mode, the commanded velocity finally goes through :func:`limit_command`: at
 most ``v_max`` and at most ``a dt`` away from the body's present velocity. The pivot joint
@@ -44,6 +46,12 @@ ALONG_GAIN = 4.0
 """1/s: pull towards the reference point along the path."""
 HEADING_GAIN = 6.0
 """1/s: heading hold while driving or standing."""
+MAX_STEER_RAD = 0.35
+"""No-slip drive (``executor.no_slip``): largest heading offset used to steer back onto the
+path line."""
+STEER_ACCEL_SHARE = 0.6
+"""No-slip drive: share of the acceleration limit the centripetal acceleration of a
+steering correction may take (the rest is left to speed changes)."""
 
 
 def wrap(a: np.ndarray | float) -> np.ndarray | float:
@@ -146,4 +154,40 @@ def steer(st: FleetState, pos: np.ndarray, ang: np.ndarray, delayed: np.ndarray,
                                             st.ang_ref + turn_step), ang)
     w_hold = np.clip(HEADING_GAIN * herr, -st.wmax, st.wmax)
     w = np.where(turning, w_turn, w_hold)
-    return limit_command(vel, v_now, st.vmax, a, dt), w
+    cmd = limit_command(vel, v_now, st.vmax, a, dt)
+    if st.no_slip is not None and st.no_slip.any():
+        ns = np.flatnonzero(st.no_slip)
+        cmd[ns], w[ns] = _no_slip(st, ns, ang[ns], v_now[ns], vel[ns], w[ns],
+                                  v_along[ns], lateral[ns], along[ns], drive[ns])
+    return cmd, w
+
+
+def _no_slip(st: FleetState, ns: np.ndarray, ang: np.ndarray, v_now: np.ndarray,
+             vel: np.ndarray, w: np.ndarray, v_along: np.ndarray, lateral: np.ndarray,
+             along: np.ndarray, drive: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Commands for bodies that cannot move sideways (rows ``ns``): a speed along the
+    heading only. Driving, the lateral error is corrected by steering (a heading offset
+    ``atan(-LATERAL_GAIN x lateral / speed)``, at most :data:`MAX_STEER_RAD`), with the turn
+    rate capped so that the centripetal acceleration ``speed x turn rate`` takes at most
+    :data:`STEER_ACCEL_SHARE` of the acceleration limit; the speed then changes by at most
+    what is left, so the velocity vector changes by at most ``max_accel dt`` per step.
+    The speed is also kept to what still stops the *body* at the stop point (a body that
+    steered back onto the line lags its reference and would otherwise catch up and brake
+    too late). Standing or turning, the hold pull is projected onto the heading."""
+    dt, a, vmax = st.dt, st.amax[ns], st.vmax[ns]
+    hx, hy = np.cos(ang), np.sin(ang)
+    u_now = v_now[:, 0] * hx + v_now[:, 1] * hy
+    ref = np.maximum(np.abs(st.speed[ns]), np.abs(u_now))
+    steer_off = np.clip(np.arctan2(-LATERAL_GAIN * lateral, np.maximum(ref, 0.2)),
+                        -MAX_STEER_RAD, MAX_STEER_RAD)
+    path = np.arctan2(st.direction[ns, 1], st.direction[ns, 0])
+    cap = np.minimum(st.wmax[ns], STEER_ACCEL_SHARE * a / np.maximum(np.abs(u_now), 1e-6))
+    w_drive = np.clip(HEADING_GAIN * wrap(path + steer_off - ang), -cap, cap)
+    w = np.where(drive, w_drive, w)
+    stop = stop_speed(st.stop_s[ns] - along, a, dt, np.maximum(u_now, 0.0))
+    u_want = np.where(drive, np.minimum(v_along, stop), vel[:, 0] * hx + vel[:, 1] * hy)
+    room = np.sqrt(np.maximum(a * a - (u_now * w) ** 2, (0.1 * a) ** 2)) * dt
+    u = np.clip(np.clip(u_want, u_now - room, u_now + room), -vmax, vmax)
+    # Along the heading the body will have in the middle of the next move.
+    mid = ang + 0.5 * w * dt
+    return np.column_stack([u * np.cos(mid), u * np.sin(mid)]), w

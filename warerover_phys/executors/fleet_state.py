@@ -38,6 +38,10 @@ class FleetState:
     """Omnidirectional drive (never turns)."""
     origin: np.ndarray
     """(N, 2) start of the current straight run (metres)."""
+    no_slip: np.ndarray | None = None
+    """Bodies that cannot move sideways (``executor.no_slip``, differential drive): the
+    control law commands velocity only along their heading and steers onto the path.
+    None: none."""
     decide_every: int = 1
     """Physics steps between decisions for standing AGVs (``follow.DECIDE_S`` seconds)."""
     sim_s: float = 0.0
@@ -70,6 +74,9 @@ class FleetState:
     """AGVs that had an action left at the end of the last tick."""
     last_finish: np.ndarray = field(init=False)
     """Simulated time at which each AGV last finished an action."""
+    listening: np.ndarray = field(init=False)
+    """Its next action's cells are free but the message saying so has not arrived yet
+    (``executor.comm_latency_s``; at the last decision)."""
 
     def __post_init__(self) -> None:
         n = self.n
@@ -88,6 +95,7 @@ class FleetState:
         self.has_next = np.zeros(n, dtype=bool)
         self.pending = np.zeros(n, dtype=bool)
         self.last_finish = np.zeros(n)
+        self.listening = np.zeros(n, dtype=bool)
 
     @property
     def n(self) -> int:

@@ -141,6 +141,7 @@ class PlanFollower:
         ``st.decide_every`` th step (every :data:`DECIDE_S` seconds)."""
         st = self.st
         t = st.sim_s
+        self.adg.now = t
         along = st.along(pos)
         driving = st.mode == DRIVE
         # Arrived at the action's target: the reference has reached it and the body is
@@ -156,6 +157,7 @@ class PlanFollower:
             for i in np.flatnonzero(driving & ~delayed & (st.stop_s - along < brake + 0.05)):
                 self._extend(int(i))
             st.waiting[:] = False
+            st.listening[:] = False
             # An AGV found waiting on the dependency graph sleeps until the queue head it
             # waits for changes (adg.woken), it is delayed, or its plan changes: deciding
             # for it again before then would find it waiting again.
@@ -190,6 +192,9 @@ class PlanFollower:
                     if nxt.sweeps and self.spec.adg and not self.adg.ready(i):
                         # Its turn sweeps beyond its cells: only once those are its own.
                         st.mode[i] = HOLD
+                        if self.adg.listening(i):
+                            st.listening[i] = True
+                            return
                         st.waiting[i] = True
                         self._asleep[i] = self.adg.wait_on(i)
                         return
@@ -205,6 +210,11 @@ class PlanFollower:
             return
         if self.spec.adg:
             if not self.adg.ready(i):
+                if self.adg.listening(i):
+                    # Its cells are free; the message saying so is on its way
+                    # (executor.comm_latency_s): decide again at the next look.
+                    st.listening[i] = True
+                    return
                 st.waiting[i] = True
                 self._asleep[i] = self.adg.wait_on(i)
                 return

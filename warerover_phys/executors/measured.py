@@ -9,7 +9,9 @@
   below the smallest clearance seen so far.
 - :class:`LimitMonitor`: per AGV the peak speed, acceleration and turn rate, from finite
   differences of the poses at consecutive physics steps, and the limit violations: every
-  time a measured value goes above its limit by more than :data:`LIMIT_TOLERANCE`.
+  time a measured value goes above the limit in force (a loaded AGV's acceleration limit
+  may be lower, ``executor.payload``) by more than :data:`LIMIT_TOLERANCE`; also the peak
+  lateral speed (velocity across the heading: how much a body slips sideways).
 
 Example: two unit squares 0.5 m apart edge to edge, and the same with one turned 45 degrees
 (its corner then reaches ``sqrt(0.5) - 0.5`` m further)::
@@ -220,10 +222,28 @@ class LimitMonitor:
         self.violations = 0
         self._over = {k: np.zeros(n, dtype=bool) for k in self.KINDS}
         self._any_over = dict.fromkeys(self.KINDS, False)
+        self._ratio: dict[str, np.ndarray] = {}
+        """Peak measured / limit in force, per kind whose limit has changed (squared for
+        speed and acceleration); the other kinds' ratios are their peak / fixed limit."""
+        self.lateral = np.zeros(n)
+        """Per-AGV peak lateral speed (m/s): the body's velocity across its heading."""
         self._pos: np.ndarray | None = None
         self._ang: np.ndarray | None = None
         self._vel: np.ndarray | None = None
         self._t = -math.inf
+
+    def set_limit(self, kind: str, limit: np.ndarray) -> None:
+        """A new per-AGV limit of ``kind`` from now on (a payload picked up or put down):
+        later values are checked against it, and the peak ratio is taken against the limit
+        in force when each value was measured."""
+        old = self.limits[kind]
+        if kind not in self._ratio:
+            peak = self._peak[kind]
+            self._ratio[kind] = np.divide(peak, old ** (1 if kind == "turn_rate" else 2),
+                                          out=np.zeros_like(peak), where=old > 0)
+        self.limits[kind] = np.asarray(limit, dtype=float).copy()
+        self._bound[kind] = (self.limits[kind] * (1 + LIMIT_TOLERANCE)) ** (
+            1 if kind == "turn_rate" else 2)
 
     def measure(self, pos: np.ndarray, ang: np.ndarray, t: float) -> list[tuple[str, dict]]:
         """Take the poses at simulated time ``t`` (once per time); returns
@@ -244,9 +264,18 @@ class LimitMonitor:
         if prev_vel is not None:
             dv = vel - prev_vel
             now["accel"] = np.einsum("ij,ij->i", dv, dv) / (dt * dt)
+        # Lateral speed: the velocity across the heading at the middle of the step (the
+        # direction of the chord a body turning while it drives moves along).
+        mid = prev_ang + 0.5 * ((ang - prev_ang + math.pi) % (2 * math.pi) - math.pi)
+        lat = np.abs(vel[:, 1] * np.cos(mid) - vel[:, 0] * np.sin(mid))
+        np.maximum(self.lateral, lat, out=self.lateral)
         events: list[tuple[str, dict]] = []
         for kind, value in now.items():
             np.maximum(self._peak[kind], value, out=self._peak[kind])
+            if kind in self._ratio:
+                lim = self.limits[kind] ** (1 if kind == "turn_rate" else 2)
+                np.maximum(self._ratio[kind], np.divide(value, lim, out=np.zeros_like(value),
+                                                        where=lim > 0), out=self._ratio[kind])
             over = value > self._bound[kind]
             if not over.any() and not self._any_over[kind]:
                 continue
@@ -272,7 +301,17 @@ class LimitMonitor:
         out = {}
         peak = self.peak
         for kind in self.KINDS:
-            lim = self.limits[kind]
-            r = np.divide(peak[kind], lim, out=np.zeros_like(lim), where=lim > 0)
+            if kind in self._ratio:
+                r = self._ratio[kind] if kind == "turn_rate" else np.sqrt(self._ratio[kind])
+            else:
+                lim = self.limits[kind]
+                r = np.divide(peak[kind], lim, out=np.zeros_like(lim), where=lim > 0)
             out[kind] = float(r.max()) if len(r) else 0.0
         return out
+
+    def peak_ratio(self, kind: str) -> np.ndarray:
+        """Per-AGV highest measured value / the limit in force at the time, of ``kind``."""
+        if kind in self._ratio:
+            return self._ratio[kind] if kind == "turn_rate" else np.sqrt(self._ratio[kind])
+        lim = self.limits[kind]
+        return np.divide(self.peak[kind], lim, out=np.zeros_like(lim), where=lim > 0)

@@ -85,19 +85,31 @@ class PhysicsExecutor:
             wmax=np.array([a.spec.max_turn_rate_radps for a in agvs]),
             omni=np.array([a.spec.drive == "omni" for a in agvs]),
             origin=np.array([p[:2] for p in poses], dtype=float),
+            no_slip=np.array([a.spec.drive != "omni" for a in agvs], dtype=bool)
+            if getattr(spec, "no_slip", False) else None,
             decide_every=max(1, round(DECIDE_S / self.dt)))
         self.adg = ActionGraph(layout.cols, {a.id: a.k for a in agvs},
                                sweeps=agv_sweeps([a.spec for a in agvs], layout.cell_m),
-                               rows=layout.rows)
+                               rows=layout.rows,
+                               latency_s=getattr(spec, "comm_latency_s", 0.0))
         self.acc = Accounting(self.state, self.space, self.fleet, self.io, self.adg, layout,
                               shelf_of, spec.trajectory_hz)
         self.follow = PlanFollower(self.state, self.adg, spec, rng, self.acc)
+        self._mass = np.array([a.spec.mass_kg for a in agvs], dtype=float)
+        self._payload = np.array([a.spec.payload_kg for a in agvs], dtype=float) \
+            if getattr(spec, "payload", False) else np.zeros(n)
+        self._amax_empty = self.state.amax.copy()
+        self._amax_loaded = self._amax_empty * self._mass / (self._mass + self._payload)
+        self._loaded = np.zeros(n, dtype=bool)
+        """Loaded AGVs as the payload limits last saw them."""
+        self._comm_wait_s = 0.0
+        """AGV-seconds spent with free cells ahead, waiting for the message saying so."""
         self.contact_until = np.zeros(n)
         """Simulated time until which an AGV brakes after an AGV-AGV contact began."""
         self._tick = 0
         self._last_contact: tuple | None = None
-        unsolved_agv_contacts(self.space, {id(s): i for i, s in enumerate(self.fleet.shapes)},
-                              self._contact)
+        unsolved_agv_contacts(self.space, self.fleet.agv_of_shape, self._contact)
+        self._shelf_contacts = bool(getattr(spec, "shelf_contacts", False))
         self._bound = True
 
     def _contact(self, a: int, b: int, point: tuple[float, float]) -> None:
@@ -121,6 +133,9 @@ class PhysicsExecutor:
         acc, follow = self.acc, self.follow
         acc.begin_tick(view)
         self._tick = view.tick
+        self._apply_payload(view.loaded)
+        if self._shelf_contacts:
+            self.fleet.carry_shelves(self.space, self.acc.shelf_m[:, 0], self.io.read()[1])
         follow.sync_plans(view)
         acc.events.extend(follow.draw_delays())
         follow.sync_failed(view.failed)
@@ -138,6 +153,24 @@ class PhysicsExecutor:
         acc.wall_s += time.perf_counter() - wall0
         return report
 
+    def _apply_payload(self, loaded: tuple[bool, ...]) -> None:
+        """``executor.payload``: AGVs that picked up or put down a shelf since the last tick
+        get the acceleration limit of their new load (drive force / (mass + payload)) in
+        the control law and the measured-limit checks, and their body its new mass."""
+        if not self._payload.any() or len(loaded) != self.n:
+            return
+        now = np.asarray(loaded, dtype=bool)
+        changed = np.flatnonzero(now != self._loaded)
+        if len(changed) == 0:
+            return
+        self._loaded = now
+        st = self.state
+        st.amax = np.where(now, self._amax_loaded, self._amax_empty)
+        self.acc.limits.set_limit("accel", st.amax)
+        for i in changed:
+            self.fleet.set_mass(int(i), float(self._mass[i] + (self._payload[i] if now[i]
+                                                                  else 0.0)))
+
     def _physics_step(self, decide: bool) -> None:
         st = self.state
         raw, raw_ang, v_now, w_now = self.io.read()
@@ -150,7 +183,10 @@ class PhysicsExecutor:
         injected = st.delayed_until > t
         delayed = injected | st.failed | (self.contact_until > t)
         self.follow.advance(pos, ang, delayed, decide)
+        self._comm_wait_s += float(np.count_nonzero(st.listening)) * st.dt
         vel, w = steer(st, pos, ang, delayed, v_now)
+        if self._shelf_contacts:
+            self.fleet.orient_shelves(ang)
         self.io.write(vel, w)
         self.space.step(st.dt)
         st.sim_s = t + st.dt
@@ -200,7 +236,19 @@ class PhysicsExecutor:
         """Executor figures for ``metrics.json`` (seconds of simulated time unless noted)."""
         if not self._bound:
             return {}
-        return self.acc.summary()
+        out = self.acc.summary()
+        spec = self.spec
+        # Omnidirectional AGVs drive sideways by design: the slip figure is the
+        # differential-drive AGVs' (trajectories.npz has every AGV's).
+        lateral = self.acc.limits.lateral[~self.state.omni]
+        out.update({
+            "peak_lateral_speed_mps": float(lateral.max()) if len(lateral) else 0.0,
+            "no_slip": bool(getattr(spec, "no_slip", False)),
+            "payload": bool(getattr(spec, "payload", False)),
+            "comm_latency_s": float(getattr(spec, "comm_latency_s", 0.0)),
+            "delay_comm_latency_s": self._comm_wait_s,
+        })
+        return out
 
     def trajectory(self) -> dict[str, np.ndarray] | None:
         """Recorded poses: ``t`` (T,), ``x``, ``y``, ``heading`` (T, N), ``state`` (task
@@ -211,4 +259,9 @@ class PhysicsExecutor:
         of files in a temporary folder, removed when this executor is garbage collected."""
         if not self._bound:
             return None
-        return self.acc.trajectory()
+        out = self.acc.trajectory()
+        out["limit_accel_mps2"] = self._amax_empty.copy()
+        out["limit_accel_loaded_mps2"] = self._amax_loaded.copy()
+        out["peak_accel_ratio"] = self.acc.limits.peak_ratio("accel")
+        out["peak_lateral_speed_mps"] = self.acc.limits.lateral.copy()
+        return out
