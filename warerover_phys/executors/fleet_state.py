@@ -68,6 +68,8 @@ class FleetState:
     """AGVs that had an action left at the end of the last tick."""
     last_finish: np.ndarray = field(init=False)
     """Simulated time at which each AGV last finished an action."""
+    hold_until: np.ndarray = field(init=False)
+    """Simulated time until which a planned dwell (``TickView.dwells``) holds the AGV."""
 
     def __post_init__(self) -> None:
         n = self.n
@@ -86,6 +88,7 @@ class FleetState:
         self.has_next = np.zeros(n, dtype=bool)
         self.pending = np.zeros(n, dtype=bool)
         self.last_finish = np.zeros(n)
+        self.hold_until = np.zeros(n)
 
     @property
     def n(self) -> int:
