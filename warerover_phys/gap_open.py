@@ -243,6 +243,7 @@ def compare(run: OpenLoopRun) -> tuple[list[dict], list[dict], dict[int, list[tu
                 "executed_finish_s": fin * dt,
                 "lost_s": fin * dt - a.finish * tick_s,
                 "interval_lost_s": interval_lost * dt,
+                "dependency_wait_s": int(c[DEPENDENCY]) * dt,
                 **{f"lost_{k}_s": v * dt for k, v in ap.items()}})
             prev_exec = fin
         trailing = plan.trailing_dwell(i)

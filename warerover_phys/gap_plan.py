@@ -15,8 +15,9 @@ plan's waits (physics, through the dependency graph) must still hold every dwell
 planned duration: :attr:`TimedPlan.dwell_view` is what the executor is told
 (``TickView.dwells``).
 
-The grid run is stepped on until every AGV stands (a 2x2 AGV may be half-way through a
-two-tick move when the last order completes), so every path ends standing; the run's
+When the last order completes, a 2x2 AGV may be half-way through a two-tick move: the grid
+run is stepped on until every AGV has stood still once, and each path is cut at its first
+standing state from the episode's last tick on, so every path ends standing; the run's
 metrics are those at the end of the episode.
 
 :func:`plan_from_file` makes a :class:`TimedPlan` of an imported MAPF plan (no dwells).
@@ -165,20 +166,26 @@ def record_grid_run(scenario: Scenario, progress=None) -> TimedPlan:
             progress(w.tick, len(w.completed_tick), len(w.status))
     metrics = sim.metrics.summary(w)
     metrics.update(sim.executor.summary())
-    # Step on until every AGV stands, so that every path ends standing.
+    # Step on until every AGV has stood still once since the end, so that every path can
+    # end standing: each is cut at its first standing state from the last tick on.
+    last = len(states) - 1
+    stood = [a.pos[0] == a.pos[1] for a in w.agvs]
     extra = 0
-    while any(a.pos[0] != a.pos[1] for a in w.agvs) and extra < 16:
+    while not all(stood) and extra < 16:
         sim.step()
         snap()
         extra += 1
+        stood = [s or a.pos[0] == a.pos[1] for s, a in zip(stood, w.agvs, strict=True)]
     tick_arr = np.asarray(task, dtype=np.int8)
     homes = [a.home for a in w.agvs]
     paths, dwells = {}, {}
     for i in range(n):
         seq = [s[i] for s in states]
-        end = len(seq)
-        while end > 1 and seq[end - 1][0] != seq[end - 1][1]:
-            end -= 1  # a move still running after 16 extra ticks: dropped
+        end = next((t + 1 for t in range(last, len(seq)) if seq[t][0] == seq[t][1]), None)
+        if end is None:  # a move still running after 16 extra ticks: dropped
+            end = last + 1
+            while end > 1 and seq[end - 1][0] != seq[end - 1][1]:
+                end -= 1
         paths[i] = TimedPath(i, 0, tuple(seq[:end]))
         dwells[i] = _dwells(i, seq[:end], tick_arr[:end, i], homes[i])
     orders = []
