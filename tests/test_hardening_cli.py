@@ -58,6 +58,16 @@ CASES = {
     "markup-value": (("run", PAPER, "--set", 'name="[/foo]"'), ["name", "'[/foo]'"]),
     "markup-value2": (("run", PAPER, "--set", 'planner.name="[bold]x"'), ["'[bold]x'"]),
     "markup-path": (("render", "{tmp}/[/b]", "--out", "{tmp}/a.mp4"), ["[/b]"]),
+    # a held-out round, tried after the first suite passed
+    "fleet-types-int": (("execute", MAP, "--plan", "{tmp}/plan.txt", "--fleet",
+                         "{tmp}/fleet_types.yaml"), ["fleet_types.yaml", "types"]),
+    "fleet-agents-int": (("execute", MAP, "--plan", "{tmp}/plan.txt", "--fleet",
+                          "{tmp}/fleet_agents.yaml"), ["fleet_agents.yaml", "agents"]),
+    "fleet-agents-dict": (("execute", MAP, "--plan", "{tmp}/plan.txt", "--fleet",
+                           "{tmp}/fleet_dict.yaml"), ["fleet_dict.yaml", "agents[0]"]),
+    "serve-port": (("serve", PAPER, "--port", "70000"), ["--port", "70000"]),
+    "lorr-ticks": (("lorr", REPO / "tests" / "data" / "lorr2023_warehouse_small" /
+                    "warehouse_small_50.json", "--ticks", "-1"), ["--ticks"]),
 }
 
 
@@ -70,6 +80,11 @@ def results(tmp_path_factory):
     run = tmp / "run"
     write_outputs(run_episode(load_scenario(PAPER, [("max_ticks", 20)])), run,
                   with_trajectory=True)
+
+    (tmp / "plan.txt").write_text("Agent 0:(1,1)->(1,2)->\n")
+    (tmp / "fleet_types.yaml").write_text("types: 3\n")
+    (tmp / "fleet_agents.yaml").write_text("types: {a: {footprint: 1}}\nagents: 5\n")
+    (tmp / "fleet_dict.yaml").write_text("types: {a: {footprint: 1}}\nagents: [{x: 1}]\n")
 
     def fmt(a):
         return str(a).format(run=run, tmp=tmp) if isinstance(a, str) else a

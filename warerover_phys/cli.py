@@ -85,6 +85,45 @@ def _load(scenario: Path, overrides: list[tuple[str, Any]]):
     return sc, world
 
 
+class _Bar:
+    """A rich progress bar on stderr for long work, or nothing: not with ``--json`` or
+    ``--quiet``, nor when stderr is not a terminal (as ``execute`` does). ``update`` is the
+    callback to hand to the work: ``update(done, total, **fields)``."""
+
+    def __init__(self, show: bool, label: str, total: float, unit: str,
+                 extra: str = "") -> None:
+        self.show, self.label, self.total, self.unit, self.extra = show, label, total, unit, extra
+        self._bar = None
+        self._task = None
+
+    def __enter__(self) -> _Bar:
+        if self.show:
+            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+            columns = [TextColumn("{task.description}"), BarColumn(),
+                       TextColumn(f"{self.unit} {{task.completed:.0f}}/{{task.total:.0f}}")]
+            if self.extra:
+                columns.append(TextColumn("{task.fields[extra]}"))
+            self._bar = Progress(*columns, TimeElapsedColumn(), console=err_console,
+                                 transient=True)
+            self._bar.__enter__()
+            self._task = self._bar.add_task(self.label, total=self.total, extra="")
+        return self
+
+    def update(self, done: float, total: float | None = None, extra: str = "") -> None:
+        if self._bar is not None:
+            self._bar.update(self._task, completed=done, extra=extra,
+                             **({"total": total} if total is not None else {}))
+
+    def __exit__(self, *exc: object) -> None:
+        if self._bar is not None:
+            self._bar.__exit__(*exc)
+
+
+def _show_progress(quiet: bool, json_out: bool = False) -> bool:
+    return not quiet and not json_out and err_console.is_terminal
+
+
 @app.command()
 def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
         seed: SeedOpt = None,
@@ -111,22 +150,15 @@ def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
         sc = _scenario(scenario, set_, seed, scheduler, planner, executor, orders)
         sim = Simulation(sc)
         out_dir = out or Path("runs") / f"{sc.name}-seed{sc.seed}"
-        show = not quiet and not json_out and err_console.is_terminal
-        if show:
-            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-
-            with Progress(TextColumn("{task.description}"), BarColumn(),
-                          TextColumn("tick {task.completed:.0f}/{task.total:.0f}"),
-                          TextColumn("{task.fields[orders]}"), TimeElapsedColumn(),
-                          console=err_console, transient=True) as bar:
-                task = bar.add_task(sc.name, total=sc.max_ticks, orders="")
-                result = sim.run(lambda t, done, gen: bar.update(
-                    task, completed=t, orders=f"orders {done}/{gen}"))
-        else:
-            result = sim.run()
+        show = _show_progress(quiet, json_out)
+        with _Bar(show, sc.name, sc.max_ticks, "tick", extra="orders") as bar:
+            result = sim.run((lambda t, done, gen: bar.update(
+                t, extra=f"orders {done}/{gen}")) if show else None)
         files = write_outputs(result, out_dir, with_trajectory=video is not None)
         if video is not None:
-            files.update(_run_video(result, files, video, style, fps, speed, sc.name))
+            with _Bar(show, f"video {video.name}", 1, "frame") as bar:
+                files.update(_run_video(result, files, video, style, fps, speed, sc.name,
+                                        progress=bar.update if show else None))
     except ScenarioError as err:  # raised while running (plug-ins, corridors): name the file
         _fail(err.with_file(str(scenario)))
     except WareroverError as err:
@@ -194,7 +226,7 @@ def _video_style(size: str, fps: float, speed: float | None, viewport: str | Non
 
 
 def _run_video(result, files: dict, video: Path, style, fps: float, speed: float | None,
-               title: str) -> dict[str, Path]:
+               title: str, progress=None) -> dict[str, Path]:
     """Render a finished episode to ``video``; a grid episode also gets a
     ``trajectories.npz`` so that ``warerover render`` can redo it."""
     from dataclasses import replace
@@ -208,7 +240,7 @@ def _run_video(result, files: dict, video: Path, style, fps: float, speed: float
         write_trajectory(grid_trajectory(result), out["trajectory"])
     try:
         render_video(recording_from_episode(result), video, fps=fps, speed=speed,
-                     style=replace(style, title=title))
+                     style=replace(style, title=title), progress=progress)
     except ValueError as err:
         raise WareroverError(f"--video: {err}") from None
     out["video"] = video
@@ -227,13 +259,17 @@ def render(trajectory: Annotated[Path, typer.Argument(
            viewport: Annotated[str | None, typer.Option(
                help="Show only cells row0,col0,row1,col1 (inclusive).")] = None,
            paths: Annotated[bool, typer.Option(help="Draw planned paths ahead.")] = True,
+           quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress.")] = False,
            ) -> None:
     """Re-render a recorded run to MP4 (or one frame to PNG) without re-simulating."""
+    show = _show_progress(quiet)
     try:
         style = _video_style(size, fps, speed, viewport, paths)
         check_media_path(out, "--out", still=png is not None)
         from .render import load_trajectory, render_video, write_png
 
+        if show:
+            err_console.print(f"reading {escape(str(trajectory))} ...", highlight=False)
         rec = load_trajectory(trajectory)
         rows, cols = rec.grid.shape
         if style.viewport is not None and (style.viewport[0] >= rows or
@@ -247,7 +283,9 @@ def render(trajectory: Annotated[Path, typer.Argument(
             write_png(rec, out, png, style)
             typer.echo(f"wrote {out}")
             return
-        info = render_video(rec, out, fps=fps, speed=speed, style=style)
+        with _Bar(show, f"render {out.name}", 1, "frame") as bar:
+            info = render_video(rec, out, fps=fps, speed=speed, style=style,
+                                progress=bar.update if show else None)
     except WareroverError as err:
         _fail(err)
     except ValueError as err:
@@ -322,6 +360,13 @@ def check(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
     except WareroverError as err:
         _fail(err)
     lay = world.layout
+    from .planning.sweep import check_fleet_sweeps, static_sweep_hits
+
+    problems = check_fleet_sweeps(sc.fleet.types, lay.cell_m) + static_sweep_hits(
+        lay, sc.fleet.types)
+    if problems:
+        _fail(ScenarioError("turning sweeps cannot be reserved: " + "; ".join(problems),
+                            file=str(scenario), field="fleet.types"))
     typer.echo(f"{scenario}: ok — {lay.rows}x{lay.cols} cells, {len(lay.shelves)} shelves, "
                f"{lay.num_skus} SKUs, {len(lay.stations)} stations, {len(lay.parking)} parking "
                f"cells, {len(world.agvs)} AGVs")
@@ -536,3 +581,8 @@ _register_sweep(app)
 from .serve.cli import register as _register_serve  # noqa: E402
 
 _register_serve(app)
+
+# `warerover lorr` (League of Robot Runners problems) lives in warerover_phys/lorr_cli.py.
+from .lorr_cli import register as _register_lorr  # noqa: E402
+
+_register_lorr(app)

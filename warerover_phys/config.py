@@ -335,6 +335,16 @@ class OrdersSpec(_Model):
     wave: WaveSpec = WaveSpec()
     hotspot: HotspotSpec = HotspotSpec()
     burst: BurstSpec = BurstSpec()
+    stations_by_size: dict[PosInt, Annotated[list[NonNegInt], Field(min_length=1)]] | None = None
+    """Size class -> indices (into the layout's stations) of the stations its orders go to,
+    drawn uniformly; a class not listed uses every station. WareRover's heterogeneous floor
+    has sized stations: ``{1: [0, 2, 4, 5, 6, 7], 2: [1, 3]}``. Default: every station."""
+    requeue_after_ticks: Ticks | None = None
+    """WareRover's ``order_processing_timeout`` (30 there): an order not handed over this many
+    ticks after it was assigned goes back to pending, while the trip that has it carries on
+    and may still hand it over. A re-queued order may be sent out again to its shelf even
+    while that shelf is out on the first trip: that second trip is *blind* (the AGV drives
+    the whole trip empty-handed and hands over nothing), as in WareRover. Default: never."""
 
 
 # --------------------------------------------------------------------------------- modules
@@ -344,6 +354,10 @@ class TasksSpec(_Model):
     pick_ticks: NonNegTicks = 2
     handover_ticks: NonNegTicks = 2
     place_ticks: NonNegTicks = 2
+    stops: Literal["nearest", "order_ids"] = "nearest"
+    """Order of a trip's station stops: ``nearest`` visits each station once, nearest first
+    (loaded distances); ``order_ids`` makes one stop per order in order-id order (the same
+    station twice in a row is one stop), as WareRover does."""
 
 
 class SchedulerSpec(_Model):
@@ -355,6 +369,10 @@ class SchedulerSpec(_Model):
     """Orders one shelf trip may serve (TA batches orders of the shelf's SKUs)."""
     candidate_shelves: PosInt = 3
     """TA: nearest shelves per SKU considered when costing an AGV x group pair."""
+    ta_cost: Literal["per_order", "trip"] = "per_order"
+    """TA: cost of an (AGV, SKU group) pair: its trip length divided by the orders it serves
+    (``per_order``), or the trip length alone (``trip``, as WareRover: small groups are then
+    preferred)."""
 
 
 class PlannerSpec(_Model):
@@ -428,6 +446,11 @@ class ExecutorSpec(_Model):
     """An AGV farther than this from its path is stopped and replanned."""
     trajectory_hz: PosFloat = 10.0
     """Rate at which executed poses are recorded (``trajectories.npz``)."""
+    freeze_s: NonNegFloat = 30.0
+    """Physics: a freeze is found when AGVs make no progress towards their goals for this
+    many simulated seconds while nothing they wait on can still move (``freeze.py``); it
+    is counted in ``deadlocks`` / ``freezes``, logged (``freeze`` event) and the AGVs are
+    replanned from where they stand. 0 turns the detector off."""
 
     @model_validator(mode="after")
     def _physics_fields(self) -> ExecutorSpec:

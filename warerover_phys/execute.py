@@ -132,18 +132,24 @@ def load_fleet(path: str | Path | None, n: int, scenario_types: dict[str, AgvTyp
     try:
         if "types" not in data:
             return [AgvTypeSpec.model_validate(data)] * n
+        if not isinstance(data["types"], dict) or not data["types"]:
+            raise ScenarioError("expected a mapping of type names to AGV types", file=src,
+                                field="types", value=data["types"])
         types = {k: AgvTypeSpec.model_validate(v) for k, v in data["types"].items()}
     except ValidationError as err:
         e = err.errors()[0]
         raise ScenarioError(e["msg"], file=src, field=".".join(map(str, e["loc"])),
                             value=e.get("input")) from None
     agents = data.get("agents", next(iter(types), None))
-    names = [agents] * n if isinstance(agents, str) else list(agents or [])
+    if not isinstance(agents, str | list):
+        raise ScenarioError("expected a type name or a list of them", file=src,
+                            field="agents", value=agents)
+    names = [agents] * n if isinstance(agents, str) else agents
     if len(names) != n:
         raise ScenarioError(f"lists {len(names)} agents but the plan has {n}", file=src,
                             field="agents", value=len(names))
     for i, name in enumerate(names):
-        if name not in types:
+        if not isinstance(name, str) or name not in types:
             raise ScenarioError(f"unknown AGV type (choose from {sorted(types)})", file=src,
                                 field=f"agents[{i}]", value=name)
     return [types[name] for name in names]

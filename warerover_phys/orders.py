@@ -23,7 +23,7 @@ Streaming patterns only produce orders in ticks ``[0, duration_ticks)``.
 
 Each order first draws its size class (``P(size 2) = large_fraction`` when given, else each
 class in proportion to its number of SKUs), then a SKU of that class, then a station,
-uniformly. Every random number comes from the generator handed in, in a fixed order, so the
+uniformly (among the stations ``stations_by_size`` lists for its class, when given). Every random number comes from the generator handed in, in a fixed order, so the
 same seed gives the same orders.
 
 >>> import numpy as np
@@ -125,6 +125,11 @@ class OrderStream:
                 self._hot.append(perm[:n_hot])
                 self._cold.append(perm[n_hot:])
 
+        for size, pool in (spec.stations_by_size or {}).items():
+            bad = [s for s in pool if s >= num_stations]
+            if bad:
+                raise ValueError(f"stations_by_size[{size}] names station {bad[0]}, but there "
+                                 f"are {num_stations} (indices 0..{num_stations - 1})")
         self._last_tick = self._last_possible_tick()
 
     # ------------------------------------------------------------------ public
@@ -249,7 +254,14 @@ class OrderStream:
             counts = np.array([len(self._class_skus[c]) for c in cls], dtype=np.int64)
             idx = rng.integers(0, counts)
             skus = [int(self._class_skus[c][i]) for c, i in zip(cls, idx, strict=True)]
-        stations = rng.integers(0, self.num_stations, size=n).tolist()
+        by_size = self.spec.stations_by_size
+        if by_size:
+            sizes = self._sizes
+            pools = [by_size.get(sizes[s]) or range(self.num_stations) for s in skus]
+            idx = rng.integers(0, np.array([len(p) for p in pools], dtype=np.int64))
+            stations = [int(p[i]) for p, i in zip(pools, idx.tolist(), strict=True)]
+        else:
+            stations = rng.integers(0, self.num_stations, size=n).tolist()
         first = self._next_id
         self._next_id += n
         sizes = self._sizes

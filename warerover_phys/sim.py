@@ -36,15 +36,16 @@ from .planning.paths import TimedPath, footprint_nodes, occupancy
 from .registry import check_plugins
 from .schedulers import make_scheduler
 from .schedulers.base import SchedulerView
-from .world import MOVING_STATES, Agv, AgvState, World
+from .world import MOVING_STATES, Agv, AgvState, OrderStatus, World
 
 __all__ = ["EpisodeResult", "run_episode", "Simulation", "executor_setup", "tick_view", "step_executor",
-           "apply_report"]
+           "apply_report", "failure_cause"]
 
 STUCK_FAILURES = 3
 """Failed plans in a row after which AGVs waiting on the AGV's route are asked to make way."""
 YIELD_TICKS = 8
 """How long an AGV that makes way stays away."""
+_TRAVEL_STATES = (AgvState.TO_SHELF, AgvState.TO_STATION, AgvState.RETURNING)
 
 
 @dataclass
@@ -83,6 +84,11 @@ class Simulation:
         the live view: ``poses`` holds continuous poses on physics)."""
         self.planned: list[dict] = []
         self.actual: dict[int, list[tuple[int, int]]] = {a.id: [a.pos] for a in self.world.agvs}
+        self.freezes: list[dict] = []
+        """Every freeze the executor reported: tick, AGVs, tick of their last progress."""
+        self._freeze_hits: dict[int, int] = {}
+        self._freeze_yields: set[int] = set()
+        """AGVs sent to a yield spot by a freeze recovery (step planners honour these)."""
 
     @property
     def done(self) -> bool:
@@ -124,13 +130,14 @@ class Simulation:
         w.tick += 1
         self._follow_up(report.blocked)
         self._replan_now(report.replan)
+        self._recover(report.freezes)
         if w.corridors:
             from .faults.intrusion_log import update_exemptions
 
             update_exemptions(w, self.executor.remaining)
             if report.intrusion_unit == "cells":
                 self._grid_intrusions()
-        w.advance_tasks()
+        w.advance_tasks(report.settled)
         self.metrics.record_tick(sched_s=t1 - t0, plan_s=t2 - t1, blocked=len(report.blocked),
                                  collisions=report.collisions)
 
@@ -142,6 +149,9 @@ class Simulation:
                          len(self.world.status))
         metrics = self.metrics.summary(self.world)
         metrics.update(self.executor.summary())
+        metrics["freezes"] = len(self.freezes)
+        metrics["deadlocks"] = metrics.get("deadlocks", 0) + len(self.freezes)
+        metrics.update(failure_cause(self.world, self.freezes))
         trajectory = self.executor.trajectory()
         if trajectory is not None:
             import json
@@ -234,8 +244,17 @@ class Simulation:
         n = len(w.agvs)
         for agv in w.agvs:
             goal = w.goal_of(agv)
-            hold = goal is None
+            # Standing on a task stage's goal: hold there, so that the path ends on the
+            # goal and the stage's work can start (World.advance_tasks).
+            hold = goal is None or (agv.standing and agv.node == goal
+                                    and agv.state in _TRAVEL_STATES)
             goal = agv.node if goal is None else goal
+            if agv.id in self._freeze_yields:
+                if agv.yield_goal is not None and w.tick < agv.yield_until and not hold:
+                    goal = agv.yield_goal
+                else:
+                    agv.yield_goal = None
+                    self._freeze_yields.discard(agv.id)
             if goal != agv.last_goal:
                 agv.last_goal, agv.goal_since = goal, w.tick
             age = w.tick - agv.goal_since + (n - agv.id) / (n + 1)
@@ -329,6 +348,34 @@ class Simulation:
                     hits.append((agv.id, cid, float(inside)))
         record_intrusions(w, hits, unit="cells")
 
+    def _recover(self, freezes: list) -> None:
+        """The executor found AGVs frozen (``freeze.Freeze``): count and log the freeze,
+        re-anchor each standing AGV's reservation where it really stands and replan them
+        all now, from their actual poses. A group frozen again is broken up: AGVs that
+        wait on the route of a frozen AGV are sent to a nearby spot for a while
+        (:meth:`_make_way_for`)."""
+        w = self.world
+        for fz in freezes:
+            agvs = [int(a) for a in fz.agvs]
+            self.freezes.append({"tick": w.tick, "agvs": agvs, "since": int(fz.since_tick)})
+            w.log("freeze", agvs=agvs, since=int(fz.since_tick),
+                  waits={str(a): [int(b) for b in fz.waits.get(a, ())] for a in agvs})
+            again = False
+            for aid in agvs:
+                agv = w.agvs[aid]
+                self._freeze_hits[aid] = self._freeze_hits.get(aid, 0) + 1
+                again |= self._freeze_hits[aid] > 1
+                if agv.standing and agv.state in MOVING_STATES:
+                    w.reservations.commit(TimedPath(aid, w.tick, (agv.pos,)), agv.k)
+            self._replan_now([a for a in agvs if w.agvs[a].state in MOVING_STATES])
+            if again:
+                before = {a.id: a.yield_goal for a in w.agvs}
+                for aid in agvs:
+                    if w.agvs[aid].state in MOVING_STATES and w.agvs[aid].yield_goal is None:
+                        self._make_way_for(w.agvs[aid])
+                self._freeze_yields |= {a.id for a in w.agvs
+                                        if a.yield_goal is not None and before[a.id] is None}
+
     def _replan_now(self, agvs: list[int]) -> None:
         """The executor saw a deadlock or a deviation: replan these AGVs at once (once they
         stand), as if they had been blocked for ``replan_blocked_ticks``."""
@@ -344,6 +391,48 @@ class Simulation:
         for agv in w.agvs:
             self.actual[agv.id].append(agv.pos)
             agv.blocked_ticks = agv.blocked_ticks + 1 if agv.id in blocked_set else 0
+
+
+def failure_cause(world: World, freezes: list[dict]) -> dict:
+    """Why an episode failed (``failure_cause``, ``failure_detail``; both None on success).
+
+    - ``fault``: an AGV holding unfinished orders is down at the end;
+    - ``deadlock``: an AGV holding unfinished orders was found frozen and has not
+      finished a task stage since (the freeze detector's last word on it);
+    - ``timeout``: ``max_ticks`` came first while work still went on (pending orders no
+      AGV took, or AGVs still on their way).
+    """
+    unfinished = [o for o, s in world.status.items() if s != OrderStatus.COMPLETED]
+    if not unfinished:
+        return {"failure_cause": None, "failure_detail": None}
+    holders = {}
+    for agv in world.agvs:
+        trip = agv.trip if agv.trip is not None else None
+        if trip is not None and any(o in unfinished for o in trip.orders):
+            holders[agv.id] = agv
+    pending = sum(1 for o in unfinished if world.status[o] == OrderStatus.PENDING)
+    counts = (f"{len(unfinished)} of {len(world.status)} orders unfinished ({pending} "
+              f"pending, {len(unfinished) - pending} on AGVs {sorted(holders)})")
+    down = sorted(a for a, agv in holders.items() if agv.state == AgvState.FAILED)
+    if down:
+        return {"failure_cause": "fault",
+                "failure_detail": f"AGVs {down} down at the end; {counts}"}
+    last_work: dict[int, int] = {}
+    for e in world.events:
+        if e["event"] in ("work_done", "trip_started"):
+            last_work[e["agv"]] = e["tick"]
+    frozen = set()
+    for fz in freezes:
+        for a in fz["agvs"]:
+            if a in holders and last_work.get(a, -1) <= fz["tick"]:
+                frozen.add(a)
+    if frozen:
+        last = max(fz["tick"] for fz in freezes if frozen & set(fz["agvs"]))
+        return {"failure_cause": "deadlock",
+                "failure_detail": f"AGVs {sorted(frozen)} frozen (last found at tick {last}) "
+                                  f"and never recovered; {counts}"}
+    return {"failure_cause": "timeout",
+            "failure_detail": f"max_ticks {world.scenario.max_ticks} reached; {counts}"}
 
 
 def run_episode(scenario: Scenario, seed: int | None = None,
@@ -370,7 +459,18 @@ def tick_view(world: World) -> TickView:
         carried=tuple(a.trip.shelf if a.loaded and a.trip is not None else None
                       for a in agvs),
         task_state=tuple(int(a.state) for a in agvs),
-        corridors=MappingProxyType(world.corridors))
+        corridors=MappingProxyType(world.corridors),
+        goals=tuple(_goal_now(world, a) for a in agvs))
+
+
+def _goal_now(world: World, agv: Agv) -> int | None:
+    """Where the AGV is headed now: its yield spot while it makes way, else its task goal
+    (None while it works in place or is down)."""
+    if agv.state == AgvState.FAILED:
+        return None
+    if agv.yield_goal is not None and world.tick < agv.yield_until:
+        return agv.yield_goal
+    return world.goal_of(agv)
 
 
 def apply_report(world: World, report: StepReport) -> None:

@@ -12,6 +12,13 @@ scratch and reports
 A state per tick is ``(a, b)`` of flat anchor indices (``row * cols + col``): standing at
 ``a`` if equal, else moving from ``a`` to ``b`` and covering both footprints. After its last
 state an AGV stays where it is.
+
+:func:`validate_dwells` checks an executed episode's dwells against its motion: for every
+dwell in the events (``work_started`` .. ``work_done``: pick, hand-over, place; and the tick
+of every ``parked``) the AGV's recorded pose is on the dwell's goal throughout: on the grid
+the executed state stands on the goal cell at every tick of the dwell; in physics every
+recorded sample in the dwell's time span is within ``pos_tol_m`` of the goal footprint's
+centre and within ``heading_tol_rad`` of the heading it had when the dwell began.
 """
 
 from __future__ import annotations
@@ -21,7 +28,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Conflict", "validate_states"]
+__all__ = ["Conflict", "DwellViolation", "validate_states", "dwell_intervals",
+           "validate_dwells", "DWELL_POS_TOL_M", "DWELL_HEADING_TOL_RAD"]
+
+DWELL_POS_TOL_M = 0.05
+"""Physics: how far (metres) a dwelling AGV's centre may be from its goal's centre."""
+DWELL_HEADING_TOL_RAD = 0.05
+"""Physics: how far (radians) a dwelling AGV's heading may turn during the dwell."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -45,10 +58,27 @@ def validate_states(trajectories: Mapping[int, Sequence[tuple[int, int]]],
                     obstacles: np.ndarray, *, sizes: Mapping[int, int] | None = None,
                     ticks_per_move: Mapping[int, int] | None = None, start_tick: int = 0,
                     max_conflicts: int = 100) -> list[Conflict]:
-    """Check per-tick states of every AGV; return at most ``max_conflicts`` conflicts."""
+    """Check per-tick states of every AGV; return at most ``max_conflicts`` conflicts.
+
+    Plans of 1x1 AGVs that stand on one cell per tick (one-shot MAPF plans, executed
+    states) are checked over numpy arrays (:func:`_validate_cells`, the same conflicts in
+    the same order); footprints, slow AGVs and moving states take the general path."""
     rows, cols = obstacles.shape
     sizes = sizes or {}
     speeds = ticks_per_move or {}
+    if all(v == 1 for v in sizes.values()) and all(v == 1 for v in speeds.values()) and \
+            trajectories and all(len(s) and all(a == b for a, b in s)
+                                 for s in trajectories.values()):
+        return _validate_cells(trajectories, obstacles, start_tick, max_conflicts)
+    return _validate_general(trajectories, obstacles, sizes, speeds, start_tick, max_conflicts)
+
+
+def _validate_general(trajectories: Mapping[int, Sequence[tuple[int, int]]],
+                      obstacles: np.ndarray, sizes: Mapping[int, int],
+                      speeds: Mapping[int, int], start_tick: int, max_conflicts: int,
+                      ) -> list[Conflict]:
+    """:func:`validate_states` for any footprints, speeds and states."""
+    rows, cols = obstacles.shape
     horizon = max((len(s) for s in trajectories.values()), default=0)
     out: list[Conflict] = []
 
@@ -118,3 +148,176 @@ def validate_states(trajectories: Mapping[int, Sequence[tuple[int, int]]],
         if len(out) >= max_conflicts:
             break
     return out[:max_conflicts]
+
+
+def _validate_cells(trajectories: Mapping[int, Sequence[tuple[int, int]]],
+                    obstacles: np.ndarray, start_tick: int, max_conflicts: int,
+                    ) -> list[Conflict]:
+    """:func:`validate_states` for 1x1 AGVs standing on one cell per tick, vectorised."""
+    rows, cols = obstacles.shape
+    ids = sorted(trajectories)
+    horizon = max(len(trajectories[a]) for a in ids)
+    pos = np.empty((horizon, len(ids)), dtype=np.int64)
+    for j, agv in enumerate(ids):
+        cells = np.fromiter((a for a, _ in trajectories[agv]), dtype=np.int64)
+        pos[:len(cells), j] = cells
+        pos[len(cells):, j] = cells[-1]
+    r, c = np.divmod(pos, cols)
+    per_agent: list[list[Conflict]] = [[] for _ in ids]  # bounds, obstacles, moves
+    off = (pos < 0) | (r >= rows)
+    blocked = np.zeros_like(off)
+    blocked[~off] = obstacles[r[~off], c[~off]]
+    step = np.zeros_like(off)
+    step[1:] = (np.abs(r[1:] - r[:-1]) + np.abs(c[1:] - c[:-1])) > 1
+    lengths = [len(trajectories[a]) for a in ids]
+    bad = np.nonzero((off | blocked | step).T)  # agent by agent, tick by tick
+    for j, t in zip(*bad, strict=True):
+        if t >= lengths[j]:
+            continue  # past its last state (the same state again)
+        cell = (int(r[t, j]), int(c[t, j]))
+        if off[t, j]:
+            per_agent[j].append(Conflict("bounds", start_tick + int(t), (ids[j],), cell))
+        elif blocked[t, j]:
+            per_agent[j].append(Conflict("obstacle", start_tick + int(t), (ids[j],), cell))
+        if step[t, j]:
+            per_agent[j].append(Conflict("move", start_tick + int(t), (ids[j],), cell))
+    index = {agv: j for j, agv in enumerate(ids)}
+    out = [x for agv in trajectories for x in per_agent[index[agv]]]
+    for t in range(horizon):
+        row = pos[t]
+        order = np.argsort(row, kind="stable")
+        srt = row[order]
+        dup = np.flatnonzero(srt[1:] == srt[:-1]) + 1
+        if len(dup):  # each cell's first AGV owns it; the others conflict with it
+            first: dict[int, int] = {}
+            pairs = []
+            for k in dup.tolist():
+                v = int(srt[k])
+                owner = first.setdefault(v, int(order[k - 1]))
+                pairs.append((int(order[k]), owner, v))
+            for agent, owner, v in sorted(pairs):
+                out.append(Conflict("vertex", start_tick + t, (ids[owner], ids[agent]),
+                                    divmod(v, cols)))
+        if t == 0:
+            continue
+        prev = pos[t - 1]
+        moved = np.flatnonzero(row != prev)
+        if len(moved) > 1:
+            where: dict[tuple[int, int], list[int]] = {}
+            src, dst = prev[moved].tolist(), row[moved].tolist()
+            for a, u, v in zip(moved.tolist(), src, dst, strict=True):
+                where.setdefault((u, v), []).append(a)
+            pairs = sorted((a, b) for a, u, v in zip(moved.tolist(), src, dst, strict=True)
+                           for b in where.get((v, u), ()) if a < b)
+            for a, b in pairs:
+                out.append(Conflict("swap", start_tick + t, (ids[a], ids[b])))
+        if len(out) >= max_conflicts:
+            break
+    return out[:max_conflicts]
+
+
+@dataclass(frozen=True, slots=True)
+class DwellViolation:
+    """A dwell during which the AGV was not on its goal."""
+
+    agv: int
+    stage: str
+    start_tick: int
+    end_tick: int
+    cell: tuple[int, int]
+    """The dwell's goal (anchor cell)."""
+    tick: float
+    """When it was off (tick; fractional for physics samples)."""
+    detail: str
+
+    def __str__(self) -> str:
+        return (f"AGV {self.agv} off its {self.stage} goal {self.cell} at tick {self.tick:g} "
+                f"(dwell ticks {self.start_tick}-{self.end_tick}): {self.detail}")
+
+
+def dwell_intervals(events: Sequence[Mapping], end_tick: int | None = None
+                    ) -> list[tuple[int, str, int, int, tuple[int, int]]]:
+    """Dwells in an episode's events: ``(agv, stage, start_tick, end_tick, cell)``.
+
+    A work stage runs from its ``work_started`` to its ``work_done`` (a dwell still open at
+    the end of the events runs to ``end_tick``, or is left out if that is None; an AGV that
+    failed during it is left out from its failure on); a ``parked`` event is a dwell of one
+    tick, stage ``park``."""
+    out = []
+    open_: dict[int, tuple[str, int, tuple[int, int]]] = {}
+    for ev in events:
+        name = ev.get("event")
+        if name == "work_started":
+            open_[ev["agv"]] = (ev["stage"], ev["tick"], tuple(ev["cell"]))
+        elif name == "work_done" and ev["agv"] in open_:
+            stage, t0, cell = open_.pop(ev["agv"])
+            out.append((ev["agv"], stage, t0, ev["tick"], cell))
+        elif name == "agv_failed" and ev["agv"] in open_:
+            stage, t0, cell = open_.pop(ev["agv"])
+            out.append((ev["agv"], stage, t0, ev["tick"], cell))
+            # it resumes on repair without a new work_started: check from the repair on
+            open_[ev["agv"]] = (stage, -1, cell)
+        elif name == "agv_repaired" and ev["agv"] in open_:
+            stage, _, cell = open_[ev["agv"]]
+            open_[ev["agv"]] = (stage, ev["tick"], cell)
+        elif name == "parked":
+            out.append((ev["agv"], "park", ev["tick"], ev["tick"], tuple(ev["cell"])))
+    if end_tick is not None:
+        for agv, (stage, t0, cell) in open_.items():
+            if t0 >= 0:
+                out.append((agv, stage, t0, end_tick, cell))
+    return sorted(out, key=lambda d: (d[2], d[0]))
+
+
+def validate_dwells(events: Sequence[Mapping], cols: int, *,
+                    actual: Mapping[int, Sequence[tuple[int, int]]] | None = None,
+                    trajectory: Mapping | None = None,
+                    pos_tol_m: float = DWELL_POS_TOL_M,
+                    heading_tol_rad: float = DWELL_HEADING_TOL_RAD,
+                    max_violations: int = 100) -> list[DwellViolation]:
+    """Check that every dwell in ``events`` happened on its goal (see the module docstring).
+
+    ``actual``: executed states per tick per AGV from tick 0 (``paths.json`` ``actual`` /
+    ``EpisodeResult.actual``), checked on the grid; ``trajectory``: recorded poses
+    (``trajectories.npz``: ``t``, ``x``, ``y``, ``heading``, ``footprint``, ``cell_m``,
+    ``tick_s``), checked in physics. Give either or both."""
+    out: list[DwellViolation] = []
+    end = None
+    if actual is not None:
+        end = max((len(s) - 1 for s in actual.values()), default=0)
+    dwells = dwell_intervals(events, end)
+    if actual is not None:
+        for agv, stage, t0, t1, cell in dwells:
+            node = cell[0] * cols + cell[1]
+            states = actual[agv]
+            for t in range(t0, min(t1, len(states) - 1) + 1):
+                if tuple(states[t]) != (node, node):
+                    a, b = states[t]
+                    out.append(DwellViolation(agv, stage, t0, t1, cell, t,
+                                              f"state {divmod(a, cols)} -> {divmod(b, cols)}"))
+                    break
+    if trajectory is not None:
+        ts = np.asarray(trajectory["t"], dtype=float)
+        tick_s = float(np.asarray(trajectory["tick_s"]))
+        cell_m = float(np.asarray(trajectory["cell_m"]))
+        k = np.asarray(trajectory["footprint"])
+        xs, ys, hs = (np.asarray(trajectory[key]) for key in ("x", "y", "heading"))
+        eps = 1e-6 * tick_s
+        for agv, stage, t0, t1, cell in dwells:
+            lo = np.searchsorted(ts, t0 * tick_s - eps)
+            hi = np.searchsorted(ts, t1 * tick_s + eps, side="right")
+            if hi <= lo:
+                continue
+            size = int(k[agv]) * cell_m
+            gx, gy = cell[1] * cell_m + size / 2, cell[0] * cell_m + size / 2
+            off = np.hypot(xs[lo:hi, agv] - gx, ys[lo:hi, agv] - gy)
+            turn = np.abs((hs[lo:hi, agv] - hs[lo, agv] + np.pi) % (2 * np.pi) - np.pi)
+            bad = np.flatnonzero((off > pos_tol_m) | (turn > heading_tol_rad))
+            if len(bad):
+                j = int(bad[0])
+                out.append(DwellViolation(
+                    agv, stage, t0, t1, cell, float(ts[lo + j] / tick_s),
+                    f"{off[j]:.3f} m from the goal centre, heading turned {turn[j]:.3f} rad"))
+        if len(out) >= max_violations:
+            return out[:max_violations]
+    return out[:max_violations]

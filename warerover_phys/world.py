@@ -11,6 +11,7 @@ methods here, so the order and AGV life cycles are in one place:
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass, field
 from enum import IntEnum
 
@@ -24,7 +25,8 @@ from .planning.base import State, TimedPath
 from .planning.graph import UNREACHABLE, GraphSet
 from .planning.reservation import ReservationTable
 
-__all__ = ["AgvState", "OrderStatus", "Agv", "Trip", "World", "make_rngs"]
+__all__ = ["AgvState", "OrderStatus", "Agv", "Trip", "World", "make_rngs", "WORK_STATES",
+           "STAGE_OF"]
 
 Cell = tuple[int, int]
 RNG_STREAMS = ("orders", "scheduler", "planner", "faults", "delays")
@@ -48,6 +50,9 @@ class AgvState(IntEnum):
 
 
 MOVING_STATES = (AgvState.IDLE, AgvState.TO_SHELF, AgvState.TO_STATION, AgvState.RETURNING)
+WORK_STATES = (AgvState.PICKING, AgvState.HANDOVER, AgvState.PLACING)
+"""Dwells: the AGV works in place on its stage's goal."""
+STAGE_OF = {AgvState.PICKING: "pick", AgvState.HANDOVER: "handover", AgvState.PLACING: "place"}
 
 
 class OrderStatus(IntEnum):
@@ -98,6 +103,8 @@ class Agv:
     """While FAILED: the state it returns to when repaired."""
     repair_at: int | None = None
     """While FAILED: the tick it is repaired (None: only on demand)."""
+    parked: bool = False
+    """IDLE, at rest on its home spot, ``parked`` logged (until it leaves)."""
 
     @property
     def k(self) -> int:
@@ -141,6 +148,13 @@ class World:
     """Every corridor of the episode: id, AGV, open / close tick, polygon and protected zone
     (exterior rings in metres) and cells, for outputs and rendering."""
     delayed_orders: set[int] = field(default_factory=set)
+    assigned_tick: dict[int, int] = field(default_factory=dict)
+    """Order id -> tick of its latest assignment (``orders.requeue_after_ticks``)."""
+    blind_trips: set[int] = field(default_factory=set)
+    """Trips sent to a shelf another trip had out (``orders.requeue_after_ticks``): they
+    lift nothing and hand over nothing."""
+    requeued: int = 0
+    """Orders sent back to pending by ``orders.requeue_after_ticks`` (counting repeats)."""
     _pending: set[int] = field(default_factory=set, repr=False)
     """Orders that were held by an AGV when it failed."""
 
@@ -164,8 +178,12 @@ class World:
         except ScenarioError as err:
             raise err.with_file(src) if src else err from None
         rngs = make_rngs(scenario.seed)
-        stream = OrderStream(scenario.orders, layout.sku_sizes, len(layout.stations),
-                             rngs["orders"])
+        try:
+            stream = OrderStream(scenario.orders, layout.sku_sizes, len(layout.stations),
+                                 rngs["orders"])
+        except ValueError as err:
+            raise ScenarioError(str(err), file=src, field="orders.stations_by_size",
+                                value=scenario.orders.stations_by_size) from None
         res = ReservationTable(layout.cols)
         for agv in agvs:
             res.commit(TimedPath(agv.id, 0, (agv.pos,)), agv.k)
@@ -188,12 +206,16 @@ class World:
         return [a for a in self.agvs if a.state == AgvState.IDLE]
 
     def free_shelves_for(self, sku: int, agv: Agv) -> list[int]:
-        """Shelves holding ``sku`` that ``agv`` can carry and nobody is using."""
-        out = []
+        """Shelves holding ``sku`` that ``agv`` can carry and nobody is using (with
+        ``orders.requeue_after_ticks`` the shelves out on a trip follow, as WareRover never
+        checks: a trip to one of them is blind)."""
+        out, busy = [], []
         for sid in self.layout.sku_shelves.get(sku, ()):
             shelf = self.layout.shelves[sid]
-            if sid not in self.shelf_busy and can_carry(agv.spec, shelf.size):
-                out.append(sid)
+            if can_carry(agv.spec, shelf.size):
+                (busy if sid in self.shelf_busy else out).append(sid)
+        if busy and self.scenario.orders.requeue_after_ticks is not None:
+            out += busy
         return out
 
     def keep_clear(self) -> np.ndarray:
@@ -291,7 +313,8 @@ class World:
         agv = self.agvs[agv_id]
         if agv.state != AgvState.IDLE:
             raise ValueError(f"AGV {agv_id} is not idle ({agv.state.name})")
-        if shelf in self.shelf_busy:
+        blind = shelf in self.shelf_busy
+        if blind and self.scenario.orders.requeue_after_ticks is None:
             raise ValueError(f"shelf {shelf} is in use by trip {self.shelf_busy[shelf]}")
         shelf_skus = set(self.layout.shelves[shelf].skus)
         for oid in order_ids:
@@ -300,12 +323,18 @@ class World:
             if self.orders[oid].sku not in shelf_skus:
                 raise ValueError(f"shelf {shelf} does not hold SKU of order {oid}")
         stations = _stop_order(self, agv, shelf, {self.orders[o].station for o in order_ids})
+        if self.scenario.tasks.stops == "order_ids":
+            stations = _stops_by_order_id(self, order_ids)
         trip = Trip(self._next_trip, agv_id, shelf, tuple(order_ids), tuple(stations))
         self._next_trip += 1
         self.trips[trip.id] = trip
-        self.shelf_busy[shelf] = trip.id
+        if blind:
+            self.blind_trips.add(trip.id)
+        else:
+            self.shelf_busy[shelf] = trip.id
         for oid in order_ids:
             self._set_status(oid, OrderStatus.ASSIGNED)
+            self.assigned_tick[oid] = self.tick
             self.log("order_assigned", order=oid, agv=agv_id, trip=trip.id, shelf=shelf)
         agv.trip = trip
         agv.state = AgvState.TO_SHELF
@@ -313,19 +342,38 @@ class World:
                  orders=list(order_ids), stops=list(stations))
         return trip
 
-    def advance_tasks(self) -> None:
-        """Arrivals, work in place and hand-overs for the tick that just ended."""
+    def advance_tasks(self, settled: Collection[int] | None = None) -> None:
+        """Arrivals, work in place and hand-overs for the tick that just ended.
+
+        A stage's work (pick, hand-over, place) starts only when the AGV stands on the
+        stage's goal *and is at rest there*: its committed path has ended on the goal (a
+        path that passes the goal and comes back later does not count) and, on physics, its
+        body holds the goal pose within the executor's tolerance. ``settled`` is the set of
+        AGVs the executor reports at rest (``StepReport.settled``); None: judged from the
+        committed paths. The dwell counts down only while the AGV is at rest on its goal,
+        and its events (``shelf_picked``, ``order_completed``, ``shelf_returned``,
+        ``parked``) are logged at the tick the work completes there; ``work_started`` /
+        ``work_done`` bracket every dwell for the validator
+        (:func:`warerover_phys.validate.validate_dwells`)."""
         tasks = self.scenario.tasks
         for agv in self.agvs:
+            if agv.node != agv.home or not agv.standing:
+                agv.parked = False
             if not agv.standing:
                 continue
-            if agv.state in (AgvState.PICKING, AgvState.HANDOVER, AgvState.PLACING):
-                agv.dwell_left -= 1
-                if agv.dwell_left <= 0:
-                    self._finish_work(agv)
+            if agv.state in WORK_STATES:
+                if self.at_rest(agv, settled):
+                    agv.dwell_left -= 1
+                    if agv.dwell_left <= 0:
+                        self._finish_work(agv)
                 continue
             goal = self.goal_of(agv)
-            if goal is None or agv.node != goal or agv.state == AgvState.IDLE:
+            if goal is None or agv.node != goal or not self.at_rest(agv, settled):
+                continue
+            if agv.state == AgvState.IDLE:
+                if not agv.parked and agv.yield_goal is None:
+                    agv.parked = True
+                    self.log("parked", agv=agv.id, cell=list(self.cell(agv.node)))
                 continue
             trip = agv.trip
             assert trip is not None
@@ -335,6 +383,35 @@ class World:
                 self._begin_work(agv, AgvState.HANDOVER, tasks.handover_ticks)
             elif agv.state == AgvState.RETURNING:
                 self._begin_work(agv, AgvState.PLACING, tasks.place_ticks)
+        if self.scenario.orders.requeue_after_ticks is not None:
+            self._requeue_overdue(self.scenario.orders.requeue_after_ticks)
+
+    def _requeue_overdue(self, after: int) -> None:
+        """WareRover's order time-out: an order assigned more than ``after`` ticks ago and
+        not handed over goes back to pending (it stays on its trip, which may still hand it
+        over)."""
+        for oid, since in list(self.assigned_tick.items()):
+            if self.tick - since > after and self.status[oid] in (OrderStatus.ASSIGNED,
+                                                                  OrderStatus.IN_PROGRESS):
+                self._set_status(oid, OrderStatus.PENDING)
+                del self.assigned_tick[oid]
+                self.requeued += 1
+                self.log("order_requeued", order=oid, assigned_tick=since)
+
+    def at_rest(self, agv: Agv, settled: Collection[int] | None = None) -> bool:
+        """Whether ``agv`` stands still at the end of its committed path: per the executor's
+        report (``settled``) if it gives one, else from the path: every state from where the
+        AGV is on it now (``tick - delay``) to its end is standing on the AGV's cell."""
+        if not agv.standing:
+            return False
+        if settled is not None:
+            return agv.id in settled
+        path = self.reservations.paths.get(agv.id)
+        if path is None:
+            return True
+        here = (agv.node, agv.node)
+        i = max(0, min(self.tick - agv.delay - path.start_tick, len(path.states) - 1))
+        return all(s == here for s in path.states[i:])
 
     # ------------------------------------------------------------------------- failures
 
@@ -357,9 +434,13 @@ class World:
             if not agv.loaded and agv.resume_state == AgvState.TO_SHELF and \
                     self.scenario.faults.orders_of_failed == "reassign":
                 for oid in trip.orders:
-                    self._set_status(oid, OrderStatus.PENDING)
-                    released.append(oid)
-                del self.shelf_busy[trip.shelf]
+                    if self.status[oid] != OrderStatus.COMPLETED:
+                        self._set_status(oid, OrderStatus.PENDING)
+                        released.append(oid)
+                if trip.id in self.blind_trips:
+                    self.blind_trips.discard(trip.id)
+                else:
+                    del self.shelf_busy[trip.shelf]
                 agv.trip = None
                 agv.resume_state = AgvState.IDLE
         self.log("agv_failed", agv=agv_id, repair_at=repair_at, orders_released=released,
@@ -388,22 +469,31 @@ class World:
     def _begin_work(self, agv: Agv, state: AgvState, ticks: int) -> None:
         agv.state = state
         agv.dwell_left = ticks
+        self.log("work_started", agv=agv.id, stage=STAGE_OF[state],
+                 cell=list(self.cell(agv.node)))
         if ticks <= 0:
             self._finish_work(agv)
 
     def _finish_work(self, agv: Agv) -> None:
         trip = agv.trip
         assert trip is not None
+        self.log("work_done", agv=agv.id, stage=STAGE_OF[agv.state],
+                 cell=list(self.cell(agv.node)))
+        if trip.id in self.blind_trips:
+            self._finish_blind(agv, trip)
+            return
         if agv.state == AgvState.PICKING:
             agv.loaded = True
             for oid in trip.orders:
-                self._set_status(oid, OrderStatus.IN_PROGRESS)
+                if self.status[oid] == OrderStatus.ASSIGNED:   # not re-queued, not done
+                    self._set_status(oid, OrderStatus.IN_PROGRESS)
             self.log("shelf_picked", agv=agv.id, trip=trip.id, shelf=trip.shelf)
             agv.state = AgvState.TO_STATION
         elif agv.state == AgvState.HANDOVER:
             station = trip.stops[trip.stop_idx]
             for oid in trip.orders:
-                if self.orders[oid].station == station:
+                if self.orders[oid].station == station and \
+                        self.status[oid] != OrderStatus.COMPLETED:
                     self._set_status(oid, OrderStatus.COMPLETED)
                     self.completed_tick[oid] = self.tick
                     self.log("order_completed", order=oid, agv=agv.id, station=station,
@@ -415,6 +505,20 @@ class World:
             agv.loaded = False
             del self.shelf_busy[trip.shelf]
             self.log("shelf_returned", agv=agv.id, trip=trip.id, shelf=trip.shelf)
+            agv.trip = None
+            agv.state = AgvState.IDLE
+
+    def _finish_blind(self, agv: Agv, trip: Trip) -> None:
+        """A blind trip (its shelf was out): the same stops, nothing lifted or handed over."""
+        if agv.state == AgvState.PICKING:
+            agv.state = AgvState.TO_STATION
+        elif agv.state == AgvState.HANDOVER:
+            trip.stop_idx += 1
+            agv.state = AgvState.TO_STATION if trip.stop_idx < len(trip.stops) \
+                else AgvState.RETURNING
+        elif agv.state == AgvState.PLACING:
+            self.blind_trips.discard(trip.id)
+            self.log("blind_trip_ended", agv=agv.id, trip=trip.id, shelf=trip.shelf)
             agv.trip = None
             agv.state = AgvState.IDLE
 
@@ -436,6 +540,16 @@ def _stop_order(world: World, agv: Agv, shelf: int, stations: set[int]) -> list[
         out.append(nxt)
         left.remove(nxt)
         here = world.cell(world.station_anchor(nxt, agv.k))
+    return out
+
+
+def _stops_by_order_id(world: World, order_ids: list[int]) -> list[int]:
+    """One stop per order, by order id; the same station twice in a row is one stop."""
+    out: list[int] = []
+    for oid in sorted(order_ids):
+        station = world.orders[oid].station
+        if not out or out[-1] != station:
+            out.append(station)
     return out
 
 

@@ -14,6 +14,20 @@ is at the head; a visit leaves its queue when its leaving action *finishes* (the
 arrived at ``dst``). An AGV's own actions run one after the other (type-1 edges, implicit);
 the per-cell order gives the type-2 edges ``leave(previous visit) -> enter(next visit)``.
 
+Turns in place (fault 2 of issue 13). A differential-drive AGV whose body sweeps beyond its
+footprint when it turns (``sweeps``: per AGV a
+:class:`~warerover_phys.planning.sweep.Sweep`, the cells a turn must hold and the turn locks
+it takes, offsets from its anchor) turns before every move whose direction differs from its
+heading. Such a move also *sweeps* those cells and locks (:attr:`Action.sweeps`; a lock of
+anchor ``a`` is the queue key ``-1 - a``, which no cell uses): it gets a visit in each of
+their queues, planned at the tick it starts (the turn happens then), entered when it starts
+and left when it finishes. So the turn waits for every AGV planned on those cells (and every
+overlapping turn planned) before it, and every one planned there after it waits for the
+turn. The executor turns such an AGV only once the move is ready. A planner
+that keeps the swept cells free of other AGVs at the turn's tick and the next one (as
+:func:`warerover_phys.planning.sweep.sweep_conflicts` checks) gets only edges that go
+strictly forward in planned time from them, so they add no cycle.
+
 >>> from warerover_phys.planning.base import TimedPath
 >>> # A 1 x 4 corridor: AGV 0 at cell 1 goes to 3, AGV 1 follows it from 0 to 2.
 >>> g = build({0: TimedPath(0, 0, ((1, 1), (2, 2), (3, 3))),
@@ -35,6 +49,7 @@ from dataclasses import dataclass
 from itertools import islice
 
 from ..planning.base import State, TimedPath, footprint_nodes
+from ..planning.sweep import Sweep
 
 __all__ = ["ADGCycleError", "Action", "Visit", "ActionGraph", "build", "path_moves"]
 
@@ -69,6 +84,10 @@ class Action:
     leaves: tuple[int, ...]
     direction: tuple[int, int]
     """``(drow, dcol)``."""
+    sweeps: tuple[int, ...] = ()
+    """Cells the AGV's turn in place before this move sweeps, and its turn locks as
+    negative keys ``-1 - anchor`` (empty: no turn, or a body whose turn cannot touch
+    another AGV's)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -96,6 +115,8 @@ class _Visit:
     entered: bool
     claimed: bool = False
     """The AGV is committed to drive through this cell (see :meth:`ActionGraph.claim`)."""
+    sweep: bool = False
+    """A turn's swept cell: entered and left by the same action."""
 
 
 @dataclass(slots=True, eq=False)
@@ -116,6 +137,8 @@ class _Agent:
     pending: deque[_Step]
     running: _Step | None = None
     next_seq: int = 0
+    heading: tuple[int, int] | None = None
+    """Direction the AGV faces after its finished actions (None: unknown)."""
 
 
 def path_moves(path: TimedPath, cols: int) -> list[tuple[int, int, int, int]]:
@@ -174,9 +197,19 @@ class ActionGraph:
     and :meth:`finish`.
     """
 
-    def __init__(self, cols: int, sizes: Mapping[int, int]) -> None:
+    def __init__(self, cols: int, sizes: Mapping[int, int], *,
+                 sweeps: Mapping[int, Sweep] | None = None,
+                 rows: int | None = None,
+                 heading: tuple[int, int] | None = (0, 1)) -> None:
+        """``sweeps``: per AGV the cells its turns in place hold (offsets from its anchor;
+        see the module doc), ``rows`` bounds them (cells outside the grid are dropped);
+        ``heading``: the direction every AGV faces when registered (east, as the physics
+        executor places them; None: unknown, so its first move counts as a turn)."""
         self.cols = cols
+        self.rows = rows
         self._sizes = dict(sizes)
+        self._sweeps = {a: o for a, o in (sweeps or {}).items() if o.cells or o.locks}
+        self._heading0 = heading
         self._agents: dict[int, _Agent] = {}
         self._queues: dict[int, list[_Visit]] = {}
         self._order = 0
@@ -215,10 +248,10 @@ class ActionGraph:
             cells = footprint_nodes(here, k, cols)
             for c in cells:
                 q = self._queues.get(c)
-                if q and q[0].entered:
+                if q and q[0].entered and not q[0].sweep:
                     raise ValueError(f"AGV {agv} cannot start at {divmod(here, cols)}: cell "
                                      f"{divmod(c, cols)} is held by AGV {q[0].agv}")
-            rec = _Agent(k=k, node=here, held={}, pending=deque())
+            rec = _Agent(k=k, node=here, held={}, pending=deque(), heading=self._heading0)
             for c in cells:
                 v = self._new_visit(c, agv, None, path.start_tick, entered=True)
                 rec.held[c] = v
@@ -250,15 +283,25 @@ class ActionGraph:
         open_visits = dict(rec.held)
         for step in committed:
             for v in step.leave_visits:
-                open_visits.pop(v.cell, None)
+                if not v.sweep:
+                    open_visits.pop(v.cell, None)
             for v in step.enter_visits:
-                open_visits[v.cell] = v
+                if not v.sweep:
+                    open_visits[v.cell] = v
+        offsets = self._sweeps.get(agv)
+        heading = committed[-1].action.direction if committed else rec.heading
         for src, dst, tick, ticks in moves:
             fs, fd = footprint_nodes(src, k, cols), footprint_nodes(dst, k, cols)
+            direction = _direction(src, dst, cols, agv)
+            swept: tuple[int, ...] = ()
+            if offsets and direction != heading:
+                swept = tuple(c for c in self._sweep_cells(src, offsets)
+                              if c not in fs and c not in fd)
+            heading = direction
             action = Action(agv=agv, seq=rec.next_seq, src=src, dst=dst, tick=tick,
                             ticks=ticks, enters=tuple(c for c in fd if c not in fs),
                             leaves=tuple(c for c in fs if c not in fd),
-                            direction=_direction(src, dst, cols, agv))
+                            direction=direction, sweeps=swept)
             rec.next_seq += 1
             leave_visits = [open_visits.pop(c) for c in action.leaves]
             for v in leave_visits:
@@ -268,8 +311,32 @@ class ActionGraph:
                 v = self._new_visit(c, agv, action, tick + 1, entered=False)
                 open_visits[c] = v
                 enter_visits.append(v)
+            for c in swept:
+                # The turn happens at the move's start tick; the same action leaves it.
+                v = self._new_visit(c, agv, action, tick, entered=False)
+                v.leave = action
+                v.sweep = True
+                enter_visits.append(v)
+                leave_visits.append(v)
             rec.pending.append(_Step(action, enter_visits, leave_visits))
         self.woken.add(agv)
+
+    def _sweep_cells(self, anchor: int, sweep: Sweep) -> tuple[int, ...]:
+        """Queue keys of a turn at ``anchor``: swept cells, then locks (``-1 - anchor``)."""
+        cols, rows = self.cols, self.rows
+        r, c = divmod(anchor, cols)
+
+        def inside(dr: int, dc: int) -> bool:
+            return 0 <= c + dc < cols and r + dr >= 0 and (rows is None or r + dr < rows)
+
+        return tuple((r + dr) * cols + c + dc for dr, dc in sweep.cells if inside(dr, dc)) \
+            + tuple(-1 - ((r + dr) * cols + c + dc) for dr, dc in sweep.locks
+                    if inside(dr, dc))
+
+    def set_heading(self, agv: int, direction: tuple[int, int]) -> None:
+        """The AGV (standing) now faces ``direction`` (the executor turned it): its next
+        plan's first move sweeps if it goes another way."""
+        self._rec(agv).heading = direction
 
     def _new_visit(self, cell: int, agv: int, enter: Action | None, tick: int,
                    entered: bool) -> _Visit:
@@ -278,7 +345,7 @@ class ActionGraph:
         q = self._queues.setdefault(cell, [])
         i = len(q)
         if entered:
-            while i > 0 and not q[i - 1].entered:
+            while i > 0 and (not q[i - 1].entered or q[i - 1].sweep):
                 i -= 1
         else:
             key = (tick, v.order)
@@ -463,6 +530,7 @@ class ActionGraph:
             self._touch(v.cell)
         rec.running = None
         rec.node = step.action.dst
+        rec.heading = step.action.direction
         return step.action
 
     # ----------------------------------------------------------------- deadlocks

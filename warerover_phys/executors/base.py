@@ -83,6 +83,9 @@ class TickView:
     place or park. An executor that skips a plan's waits (physics, through the dependency
     graph) must still keep the AGV standing there for ``ticks`` ticks from its arrival
     before its next move; one that follows the ticks (grid) needs nothing more."""
+    goals: tuple[int | None, ...] = ()
+    """Each AGV's current goal anchor (None while it works in place or is down; a yield
+    spot while it makes way), for the freeze detector (``freeze``); empty: unknown."""
 
 
 @dataclass
@@ -112,6 +115,16 @@ class StepReport:
     None for executors without continuous bodies (grid)."""
     speeds: np.ndarray | None = None
     """Body speeds at the end of the tick, (N,) m/s (None on the grid)."""
+    settled: frozenset[int] | None = None
+    """AGVs at rest at the end of the tick: standing on the last state of their committed
+    path with nothing left to drive, and (physics) holding that pose within the
+    executor's tolerance. A task stage's work starts and its dwell counts down only while
+    the AGV is settled on the stage's goal. None: the executor does not say; the loop then
+    judges from the committed path alone (how far along it the AGV is)."""
+    freezes: list[Any] = field(default_factory=list)
+    """Freezes found during the tick (``freeze.Freeze``): AGVs without progress for
+    ``executor.freeze_s`` while nothing they wait on can still move. The loop counts them
+    as deadlocks, logs them and replans the AGVs involved from where they stand."""
 
 
 @runtime_checkable

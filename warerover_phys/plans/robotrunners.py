@@ -87,6 +87,8 @@ def parse(data: dict, source: str, *, which: str = "actual") -> Plan:
     if "agentMaxCounter" in data:
         max_counter = check_int(data["agentMaxCounter"], source, "agentMaxCounter", low=1,
                                 high=1000, what="ticks per action")
+    if data.get("actionModel") == "MAPF":
+        return _parse_grid_moves(data, starts, strings, key, source)
     paths, headings = [], []
     total = 0
     steps = HEADING_STEPS
@@ -130,6 +132,39 @@ def parse(data: dict, source: str, *, which: str = "actual") -> Plan:
         headings.append(tuple(heads))
     meta = {k: v for k, v in data.items() if k not in _OWNED}
     return Plan(paths=tuple(paths), headings=tuple(headings), meta=meta, fmt="robotrunners")
+
+
+_MOVES = {"W": (0, 0), "T": (0, 0), "U": (-1, 0), "D": (1, 0), "L": (0, -1), "R": (0, 1)}
+
+
+def _parse_grid_moves(data: dict, starts: list, strings: list, key: str, source: str) -> Plan:
+    """``actionModel: MAPF`` (our runs without rotations): ``U`` / ``D`` / ``L`` / ``R`` move
+    one cell up (-row), down, left (-col) or right, ``W`` / ``T`` wait; no headings."""
+    paths = []
+    total = 0
+    for i, (entry, text) in enumerate(zip(starts, strings, strict=True)):
+        r, c, _ = _start(entry, source, f"start[{i}]")
+        where = f"{key}[{i}]"
+        if not isinstance(text, str):
+            fail(source, where, "expected a string of comma-separated actions", text)
+        actions = text.split(",") if text.strip() else []
+        total += len(actions) + 1
+        if total > MAX_CELLS:
+            fail(source, where, f"plan too large (more than {MAX_CELLS} cells)")
+        cells = [(r, c)]
+        for k, a in enumerate(actions):
+            step = _MOVES.get(a.strip())
+            if step is None:
+                fail(source, where, f"unknown action at position {k} (the MAPF action model "
+                     "has U, D, L, R, W and T)", a)
+            r += step[0]
+            c += step[1]
+            if r < 0 or c < 0 or r > MAX_COORD or c > MAX_COORD:
+                fail(source, where, f"action {k} leaves the map at ({r}, {c})", a)
+            cells.append((r, c))
+        paths.append(tuple(cells))
+    meta = {k: v for k, v in data.items() if k not in _OWNED}
+    return Plan(paths=tuple(paths), meta=meta, fmt="robotrunners")
 
 
 _SEGMENT = re.compile(r"\[\((\d{1,9}),(\d{1,7}),(\d{1,7}),([0-3]),(\d{1,4})\):\(([^()\[\]]*)\)\]",

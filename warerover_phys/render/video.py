@@ -18,6 +18,7 @@ from __future__ import annotations
 import logging
 import math
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -166,9 +167,11 @@ def render_video(recording: Recording, path: str | Path, *, fps: float = 30.0,
                  speed: float | None = None, style: Style | None = None,
                  start_s: float | None = None, end_s: float | None = None,
                  max_frames: int | None = None, codec: str = "h264",
-                 preset: str = "superfast") -> dict:
+                 preset: str = "superfast",
+                 progress: Callable[[int, int], None] | None = None) -> dict:
     """Render ``recording`` to an MP4 at ``fps`` frames per video second, ``speed`` simulated
-    seconds per video second (None: :func:`auto_speed`). Returns what was written."""
+    seconds per video second (None: :func:`auto_speed`). ``progress(frames_done, frames)``
+    is called after every frame. Returns what was written."""
     style = style or Style()
     start = recording.start_s if start_s is None else max(start_s, recording.start_s)
     end = recording.end_s if end_s is None else min(end_s, recording.end_s)
@@ -178,8 +181,10 @@ def render_video(recording: Recording, path: str | Path, *, fps: float = 30.0,
     horizon = style.path_ticks if style.show_paths and recording.plans else 0
     with replacing(path) as tmp, \
             VideoWriter(tmp, fps, style.size, codec=codec, preset=preset) as writer:
-        for t in times:                 # ``path`` is replaced only once the video is whole
+        for i, t in enumerate(times):   # ``path`` is replaced only once the video is whole
             writer.write(draw_frame(recording.at(float(t), horizon), style))
+            if progress is not None:
+                progress(i + 1, len(times))
     log.info("wrote %s: %d frames, %s", path, writer.frames, writer.codec)
     return {"path": str(path), "frames": int(writer.frames), "fps": fps, "speed": speed,
             "codec": writer.codec, "size": list(style.size), "start_s": float(times[0]),

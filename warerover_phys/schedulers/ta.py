@@ -9,7 +9,6 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from ..planning.graph import UNREACHABLE
 from .base import Assignment
@@ -49,7 +48,10 @@ class TaskAssignment:
                 if options:
                     best[(i, j)] = options
                     # Cheaper per order served: a trip for 3 orders beats one for 1.
-                    cost[i, j] = options[0][0] / min(len(groups[sku]), cap)
+                    cost[i, j] = options[0][0] if self.spec.ta_cost == "trip" else \
+                        options[0][0] / min(len(groups[sku]), cap)
+        from scipy.optimize import linear_sum_assignment  # slow to import
+
         rows, cols = linear_sum_assignment(cost)
         out: list[Assignment] = []
         taken_orders: set[int] = set()

@@ -53,6 +53,9 @@ def serve(scenario: Annotated[Path | None, typer.Argument(
     root = Path.cwd()
     overrides = [("executor.name", executor)] if executor else []
     try:
+        if not 0 <= port <= 65535:
+            raise WareroverError(f"--port: must be 0 to 65535 (got {port})")
+        _check_bind(host, port)
         app = create_app(root, scenario, overrides=overrides, seed=seed, ticks_per_s=speed,
                          paused=paused, allowed_origins=tuple(allow_origin or ()),
                          loopback_only=host in ("127.0.0.1", "localhost", "::1"))
@@ -66,6 +69,26 @@ def serve(scenario: Annotated[Path | None, typer.Argument(
                f"(folder {root})")
     uvicorn.run(app, host=host, port=port, log_level="warning", ws="auto",
                 ws_max_size=MAX_MESSAGE_BYTES)
+
+
+def _check_bind(host: str, port: int) -> None:
+    """A clean error now for an address that cannot be served on (in use, not local)."""
+    import socket
+
+    from ..errors import WareroverError
+
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+    except (OSError, UnicodeError) as err:
+        raise WareroverError(f"--host: cannot resolve {host!r} ({err})") from None
+    family, kind, proto, _, addr = infos[0]
+    with socket.socket(family, kind, proto) as sock:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            sock.bind(addr)
+        except OSError as err:
+            raise WareroverError(f"--host/--port: cannot serve on {host}:{port} "
+                                 f"({err.strerror or err})") from None
 
 
 def export_glb(out: Annotated[Path, typer.Argument(help="Output .glb file.")],

@@ -2,9 +2,18 @@
 planner), pooled over order patterns and per pattern, as mean and 95% confidence interval
 (Student t, n - 1 degrees of freedom, over the repetitions).
 
+Where the episodes' metrics have them, the tables gain execution columns (blank for the
+groups whose episodes lack them; a column no group has is left out of ``report.md`` and the
+PNGs, and kept empty in ``report.csv``): the closed-loop gap (a physics episode's length in
+ticks over the grid episode's of the same scenario, method, pattern, seed and other
+overrides, when the sweep ran both executors), contacts (AGV-AGV + AGV-static), minimum
+clearance (the episode's smallest AGV-AGV separation, metres), corridor intrusions and
+deadlocks.
+
 Writes ``report.md``, ``report.csv`` and heat-map tables styled like the paper's Table 1
 (``table.png`` pooled, ``table_PATTERN.png`` per pattern; needs matplotlib, the ``report``
-extra).
+extra). In the heat maps a cell whose confidence interval overlaps the best cell's of its
+column is hatched and coloured as the best: it is not shown to differ from it.
 
 >>> m, h = mean_ci([1.0, 2.0, 3.0])
 >>> round(m, 3), round(h, 3)
@@ -27,7 +36,7 @@ from ..errors import WareroverError
 from .results import RESULTS_NAME, ResultsFile
 
 __all__ = ["Group", "mean_ci", "load_rows", "aggregate", "markdown_table", "write_report",
-           "heatmap", "method_label", "METRICS"]
+           "heatmap", "ci_marks", "method_label", "METRICS", "EXTRA_METRICS"]
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +53,19 @@ METRICS: dict[str, tuple[str, str, int, bool]] = {
 }
 HEATMAP_COLUMNS = ("sr_pct", "ct_ms", "tp")
 """The paper's three columns: SR, CT, TP."""
+
+GAP_KEY = "_gap_ticks_ratio"
+"""Where :func:`aggregate` puts a physics episode's closed-loop gap (it is not an episode
+metric: it pairs the physics episode with its grid twin)."""
+EXTRA_METRICS: dict[str, tuple[tuple[str, ...], str, int, bool]] = {
+    # name: (metrics keys, summed; column title; decimals; higher is better)
+    "gap": ((GAP_KEY,), "gap (ticks, phys/grid)", 3, False),
+    "contacts": (("agv_contacts", "static_contacts"), "contacts", 1, False),
+    "min_clear_m": (("min_separation_m",), "min clearance (m)", 3, True),
+    "intrusions": (("corridor_intrusions",), "intrusions", 1, False),
+    "deadlocks": (("deadlocks",), "deadlocks", 1, False),
+}
+"""Execution columns, shown where the episodes' metrics have them."""
 
 
 def mean_ci(values: Sequence[float], level: float = 0.95) -> tuple[float, float]:
@@ -180,7 +202,7 @@ def aggregate(rows: Iterable[dict[str, Any]], spec: dict[str, Any] | None = None
               level: float = 0.95) -> list[Group]:
     """Groups per (environment, method, variant), pooled (``pattern == "all"``) and per order
     pattern, with mean and CI of every metric in :data:`METRICS` over the ok episodes."""
-    rows = list(rows)
+    rows = _with_gaps(list(rows))
     buckets: dict[tuple[str, str, str, str, str], list[dict[str, Any]]] = {}
     for r in rows:
         base = (r["scenario"], r["scheduler"], r["planner"])
@@ -194,9 +216,63 @@ def aggregate(rows: Iterable[dict[str, Any]], spec: dict[str, Any] | None = None
             scale = 100.0 if name == "sr_pct" else 1.0
             vals = [float(m[key]) * scale for m in ok if m.get(key) is not None]
             g.stats[name] = mean_ci(vals, level)
+        for name, (keys, *_rest) in EXTRA_METRICS.items():
+            vals = [v for v in (_extra(m, keys) for m in ok) if v is not None]
+            g.stats[name] = mean_ci(vals, level)
         groups.append(g)
     groups.sort(key=_order(rows, spec))
     return groups
+
+
+def _extra(metrics: dict[str, Any], keys: tuple[str, ...]) -> float | None:
+    """The sum of ``keys`` in an episode's metrics; None when one is missing or not a
+    finite number (a grid episode has no contacts, a lone episode no gap)."""
+    total = 0.0
+    for key in keys:
+        v = metrics.get(key)
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            return None
+        total += float(v)
+    return total
+
+
+def _with_gaps(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Copies of the physics rows that have a grid twin (same scenario, scheduler, planner,
+    pattern, seed and other overrides) with their closed-loop gap, physics ticks / grid
+    ticks, under :data:`GAP_KEY`; every other row as it is."""
+    def twin_key(r: dict[str, Any]) -> tuple:
+        variant = {k: v for k, v in (r.get("variant") or {}).items()
+                   if k not in ("executor", "executor.name")}
+        return (r["scenario"], r["scheduler"], r["planner"], r["pattern"], r.get("seed"),
+                json.dumps(variant, sort_keys=True, default=str))
+
+    grid_ticks = {}
+    for r in rows:
+        m = r.get("metrics")
+        if r.get("executor") == "grid" and r.get("status") == "ok" and isinstance(m, dict) \
+                and _extra(m, ("ticks",)):
+            grid_ticks[twin_key(r)] = float(m["ticks"])
+    out = []
+    for r in rows:
+        m = r.get("metrics")
+        base = grid_ticks.get(twin_key(r)) if r.get("executor") == "physics" else None
+        if base and r.get("status") == "ok" and isinstance(m, dict) and _extra(m, ("ticks",)):
+            r = {**r, "metrics": {**m, GAP_KEY: float(m["ticks"]) / base}}
+        out.append(r)
+    return out
+
+
+def _extras_shown(groups: Sequence[Group]) -> list[str]:
+    """The execution columns at least one group has a value for."""
+    return [name for name in EXTRA_METRICS
+            if any(not math.isnan(g.stats.get(name, (math.nan,))[0]) for g in groups)]
+
+
+def _column(name: str) -> tuple[str, int, bool]:
+    """Title, decimals, higher-is-better of a base or execution column."""
+    if name in METRICS:
+        return METRICS[name][1], METRICS[name][2], METRICS[name][3]
+    return EXTRA_METRICS[name][1], EXTRA_METRICS[name][2], EXTRA_METRICS[name][3]
 
 
 def _fmt(stat: tuple[float, float], decimals: int) -> str:
@@ -211,65 +287,107 @@ def _fmt(stat: tuple[float, float], decimals: int) -> str:
 def markdown_table(groups: Sequence[Group]) -> str:
     """A markdown table of ``groups`` (one pattern's, or the pooled ones)."""
     variants = any(g.variant for g in groups)
+    extras = _extras_shown(groups)
     head = ["Env.", "Method"] + (["Variant"] if variants else []) + \
-        [METRICS[m][1] for m in METRICS] + ["n", "failed"]
+        [METRICS[m][1] for m in METRICS] + [EXTRA_METRICS[m][1] for m in extras] + \
+        ["n", "failed"]
     lines = ["| " + " | ".join(head) + " |",
              "|" + "|".join(["---"] * (2 + variants) + ["---:"] * (len(head) - 2 - variants))
              + "|"]
     for g in groups:
         cells = [g.env, g.method] + ([g.variant or "-"] if variants else []) + \
-            [_fmt(g.stats[m], METRICS[m][2]) for m in METRICS] + [str(g.n), str(g.failed)]
+            [_fmt(g.stats[m], METRICS[m][2]) for m in METRICS] + \
+            [_blank(g.stats.get(m), EXTRA_METRICS[m][2]) for m in extras] + \
+            [str(g.n), str(g.failed)]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
+
+
+def _blank(stat: tuple[float, float] | None, decimals: int) -> str:
+    """An execution cell: blank where the group's episodes do not have the metric."""
+    return "" if stat is None or math.isnan(stat[0]) else _fmt(stat, decimals)
 
 
 def _csv(groups: Sequence[Group]) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     head = ["env", "method", "scheduler", "planner", "pattern", "variant", "n", "failed"]
-    for m in METRICS:
+    names = [*METRICS, *EXTRA_METRICS]
+    for m in names:
         head += [m, f"{m}_ci95"]
     w.writerow(head)
     for g in groups:
         row: list[Any] = [g.env, g.method, g.scheduler, g.planner, g.pattern, g.variant, g.n,
                           g.failed]
-        for m in METRICS:
-            mean, half = g.stats[m]
+        for m in names:
+            mean, half = g.stats.get(m, (math.nan, math.nan))
             row += ["" if math.isnan(mean) else repr(mean), "" if math.isnan(half) else repr(half)]
         w.writerow(row)
     return buf.getvalue()
 
 
+def ci_marks(groups: Sequence[Group], name: str) -> list[str]:
+    """Per group, how column ``name`` compares with its best cell: ``"best"``, ``"overlap"``
+    (its confidence interval overlaps the best one's, so the two are not shown to differ),
+    ``""`` (they differ) or ``"none"`` (no value). A missing CI (one episode) counts as a
+    point."""
+    higher = _column(name)[2]
+    stats = [g.stats.get(name, (math.nan, math.nan)) for g in groups]
+    have = [i for i, (m, _) in enumerate(stats) if not math.isnan(m)]
+    if not have:
+        return ["none"] * len(groups)
+    best = (max if higher else min)(have, key=lambda i: stats[i][0])
+    mb, hb = stats[best][0], _half(stats[best][1])
+    out = []
+    for i, (m, h) in enumerate(stats):
+        if math.isnan(m):
+            out.append("none")
+        elif i == best or m == mb:
+            out.append("best")
+        else:
+            out.append("overlap" if abs(m - mb) <= _half(h) + hb else "")
+    return out
+
+
+def _half(h: float) -> float:
+    return 0.0 if math.isnan(h) else h
+
+
 def heatmap(groups: Sequence[Group], path: str | Path, title: str = "") -> Path:
     """Draw ``groups`` as the paper draws Table 1: Env., Method, then SR, CT and TP cells
-    filled ``green!p!red`` at 25% opacity, p the value's place between the column's minimum
-    and maximum (CT: lower is greener)."""
+    (and the execution columns the groups have) filled ``green!p!red`` at 25% opacity, p the
+    value's place between the column's minimum and maximum (CT: lower is greener). The best
+    cell of a column is bold; a cell whose 95% CI overlaps the best one's is coloured as the
+    best and hatched (a legend says so): the data do not show that it differs."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.patches import Rectangle
 
     variants = any(g.variant for g in groups)
+    columns = [*HEATMAP_COLUMNS, *_extras_shown(groups)]
     cols = ["Env.", "Method"] + (["Variant"] if variants else []) + \
-        [METRICS[m][1] for m in HEATMAP_COLUMNS]
-    widths = [0.7, 1.5] + ([2.2] if variants else []) + [1.6] * len(HEATMAP_COLUMNS)
+        [_column(m)[0] for m in columns]
+    widths = [0.7, 1.5] + ([2.2] if variants else []) + [1.6] * len(columns)
     row_h = 0.32
-    height = row_h * (len(groups) + 1) + (0.45 if title else 0.15)
-    fig = Figure(figsize=(sum(widths) + 0.2, height), dpi=150)
+    legend_h = 0.3
+    height = row_h * (len(groups) + 1) + legend_h + (0.45 if title else 0.15)
+    fig = Figure(figsize=(max(sum(widths), 5.6) + 0.2, height), dpi=150)
     FigureCanvasAgg(fig)  # the Agg canvas, without touching pyplot's global backend
     ax = fig.add_axes((0, 0, 1, 1))
-    ax.set_xlim(-0.1, sum(widths) + 0.1)
+    ax.set_xlim(-0.1, max(sum(widths), 5.6) + 0.1)
     ax.set_ylim(0, height)
     ax.axis("off")
-    top = row_h * (len(groups) + 1)
+    top = legend_h + row_h * (len(groups) + 1)
     if title:
         ax.text(sum(widths) / 2, top + 0.22, title, ha="center", va="center", fontsize=9)
     lo_hi = {}
-    for m in HEATMAP_COLUMNS:
+    for m in columns:
         vals = [g.stats[m][0] for g in groups if not math.isnan(g.stats[m][0])]
         lo_hi[m] = (min(vals), max(vals)) if vals else (0.0, 0.0)
+    marks = {m: ci_marks(groups, m) for m in columns}
     x0 = [sum(widths[:i]) for i in range(len(widths))]
     for i, name in enumerate(cols):
-        right = i >= len(cols) - len(HEATMAP_COLUMNS)
+        right = i >= len(cols) - len(columns)
         ax.text(x0[i] + (widths[i] - 0.08 if right else 0.08), top - row_h / 2, name,
                 ha="right" if right else "left", va="center", fontsize=8, fontweight="bold")
     for r, g in enumerate(groups):
@@ -277,24 +395,40 @@ def heatmap(groups: Sequence[Group], path: str | Path, title: str = "") -> Path:
         texts = [g.env, g.method] + ([g.variant or "-"] if variants else [])
         for i, t in enumerate(texts):
             ax.text(x0[i] + 0.08, y - row_h / 2, t, ha="left", va="center", fontsize=8)
-        for j, m in enumerate(HEATMAP_COLUMNS):
+        for j, m in enumerate(columns):
             i = len(texts) + j
             mean = g.stats[m][0]
+            mark = marks[m][r]
             if not math.isnan(mean):
                 lo, hi = lo_hi[m]
-                p = 1.0 if hi == lo else (mean - lo) / (hi - lo)
-                p = p if METRICS[m][3] else 1.0 - p
-                ax.add_patch(Rectangle((x0[i] + 0.04, y - row_h + 0.03), widths[i] - 0.08,
-                                       row_h - 0.06, facecolor=(1.0 - p, p, 0.0), alpha=0.25,
+                p = 1.0 if hi == lo or mark in ("best", "overlap") else (mean - lo) / (hi - lo)
+                p = p if _column(m)[2] or mark in ("best", "overlap") else 1.0 - p
+                box = (x0[i] + 0.04, y - row_h + 0.03)
+                ax.add_patch(Rectangle(box, widths[i] - 0.08, row_h - 0.06,
+                                       facecolor=(1.0 - p, p, 0.0), alpha=0.25,
                                        edgecolor="none"))
-            ax.text(x0[i] + widths[i] - 0.08, y - row_h / 2, _fmt(g.stats[m], METRICS[m][2]),
-                    ha="right", va="center", fontsize=8)
-    for y, lw in ((top, 1.2), (top - row_h, 0.6), (top - row_h * (len(groups) + 1), 1.2)):
+                if mark == "overlap":
+                    ax.add_patch(Rectangle(box, widths[i] - 0.08, row_h - 0.06,
+                                           facecolor="none", edgecolor=(0.0, 0.0, 0.0, 0.45),
+                                           hatch="////", linewidth=0.0))
+            ax.text(x0[i] + widths[i] - 0.08, y - row_h / 2,
+                    _blank(g.stats[m], _column(m)[1]) or "", ha="right", va="center",
+                    fontsize=8, fontweight="bold" if mark == "best" else "normal")
+    bottom = top - row_h * (len(groups) + 1)
+    for y, lw in ((top, 1.2), (top - row_h, 0.6), (bottom, 1.2)):
         ax.plot([0, sum(widths)], [y, y], color="black", linewidth=lw)
     for r in range(1, len(groups)):
         if groups[r].env != groups[r - 1].env:
             y = top - row_h * (r + 1)
             ax.plot([0, sum(widths)], [y, y], color="0.6", linewidth=0.4)
+    # legend: what bold and hatching mean
+    ly = bottom - legend_h / 2
+    ax.add_patch(Rectangle((0.08, ly - 0.09), 0.35, 0.18, facecolor=(0.0, 1.0, 0.0),
+                           alpha=0.25, edgecolor="none"))
+    ax.add_patch(Rectangle((0.08, ly - 0.09), 0.35, 0.18, facecolor="none",
+                           edgecolor=(0.0, 0.0, 0.0, 0.45), hatch="////", linewidth=0.0))
+    ax.text(0.5, ly, "95% CI overlaps the best of its column (bold): not shown to differ",
+            ha="left", va="center", fontsize=7)
     path = Path(path)
     from ..atomic import replacing
 

@@ -1,0 +1,148 @@
+"""``warerover lorr``: a League of Robot Runners problem run lifelong, its output JSON read
+back by the plan importer and its finished tasks recounted from the paths alone."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from warerover_phys.cli import app
+from warerover_phys.errors import ScenarioError
+from warerover_phys.lorr import output_json, read_problem, run_lifelong
+from warerover_phys.plans import read_plan
+
+DATA = Path(__file__).parent / "data" / "lorr2023_warehouse_small"
+PROBLEM = DATA / "warehouse_small_50.json"
+runner = CliRunner()
+
+
+def _pad(seq, n):
+    seq = list(seq)
+    return seq + [seq[-1]] * (n - len(seq))
+
+
+def _recount(doc: dict, cols: int, problem) -> int:
+    """Tasks finished, from the output's paths, tasks and schedule alone: after taking a
+    task at timestep t, a robot does each errand at the first later timestep it stands on
+    the errand's cell, in order (one errand per timestep); the task is finished with its
+    last errand; it takes its next task in that same timestep."""
+    plan = read_plan_from(doc)
+    errands = {k: [tuple(flat[j:j + 2]) for j in range(0, len(flat), 2)]
+               for k, _, flat in doc["tasks"]}
+    horizon = doc["makespan"]
+    finished = 0
+    for i, schedule in enumerate(doc["actualSchedule"]):
+        cells = _pad(plan.paths[i], horizon + 1)
+        for item in filter(None, schedule.split(",")):
+            t, k = map(int, item.split(":"))
+            todo = list(errands[k])
+            s = t + 1
+            while todo and s < horizon:
+                if cells[s] == todo[0]:
+                    todo.pop(0)
+                    if not todo:
+                        finished += 1
+                        break
+                s += 1
+    return finished
+
+
+def read_plan_from(doc: dict):
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as d:
+        p = Path(d) / "out.json"
+        p.write_text(json.dumps(doc))
+        return read_plan(p)
+
+
+@pytest.fixture(scope="module")
+def problem():
+    return read_problem(PROBLEM)
+
+
+def test_problem_is_read_as_its_files_say(problem):
+    assert problem.team_size == 50 and len(problem.tasks) == 20000
+    assert (problem.grid.rows, problem.grid.cols) == (33, 57)
+    assert problem.strategy == "roundrobin" and problem.reveal == 1
+    assert all(len(t) == 1 for t in problem.tasks)
+    assert not any(problem.grid.obstacles.ravel()[s] for s in problem.starts)
+
+
+@pytest.mark.parametrize("rotations", [True, False])
+def test_output_reads_back_with_identical_paths_and_recounted_tasks(problem, rotations):
+    result = run_lifelong(problem, 150, rotations=rotations, seed=3)
+    doc = json.loads(json.dumps(output_json(result)))
+    assert doc["teamSize"] == 50 and doc["makespan"] == 150
+    assert doc["actionModel"] == ("MAPF_T" if rotations else "MAPF")
+    plan = read_plan_from(doc)
+    cols = problem.grid.cols
+    for i in range(50):
+        executed = [divmod(c, cols) for c in result.positions[i]]
+        assert _pad(plan.paths[i], 151) == _pad(executed, 151)
+        if rotations:
+            assert _pad(plan.headings[i], 151) == _pad(result.headings[i], 151)
+            # the rotation model: a robot moves only straight ahead
+            for (a, b), h in zip(zip(executed, executed[1:], strict=False), result.headings[i][:-1],
+                                 strict=True):
+                if a != b:
+                    assert (b[0] - a[0], b[1] - a[1]) == ((0, 1), (1, 0), (0, -1), (-1, 0))[h]
+    assert result.finished > 0
+    assert doc["numTaskFinished"] == result.finished == _recount(doc, cols, problem)
+
+
+def test_same_seed_same_run(problem):
+    a = output_json(run_lifelong(problem, 60, seed=5))
+    b = output_json(run_lifelong(problem, 60, seed=5))
+    for key in ("actualPaths", "events", "tasks", "numTaskFinished", "sumOfCost"):
+        assert a[key] == b[key]
+
+
+def test_cli_writes_output_and_refuses_what_it_cannot_do(tmp_path):
+    out = tmp_path / "run"
+    r = runner.invoke(app, ["lorr", str(PROBLEM), "--ticks", "40", "--out", str(out),
+                            "--json"])
+    assert r.exit_code == 0, r.output
+    figures = json.loads(r.stdout[:r.stdout.rindex("}") + 1])
+    doc = json.loads((out / "output.json").read_text())
+    assert doc["numTaskFinished"] == figures["tasks_finished"]
+    assert figures["ticks"] == 40 and figures["ms_per_tick_p99"] >= figures["ms_per_tick_mean"] > 0
+    for args, what in ((["--planner", "cbs"], "--planner"), (["--executor", "physics"],
+                       "--executor"), (["--ticks", "0"], "--ticks")):
+        r = runner.invoke(app, ["lorr", str(PROBLEM), *args])
+        assert r.exit_code == 2 and what in r.output and "Traceback" not in r.output
+
+
+@pytest.mark.parametrize("edit, field", [
+    (lambda d: d.pop("mapFile"), "mapFile"),
+    (lambda d: d.update(teamSize=0), "teamSize"),
+    (lambda d: d.update(teamSize=51), "teamSize"),
+    (lambda d: d.update(numTasksReveal="x"), "numTasksReveal"),
+    (lambda d: d.update(taskAssignmentStrategy="fastest"), "taskAssignmentStrategy"),
+    (lambda d: d.update(agentFile="agents/missing.agents"), "agentFile"),
+])
+def test_bad_problem_files_name_the_field(tmp_path, edit, field):
+    shutil.copytree(DATA, tmp_path / "p")
+    path = tmp_path / "p" / PROBLEM.name
+    doc = json.loads(path.read_text())
+    edit(doc)
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ScenarioError) as info:
+        read_problem(path)
+    assert field in str(info.value)
+    r = runner.invoke(app, ["lorr", str(path)])
+    assert r.exit_code == 2 and "Traceback" not in r.output
+
+
+def test_agent_on_an_obstacle_is_named(tmp_path):
+    shutil.copytree(DATA, tmp_path / "p")
+    agents = tmp_path / "p" / "agents" / "warehouse_small_50.agents"
+    lines = agents.read_text().splitlines()
+    lines[1] = "0"  # (0, 0) is a wall
+    agents.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ScenarioError, match="agent 0"):
+        read_problem(tmp_path / "p" / PROBLEM.name)

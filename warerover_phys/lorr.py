@@ -1,0 +1,486 @@
+"""League of Robot Runners problems: read them, run them lifelong, write the output JSON.
+
+**Problems** (:func:`read_problem`): the start-kit's problem JSON names a map (MovingAI grid,
+``E`` emitters and ``S`` service points free), an agent file (count, then one linearised
+start ``row * width + col`` per line; the first ``teamSize`` are used) and a task file (count,
+then one task per line: its errands' linearised cells, visited in order by one robot; one
+errand in 2023, two or three later). ``numTasksReveal`` is, in 2023 files (with a
+``taskAssignmentStrategy``), the tasks each robot knows ahead; in 2024 and later files
+(``version``), a multiplier: ``numTasksReveal * teamSize`` open tasks are kept in a pool and
+refilled as tasks finish. ``agentCounter`` and ``delayConfig`` (2026) are read and reported;
+this runner does not model them (one action per timestep, no injected delays).
+
+**Runs** (:func:`run_lifelong`): every timestep, free robots take tasks (2023 ``greedy``: the
+next task of the file; ``roundrobin``: task ``k`` goes to robot ``k mod teamSize``; 2024 and
+later: each free robot takes the open task whose first errand is nearest, robots in id
+order), then one PIBT step (with swaps) moves every robot one cell towards its current
+errand. With rotations (the league's ``MAPF_T`` model, the default) a robot faces one of
+four headings and each timestep either moves one cell forward, turns a quarter (``R``
+clockwise, ``C`` counter-clockwise) or waits: PIBT ranks a robot's neighbouring cells by
+distance to its errand plus the quarter turns needed to face them, a robot whose PIBT cell
+lies in another direction turns towards it instead, and robots that were to move into the cell of a robot
+that does not leave it wait too. Robots start facing east. A robot that stands on its
+current errand's cell has done it (any heading); the task is finished with its last errand.
+
+**Output** (:func:`output_json`), the start-kit's 2024 fields: ``actionModel`` (``MAPF_T``;
+without rotations ``MAPF``, a model of ours: ``U`` / ``D`` / ``L`` / ``R`` move one cell up
+(-row), down, left (-col) or right and ``W`` waits), ``version``, ``teamSize``, ``start`` (``[row, col, heading]``), ``numTaskFinished``, ``sumOfCost``
+(robot-timesteps not spent waiting at the end), ``makespan`` (timesteps run),
+``actualPaths`` and ``plannerPaths`` (the same here: every planned action is executed),
+``plannerTimes`` (seconds per timestep), ``errors`` (always empty: plans are valid by
+construction and checked), ``events`` (``[timestep, robot, task, errands done]``, one when a
+task is assigned with 0 and one per errand done), ``tasks`` (``[id, release timestep,
+[row1, col1, row2, col2, ...]]``) and ``actualSchedule`` (per robot ``"t:task,"`` when it
+takes a task). :func:`warerover_phys.plans.read_plan` reads both back (format
+``robotrunners``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import ScenarioError
+from .movingai import MovingAIMap, read_map
+
+__all__ = ["LorrProblem", "LorrResult", "read_problem", "run_lifelong", "output_json",
+           "HEADINGS"]
+
+HEADINGS = "ESWN"
+"""Heading codes 0-3: east (+col), south (+row), west (-col), north (-row)."""
+_STEP = ((0, 1), (1, 0), (0, -1), (-1, 0))
+MAX_AGENTS = 100_000
+MAX_TASKS = 10_000_000
+
+
+@dataclass(frozen=True)
+class LorrProblem:
+    """One Robot Runners problem (see the module docstring)."""
+
+    source: str
+    grid: MovingAIMap
+    starts: tuple[int, ...]
+    """Linearised start cells of the team."""
+    tasks: tuple[tuple[int, ...], ...]
+    """Each task's errands, linearised, in order."""
+    reveal: float
+    strategy: str
+    """``greedy``, ``roundrobin`` or ``roundrobin-fixed`` (2023 files) or ``pool`` (later)."""
+    version: str | None = None
+    agent_counter: int = 1
+    delay_config: dict | None = None
+
+    @property
+    def team_size(self) -> int:
+        return len(self.starts)
+
+
+def _fail(message: str, file: str, fld: str | None = None, value: Any = None) -> ScenarioError:
+    return ScenarioError(message, file=file, field=fld, value=value)
+
+
+def _read_numbers(path: Path, what: str, source: str) -> tuple[str | None, list[str]]:
+    """(version comment, lines after the count) of an agent or task file."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise _fail(f"{what} file not found", source, what, str(path)) from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise _fail(f"cannot read the {what} file: {e}", source, what, str(path)) from None
+    lines = [ln.strip() for ln in text.splitlines()]
+    version = None
+    body = []
+    for ln in lines:
+        if ln.startswith("#"):
+            version = version or ln.lstrip("# ").strip()
+        elif ln:
+            body.append(ln)
+    if not body:
+        raise _fail(f"{what} file is empty", str(path), "count")
+    try:
+        count = int(body[0])
+    except ValueError:
+        raise _fail(f"the first line of the {what} file must be a count", str(path), "count",
+                    body[0]) from None
+    if count < 0 or len(body) - 1 < count:
+        raise _fail(f"{what} file says {count} entries but has {len(body) - 1}", str(path),
+                    "count", count)
+    return version, body[1:count + 1]
+
+
+def read_problem(path: str | Path) -> LorrProblem:
+    """Read a Robot Runners problem JSON and the files it names; every error names the file,
+    the field and the value."""
+    path = Path(path)
+    source = str(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise _fail("problem file not found", source) from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise _fail(f"not a JSON problem file: {e}", source) from None
+    if not isinstance(data, dict):
+        raise _fail("a problem file is a JSON object", source, None, type(data).__name__)
+    for key in ("mapFile", "agentFile", "taskFile", "teamSize", "numTasksReveal"):
+        if key not in data:
+            raise _fail("missing key", source, key)
+    for key in ("mapFile", "agentFile", "taskFile"):
+        if not isinstance(data[key], str) or not data[key]:
+            raise _fail("expected a relative file path", source, key, data[key])
+    team = data["teamSize"]
+    if type(team) is not int or not 1 <= team <= MAX_AGENTS:
+        raise _fail(f"expected a whole number from 1 to {MAX_AGENTS}", source, "teamSize", team)
+    reveal = data["numTasksReveal"]
+    if type(reveal) not in (int, float) or not math.isfinite(reveal) or reveal <= 0:
+        raise _fail("expected a positive number", source, "numTasksReveal", reveal)
+    version = data.get("version")
+    strategy = data.get("taskAssignmentStrategy")
+    if version is None and strategy is None:
+        strategy = "greedy"
+    if version is not None and strategy is None:
+        strategy = "pool"
+    if strategy not in ("greedy", "roundrobin", "roundrobin-fixed", "pool"):
+        raise _fail("expected greedy, roundrobin or roundrobin-fixed", source,
+                    "taskAssignmentStrategy", strategy)
+    counter = data.get("agentCounter", 1)
+    if type(counter) is not int or counter < 1:
+        raise _fail("expected a whole number >= 1", source, "agentCounter", counter)
+    delay = data.get("delayConfig")
+    if delay is not None and not isinstance(delay, dict):
+        raise _fail("expected an object", source, "delayConfig", delay)
+    base = path.parent
+    grid = read_map(base / data["mapFile"])
+    cells = grid.rows * grid.cols
+    free = ~grid.obstacles.ravel()
+
+    def location(text: str, file: Path, fld: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise _fail("expected a linearised cell (row * width + column)", str(file), fld,
+                        text) from None
+        if not 0 <= v < cells:
+            raise _fail(f"cell off the {grid.rows} x {grid.cols} map", str(file), fld, v)
+        if not free[v]:
+            raise _fail(f"cell ({v // grid.cols}, {v % grid.cols}) is an obstacle", str(file),
+                        fld, v)
+        return v
+
+    agent_file = base / data["agentFile"]
+    _, agent_lines = _read_numbers(agent_file, "agentFile", source)
+    if len(agent_lines) < team:
+        raise _fail(f"teamSize {team} but the agent file has {len(agent_lines)} agents",
+                    source, "teamSize", team)
+    starts = tuple(location(ln.split(",")[0], agent_file, f"agent {i}")
+                   for i, ln in enumerate(agent_lines[:team]))
+    if len(set(starts)) != len(starts):
+        seen: dict[int, int] = {}
+        for i, s in enumerate(starts):
+            if s in seen:
+                raise _fail(f"agents {seen[s]} and {i} start on the same cell", str(agent_file),
+                            f"agent {i}", s)
+            seen[s] = i
+    task_file = base / data["taskFile"]
+    _, task_lines = _read_numbers(task_file, "taskFile", source)
+    if len(task_lines) > MAX_TASKS:
+        raise _fail(f"more than {MAX_TASKS} tasks", str(task_file), "count", len(task_lines))
+    tasks = []
+    for k, ln in enumerate(task_lines):
+        errands = tuple(location(x.strip(), task_file, f"task {k}")
+                        for x in ln.split(",") if x.strip())
+        if not errands:
+            raise _fail("a task needs at least one errand", str(task_file), f"task {k}", ln)
+        tasks.append(errands)
+    if not tasks:
+        raise _fail("no tasks", str(task_file), "count", 0)
+    return LorrProblem(source=source, grid=grid, starts=starts, tasks=tuple(tasks),
+                       reveal=float(reveal), strategy=strategy, version=version,
+                       agent_counter=counter, delay_config=delay)
+
+
+@dataclass
+class LorrResult:
+    """What a lifelong run did (see :func:`output_json`)."""
+
+    problem: LorrProblem
+    rotations: bool
+    actions: list[list[str]]
+    """Per robot, one action per timestep."""
+    positions: list[list[int]]
+    """Per robot, its linearised cell at every timestep (0 .. ticks)."""
+    headings: list[list[int]]
+    events: list[tuple[int, int, int, int]] = field(default_factory=list)
+    """(timestep, robot, task, errands done)."""
+    releases: dict[int, int] = field(default_factory=dict)
+    """Task id -> timestep it was revealed."""
+    schedule: list[list[tuple[int, int]]] = field(default_factory=list)
+    """Per robot, (timestep, task) when it took a task."""
+    tick_s: list[float] = field(default_factory=list)
+    """Wall seconds of every timestep (assignment, planning and moving)."""
+    finished: int = 0
+    setup_s: float = 0.0
+
+    @property
+    def ticks(self) -> int:
+        return len(self.tick_s)
+
+    def summary(self) -> dict[str, Any]:
+        ms = np.asarray(self.tick_s) * 1e3 if self.tick_s else np.zeros(1)
+        return {"problem": self.problem.source, "agents": self.problem.team_size,
+                "ticks": self.ticks, "rotations": self.rotations,
+                "tasks_finished": self.finished,
+                "ms_per_tick_mean": float(ms.mean()), "ms_per_tick_p99":
+                float(np.percentile(ms, 99)), "ms_per_tick_max": float(ms.max()),
+                "setup_s": self.setup_s, "wall_s": self.setup_s + float(ms.sum()) / 1e3,
+                "agent_counter_modelled": False if self.problem.agent_counter != 1 else None,
+                "delays_modelled": False if self.problem.delay_config else None}
+
+
+class _Tasks:
+    """The task pool and who holds what."""
+
+    def __init__(self, problem: LorrProblem) -> None:
+        self.p = problem
+        self.n = problem.team_size
+        self.cols = problem.grid.cols
+        self.next_task = 0
+        self.open: list[int] = []
+        self.releases: dict[int, int] = {}
+        self.rr_next = list(range(self.n))  # roundrobin: each robot's next task id
+        if problem.strategy == "pool":
+            self._reveal(max(1, int(problem.reveal * self.n)), 0)
+
+    def _task(self, k: int) -> tuple[int, ...]:
+        return self.p.tasks[k % len(self.p.tasks)]
+
+    def _reveal(self, count: int, tick: int) -> None:
+        for _ in range(count):
+            self.open.append(self.next_task)
+            self.releases[self.next_task] = tick
+            self.next_task += 1
+
+    def assign(self, free: list[int], where: list[int], tick: int) -> dict[int, int]:
+        """Tasks for the free robots (robot -> task id)."""
+        out: dict[int, int] = {}
+        strategy = self.p.strategy
+        if strategy == "greedy":
+            for i in free:
+                out[i] = self.next_task
+                self.releases[self.next_task] = tick
+                self.next_task += 1
+        elif strategy in ("roundrobin", "roundrobin-fixed"):
+            for i in free:
+                k = self.rr_next[i]
+                self.rr_next[i] += self.n
+                self.releases[k] = tick
+                out[i] = k
+        else:
+            if not self.open or not free:
+                return out
+            first = np.asarray([self._task(k)[0] for k in self.open])
+            fr, fc = first // self.cols, first % self.cols
+            taken = np.zeros(len(self.open), dtype=bool)
+            for i in free:
+                r, c = divmod(where[i], self.cols)
+                d = np.abs(fr - r) + np.abs(fc - c)
+                d = np.where(taken, np.iinfo(np.int64).max, d)
+                j = int(np.argmin(d))
+                if taken[j]:
+                    break
+                taken[j] = True
+                out[i] = self.open[j]
+            self.open = [k for j, k in enumerate(self.open) if not taken[j]]
+        return out
+
+    def finished(self, count: int, tick: int) -> None:
+        if self.p.strategy == "pool":
+            self._reveal(count, tick)
+
+
+def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, seed: int = 0,
+                 progress: Callable[[int, int], None] | None = None) -> LorrResult:
+    """Run ``problem`` for ``ticks`` timesteps with lifelong PIBT (see the module
+    docstring); every timestep's configuration is checked (no two robots on a cell, no
+    swaps, no jumps)."""
+    from .planning.oneshot import grid_graph
+    from .planning.pibt import pibt_step
+
+    t0 = time.perf_counter()
+    grid = problem.grid
+    cols = grid.cols
+    graph = grid_graph(grid.obstacles)
+    n = problem.team_size
+    tasks = _Tasks(problem)
+    rng = np.random.default_rng(seed)
+    config = list(problem.starts)
+    heading = [0] * n
+    task_of = [-1] * n
+    errand = [0] * n  # errands of its task done
+    goal = [-1] * n  # tables are made once robots have their first errands
+    dists: list[np.ndarray] = [None] * n  # type: ignore[list-item]
+    since = [0] * n
+    result = LorrResult(problem, rotations, actions=[[] for _ in range(n)],
+                        positions=[[c] for c in config], headings=[[0] for _ in range(n)],
+                        schedule=[[] for _ in range(n)])
+    result.setup_s = time.perf_counter() - t0
+    for tick in range(ticks):
+        w0 = time.perf_counter()
+        # Errands reached (any heading), then new tasks for free robots.
+        done_now = 0
+        for i in range(n):
+            k = task_of[i]
+            if k >= 0 and config[i] == goal[i]:
+                errand[i] += 1
+                result.events.append((tick, i, k, errand[i]))
+                if errand[i] == len(tasks._task(k)):
+                    task_of[i] = -1
+                    done_now += 1
+        result.finished += done_now
+        tasks.finished(done_now, tick)
+        free = [i for i in range(n) if task_of[i] < 0]
+        for i, k in tasks.assign(free, config, tick).items():
+            task_of[i], errand[i] = k, 0
+            result.events.append((tick, i, k, 0))
+            result.schedule[i].append((tick, k))
+        for i in range(n):
+            k = task_of[i]
+            g = config[i] if k < 0 else tasks._task(k)[errand[i]]
+            if g != goal[i]:
+                goal[i] = g
+                dists[i] = graph.dist_to(divmod(g, cols))
+                since[i] = tick
+        prio = [tick - s + i / (n + 1) for i, s in enumerate(since)]
+        costs: list[Any] = dists
+        if rotations:  # a cell in another direction costs the turns to face it
+            costs = [_Facing(dists[i], config[i], heading[i], cols) for i in range(n)]
+        nxt = pibt_step(graph, config, costs, prio, rng.random(graph.num_nodes) * 0.5,
+                        goals=goal)
+        if nxt is None:  # pragma: no cover - no forced moves are given
+            raise AssertionError("PIBT found no configuration")
+        acts = ["W"] * n
+        if rotations:
+            nxt = _turn_first(config, nxt, heading, acts, cols)
+        else:
+            for i in range(n):
+                if nxt[i] != config[i]:
+                    dr, dc = nxt[i] // cols - config[i] // cols, nxt[i] % cols - config[i] % cols
+                    acts[i] = {(0, 1): "R", (1, 0): "D", (0, -1): "L", (-1, 0): "U"}[(dr, dc)]
+        _check(config, nxt, graph, tick)
+        config = nxt
+        for i in range(n):
+            result.actions[i].append(acts[i])
+            result.positions[i].append(config[i])
+            result.headings[i].append(heading[i])
+        result.tick_s.append(time.perf_counter() - w0)
+        if progress is not None:
+            progress(tick + 1, ticks)
+    result.releases = dict(tasks.releases)
+    return result
+
+
+class _Facing:
+    """A robot's distances to its goal, plus, for the cells next to it, the quarter turns it
+    needs to face them (PIBT then prefers going on straight ahead)."""
+
+    __slots__ = ("d", "here", "extra")
+
+    def __init__(self, d: np.ndarray, here: int, heading: int, cols: int) -> None:
+        self.d = d
+        self.here = here
+        r, c = divmod(here, cols)
+        self.extra = {}
+        for h, (dr, dc) in enumerate(_STEP):
+            turns = (h - heading) % 4
+            self.extra[(r + dr) * cols + c + dc] = min(turns, 4 - turns)
+
+    def __getitem__(self, v: int) -> int:
+        return int(self.d[v]) + self.extra.get(v, 0)
+
+
+def _turn_first(config: list[int], nxt: list[int], heading: list[int], acts: list[str],
+                cols: int) -> list[int]:
+    """PIBT's cells under the rotation model: a robot moves only forward; one whose cell lies
+    in another direction turns towards it and stays, and whoever was to enter the cell of a
+    robot that stays, stays too. Updates ``heading`` and ``acts``; returns the cells."""
+    n = len(config)
+    out = list(nxt)
+    for i in range(n):
+        if out[i] == config[i]:
+            continue
+        dr = out[i] // cols - config[i] // cols
+        dc = out[i] % cols - config[i] % cols
+        want = _STEP.index((dr, dc))
+        if want != heading[i]:
+            diff = (want - heading[i]) % 4
+            acts[i] = "R" if diff in (1, 2) else "C"
+            heading[i] = (heading[i] + (1 if acts[i] == "R" else -1)) % 4
+            out[i] = config[i]
+    # Cascade: whoever enters a cell whose robot stays, stays.
+    stack = [i for i in range(n) if out[i] == config[i]]
+    entering: dict[int, int] = {out[i]: i for i in range(n) if out[i] != config[i]}
+    while stack:
+        i = stack.pop()
+        j = entering.pop(config[i], None)
+        if j is not None and out[j] != config[j]:
+            out[j] = config[j]
+            stack.append(j)
+    for i in range(n):
+        if out[i] != config[i] and acts[i] == "W":
+            acts[i] = "F"
+    return out
+
+
+def _check(config: list[int], nxt: list[int], graph: Any, tick: int) -> None:
+    if len(set(nxt)) != len(nxt):
+        raise AssertionError(f"vertex conflict at timestep {tick + 1}")  # pragma: no cover
+    moved_into = {v: i for i, v in enumerate(nxt)}
+    for i, (a, b) in enumerate(zip(config, nxt, strict=True)):
+        j = moved_into.get(a)
+        if j is not None and j != i and config[j] == b:  # pragma: no cover
+            raise AssertionError(f"robots {i} and {j} swap at timestep {tick + 1}")
+        if a != b and b not in graph.neighbors[a]:  # pragma: no cover
+            raise AssertionError(f"robot {i} jumps at timestep {tick + 1}")
+
+
+def output_json(result: LorrResult) -> dict[str, Any]:
+    """The start-kit's output JSON of a run (see the module docstring)."""
+    p = result.problem
+    cols = p.grid.cols
+    n = p.team_size
+    sum_of_cost = 0
+    for acts in result.actions:
+        end = len(acts)
+        while end > 0 and acts[end - 1] == "W":
+            end -= 1
+        sum_of_cost += end
+    paths = [",".join(a) for a in result.actions]
+    tasks = []
+    for k in sorted(result.releases):
+        errs = p.tasks[k % len(p.tasks)]
+        flat: list[int] = []
+        for e in errs:
+            flat += [e // cols, e % cols]
+        tasks.append([k, result.releases[k], flat])
+    return {
+        "actionModel": "MAPF_T" if result.rotations else "MAPF",
+        "version": p.version or "2023 LoRR",
+        "teamSize": n,
+        "start": [[s // cols, s % cols, HEADINGS[0]] for s in p.starts],
+        "numTaskFinished": result.finished,
+        "sumOfCost": sum_of_cost,
+        "makespan": result.ticks,
+        "actualPaths": paths,
+        "plannerPaths": paths,
+        "plannerTimes": [round(s, 6) for s in result.tick_s],
+        "errors": [],
+        "events": [list(e) for e in result.events],
+        "tasks": tasks,
+        "actualSchedule": ["".join(f"{t}:{k}," for t, k in s) for s in result.schedule],
+    }

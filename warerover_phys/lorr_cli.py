@@ -1,0 +1,96 @@
+"""``warerover lorr``: a League of Robot Runners problem, run lifelong (see :mod:`.lorr`)."""
+
+from __future__ import annotations
+
+import json
+import resource
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+__all__ = ["register"]
+
+PLANNERS = ("pibt",)
+"""Planners ``lorr`` runs today (lifelong, one step per timestep)."""
+
+
+def lorr(problem: Annotated[Path, typer.Argument(
+             metavar="PROBLEM.json", help="Robot Runners problem JSON (2023 or 2024+).")],
+         ticks: Annotated[int, typer.Option(help="Timesteps to run.")] = 1000,
+         planner: Annotated[str, typer.Option(help="Planner: pibt.")] = "pibt",
+         executor: Annotated[str, typer.Option(help="Executor: grid.")] = "grid",
+         rotations: Annotated[bool, typer.Option(
+             "--rotations/--no-rotations",
+             help="The league's rotation model (forward, turn, wait) or free moves.")] = True,
+         seed: Annotated[int, typer.Option(help="Seed of PIBT's tie-breaking.")] = 0,
+         out: Annotated[Path | None, typer.Option(
+             help="Output folder: output.json (Robot Runners output) and metrics.json.")
+                        ] = None,
+         json_out: Annotated[bool, typer.Option(
+             "--json", help="Print the figures as JSON.")] = False,
+         quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")
+                          ] = False,
+         ) -> None:
+    """Run a Robot Runners problem lifelong; write the output JSON that PlanViz replays."""
+    from .console import err_console, fail_os
+    from .console import fail as _fail
+    from .errors import WareroverError
+    from .lorr import output_json, read_problem, run_lifelong
+
+    try:
+        if not 1 <= ticks <= 10_000_000:
+            raise WareroverError(f"--ticks: expected 1 to 10000000 (got {ticks})")
+        if planner not in PLANNERS:
+            raise WareroverError(f"--planner: lorr runs {', '.join(PLANNERS)} (got "
+                                 f"{planner!r}); the other planners plan whole paths, not "
+                                 "one lifelong step")
+        if executor != "grid":
+            raise WareroverError(f"--executor: lorr runs on the grid executor only (got "
+                                 f"{executor!r}); to see a run on bodies, execute its output "
+                                 "with `warerover execute MAP --plan output.json`")
+        prob = read_problem(problem)
+        show = not quiet and not json_out and err_console.is_terminal
+        if show:
+            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+            with Progress(TextColumn("lorr"), BarColumn(), TextColumn("tick {task.completed:.0f}"
+                          " / {task.total:.0f}"), TimeElapsedColumn(), console=err_console,
+                          transient=True) as bar:
+                task = bar.add_task("lorr", total=ticks)
+                result = run_lifelong(prob, ticks, rotations=rotations, seed=seed,
+                                      progress=lambda t, n: bar.update(task, completed=t))
+        else:
+            result = run_lifelong(prob, ticks, rotations=rotations, seed=seed)
+        figures = result.summary()
+        rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        figures["peak_rss_mb"] = rss / 1024 if sys.platform != "darwin" else rss / 2**20
+        figures["planner"] = planner
+        written = {}
+        if out is not None:
+            from .atomic import write_set
+
+            doc = output_json(result)
+            written = write_set(out, {
+                "output.json": lambda p: p.write_text(json.dumps(doc) + "\n"),
+                "metrics.json": lambda p: p.write_text(json.dumps(figures, indent=2) + "\n"),
+            }, meta={"problem": str(problem)})
+    except WareroverError as err:
+        _fail(err)
+    except OSError as err:
+        fail_os(err)
+    if json_out:
+        typer.echo(json.dumps(figures, indent=2, default=float))
+    else:
+        typer.echo(f"{problem.name}: {figures['agents']} robots, {figures['ticks']} timesteps"
+                   f"{'' if rotations else ' (no rotations)'}: {figures['tasks_finished']} "
+                   f"tasks finished; {figures['ms_per_tick_mean']:.2f} ms per timestep (p99 "
+                   f"{figures['ms_per_tick_p99']:.2f}), setup {figures['setup_s']:.2f} s, "
+                   f"peak memory {figures['peak_rss_mb']:.0f} MB")
+    for f in written.values():
+        typer.echo(f"wrote {f}")
+
+
+def register(app: typer.Typer) -> None:
+    app.command(name="lorr")(lorr)
