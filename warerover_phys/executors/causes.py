@@ -25,8 +25,9 @@ the label counts of its interval, which add up to the interval's length exactly.
 waits are also counted per blocker. :mod:`warerover_phys.gap_open` credits the plan's
 durations against these counts to split lost time into causes.
 
-Costs a few vectorised numpy operations per physics step; blockers are looked up only every
-``every`` steps, for AGVs that wait.
+Costs a few vectorised numpy operations per physics step; an AGV's blocker is looked up when
+it starts to wait and then every ``refresh`` steps (one tick at the default step) while it
+waits, so a blocker that changes mid-wait is credited from the next look-up.
 """
 
 from __future__ import annotations
@@ -84,9 +85,10 @@ class CauseLog:
 class CauseRecorder:
     """Labels every AGV's physics steps (see the module docstring)."""
 
-    def __init__(self, st: FleetState, adg: ActionGraph, every: int = 5) -> None:
+    def __init__(self, st: FleetState, adg: ActionGraph, refresh: int = 50) -> None:
         n = st.n
-        self.st, self.adg, self.every = st, adg, every
+        self.st, self.adg, self.refresh = st, adg, refresh
+        self._was_waiting = np.zeros(n, dtype=bool)
         self.step_no = 0
         self._cur = np.zeros((n, len(LABELS)), dtype=np.int64)
         self._rows = np.arange(n)
@@ -125,13 +127,16 @@ class CauseRecorder:
         self._cur[self._rows, lab] += 1
         waiting = lab == DEPENDENCY
         if waiting.any():
-            if self.step_no % self.every == 0:
-                for i in np.flatnonzero(waiting):
-                    b = self._find_blocker(int(i))
-                    if b != self._blocker[i]:
-                        self._flush_wait(int(i))
-                        self._blocker[i] = b
+            # Look the blocker up when an AGV starts to wait, then every ``refresh`` steps
+            # while it waits (a look-up reads the cell's queue: too dear for every step).
+            look = waiting & ~self._was_waiting if self.step_no % self.refresh else waiting
+            for i in np.flatnonzero(look):
+                b = self._find_blocker(int(i))
+                if b != self._blocker[i]:
+                    self._flush_wait(int(i))
+                    self._blocker[i] = b
             self._wait_run[waiting] += 1
+        self._was_waiting = waiting
         self.step_no += 1
 
     # ------------------------------------------------------------------------- helpers
