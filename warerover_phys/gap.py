@@ -71,11 +71,12 @@ def open_loop_gap(scenario: Scenario, seed: int | None = None,
     """Record the ideal run of ``scenario`` on the grid and execute its plan unchanged on
     the scenario's physics executor (its ``executor`` section: dt, delays, parameters)."""
     from .gap_open import execute_timed, open_loop_report
-    from .gap_plan import record_grid_run
+    from .gap_plan import check_executable, record_grid_run
 
     base = scenario.with_seed(seed) if seed is not None else scenario
     plan = record_grid_run(
         base, None if progress is None else lambda t, d, n: progress("grid", t, 0))
+    check_executable(plan)
     spec = base.with_executor("physics").executor
     run = execute_timed(plan, spec, seed=base.seed, progress=None if progress is None else
                         lambda t, h: progress("physics", t, h))

@@ -39,7 +39,7 @@ if TYPE_CHECKING:
     from .layout import Layout
 
 __all__ = ["Dwell", "TimedPlan", "PlannedAction", "record_grid_run", "plan_from_file",
-           "DWELL_KINDS"]
+           "check_executable", "DWELL_KINDS"]
 
 DWELL_KINDS = ("pick", "handover", "place", "park")
 _WORK = {2: "pick", 4: "handover", 6: "place"}  # world.AgvState values
@@ -228,6 +228,26 @@ def _dwells(i: int, seq: list, task: np.ndarray, home: int) -> tuple[Dwell, ...]
     if run is not None:
         out.append(Dwell(i, run[0], run[1], run[2], run[3]))
     return tuple(out)
+
+
+def check_executable(plan: TimedPlan) -> None:
+    """Raise :class:`~warerover_phys.errors.WareroverError` if the dependency graph of
+    ``plan`` has a cycle: a *rotation* of the grid run (AGVs that each enter the cell the
+    next one leaves in the same tick, which the grid executor allows) has no execution
+    order, so the plan cannot run open loop on physics. The message names the AGVs and
+    cells; such a seed is left out of an open-loop distribution (listed as failed)."""
+    from .errors import WareroverError
+    from .executors.adg import ADGCycleError, build
+
+    try:
+        build(plan.paths, {i: t.footprint for i, t in enumerate(plan.types)},
+              cols=plan.layout.cols)  # checks that the graph is acyclic
+    except ADGCycleError as err:
+        raise WareroverError(
+            f"{plan.source}: the plan has a rotation (AGVs {list(err.agvs)} each enter the "
+            f"cell the next one leaves, cells {[list(c) for c in err.cells]}): the action "
+            "dependency graph cannot order it, so it cannot be executed open loop "
+            "(--mode closed compares this seed)") from None
 
 
 # ----------------------------------------------------------------------------- imported plan
