@@ -110,10 +110,12 @@ def lost_by_cause(path: Path, agents: list[dict], title: str = "") -> None:
     total = np.array([a.get("lost_s", 0.0) for a in agents], dtype=float)
     ax.plot(x, total, "o", color="black", label="lost time (total)")
     ax.axhline(0, color="black", lw=0.8)
+    lo, hi = ax.get_ylim()
+    ax.set_ylim(lo, hi + 0.45 * (hi - lo))  # room for the legend above the bars
     ax.set_xticks(x, [str(i) for i in ids])
     ax.set_xlabel("AGV")
     ax.set_ylabel("seconds (executed - planned finish)")
-    ax.legend(fontsize=7, ncol=2, loc="best")
+    ax.legend(fontsize=7, ncol=4, loc="upper center")
     if title:
         ax.set_title(title, fontsize=10)
     fig.tight_layout()
