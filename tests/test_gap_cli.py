@@ -10,8 +10,8 @@ import math
 
 import numpy as np
 import pytest
-
 from hardening_helpers import REPO, assert_clean_error, run_cli
+
 from warerover_phys.gap_open import PARTS
 from warerover_phys.gap_plots import COLOURS, SIZES
 from warerover_phys.gap_stats import STAT_KEYS, parse_seeds

@@ -141,7 +141,7 @@ def test_recorded_dwells_match_the_scenario_task_times():
     assert work and all(d.ticks <= 2 for d in work)  # pick / hand-over / place: 2 ticks
     assert sum(d.ticks == 2 for d in work) >= 0.9 * len(work)
     assert plan.grid_metrics["success_rate"] == 1.0
-    for i, p in plan.paths.items():
+    for p in plan.paths.values():
         assert p.states[-1][0] == p.states[-1][1]  # every path ends standing
 
 
