@@ -158,9 +158,15 @@ def _write_one(out: Path, report: dict, result: dict | None, agvs: list[int] | N
         writers["actions.csv"] = lambda p: p.write_text(_csv(result["actions"]),
                                                         encoding="utf-8")
         if pictures:
+            from .gap_plots import available
             from .gap_plots import writers as picture_writers
 
-            writers.update(picture_writers([result], agvs))
+            if available():
+                writers.update(picture_writers([result], agvs))
+            else:
+                from .gap_stats import _no_pictures
+
+                _no_pictures()
     write_set(out, writers, meta={"mode": report.get("mode")})
     return out
 

@@ -25,7 +25,7 @@ import numpy as np
 
 from .gap_open import PARTS
 
-__all__ = ["COLOURS", "SIZES", "writers", "time_space", "lost_by_cause", "gap_hist",
+__all__ = ["COLOURS", "SIZES", "available", "writers", "time_space", "lost_by_cause", "gap_hist",
            "wait_heat"]
 
 DPI = 100
@@ -40,6 +40,13 @@ COLOURS = {
     "freeze_recovery": "#bcbd22", "dwell_overrun": "#17becf", "faster_than_plan": "#2ca02c",
     "plan_waits_skipped": "#98df8a",
 }
+
+
+def available() -> bool:
+    """Whether matplotlib is installed (``pip install warerover-phys[report]``)."""
+    import importlib.util
+
+    return importlib.util.find_spec("matplotlib") is not None
 
 
 def _plt():

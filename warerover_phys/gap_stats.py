@@ -218,9 +218,19 @@ def write_outputs(out_dir: str | Path, *, header: dict, results: list[dict],
         if pictures and results:
             from . import gap_plots
 
-            writers.update(gap_plots.writers(results, picture_agvs))
+            if gap_plots.available():
+                writers.update(gap_plots.writers(results, picture_agvs))
+            else:
+                _no_pictures()
     return write_set(out_dir, writers, meta={"mode": header.get("mode"),
                                              "scenario": header.get("scenario")})
+
+
+def _no_pictures() -> None:
+    from .console import err_console
+
+    err_console.print("pictures skipped: matplotlib is not installed (pip install "
+                      "'warerover-phys[report]')", markup=False, highlight=False)
 
 
 def _finite(obj: Any) -> Any:
