@@ -1,8 +1,9 @@
 """The ``warerover`` command line.
 
 ``warerover run SCENARIO`` runs one episode and writes ``metrics.json``, ``events.jsonl`` and
-``paths.json`` (and ``trajectories.npz`` on physics); ``warerover gap SCENARIO`` runs it on
-both executors and reports the sim-to-real gap; ``warerover check SCENARIO`` only loads and
+``paths.json`` (and ``trajectories.npz`` on physics); ``warerover gap SCENARIO`` executes the
+ideal grid run's plan unchanged on physics and reports the sim-to-real gap (``--mode
+closed``: two closed-loop episodes); ``warerover check SCENARIO`` only loads and
 checks a scenario; ``warerover render TRAJECTORY_FILE --out PATH`` re-renders a recorded run
 to MP4 or PNG (``run --video PATH`` renders right after the run). Bad input
 prints one line naming the file, field and value, and exits with code 2.
@@ -297,75 +298,54 @@ def render(trajectory: Annotated[Path, typer.Argument(
 
 
 @app.command()
-def gap(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
+def gap(scenario: Annotated[Path, typer.Argument(
+            help="Scenario YAML file (with --plan: the floor, a MovingAI .map, a layout or a "
+                 "scenario YAML).")],
+        mode: Annotated[str, typer.Option(
+            help="open: the ideal (grid) run's plan executed unchanged on physics; closed: "
+                 "two closed-loop episodes, one per executor.")] = "open",
         seed: SeedOpt = None,
+        seeds: Annotated[str | None, typer.Option(
+            help="Many seeds, run in parallel: 0..99, 3,5,8 or 0..4,10.")] = None,
+        workers: Annotated[int | None, typer.Option(
+            help="Worker processes for --seeds (default: 2, at most the CPUs).")] = None,
         out: Annotated[Path | None, typer.Option(
-            help="Where to write gap.json (default: runs/NAME-seedN-gap.json).")] = None,
+            help="Output folder (default: runs/NAME-seedN-gap or runs/NAME-seeds-gap); a "
+                 "path ending in .json writes only the report there (one seed).")] = None,
         json_out: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+        plan: Annotated[Path | None, typer.Option(
+            "--plan", help="Execute this MAPF plan file (any format of `warerover execute`) "
+                           "instead of a grid run; SCENARIO is then the floor.")] = None,
+        fmt: Annotated[str | None, typer.Option(
+            "--format", help="Force the plan format (as `warerover execute`).")] = None,
+        yx: Annotated[bool, typer.Option(
+            "--yx/--xy", help="Timed points: (row,col,t) instead of (x,y,t).")] = False,
+        fleet: Annotated[Path | None, typer.Option(
+            help="--plan: AGV types (YAML, as `warerover execute`).")] = None,
+        delays: Annotated[str | None, typer.Option(
+            help="--plan: random delays MODEL:PROB[:MIN:MAX] ticks.")] = None,
+        tick_s: Annotated[float, typer.Option(help="--plan: seconds per plan timestep.")
+                          ] = 1.0,
+        dt_s: Annotated[float, typer.Option(help="--plan: physics step (seconds).")] = 0.02,
+        agvs: Annotated[str | None, typer.Option(
+            help="AGVs drawn in time_space.png, e.g. 0,3,5 (default: the three that lose "
+                 "the most time).")] = None,
+        pictures: Annotated[bool, typer.Option(
+            "--pictures/--no-pictures", help="Write the PNG pictures (open loop).")] = True,
+        quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
         set_: SetOpt = None, scheduler: SchedOpt = None, planner: PlanOpt = None,
         orders: OrdersOpt = None) -> None:
-    """Run a scenario on the grid and on the physics executor (same seed) and report the
-    sim-to-real gap."""
-    import os
+    """The sim-to-real gap. Open loop (default): the plan of the ideal grid run (or --plan
+    FILE) executed unchanged on physics, compared action by action, lost time split into
+    causes per AGV. --mode closed: two closed-loop episodes compared. --seeds runs many
+    seeds in parallel and reports their distribution."""
+    from .gap_cli import run_gap
 
-    from .gap import gap_report
-
-    try:
-        sc = _scenario(scenario, set_, seed, scheduler, planner, None, orders)
-        report = gap_report(sc)
-        path = out or Path("runs") / f"{sc.name}-seed{sc.seed}-gap.json"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".tmp")
-        tmp.write_text(json.dumps(report, indent=2, sort_keys=True) + "\n", encoding="utf-8")
-        os.replace(tmp, path)
-    except ScenarioError as err:
-        _fail(err.with_file(str(scenario)))
-    except WareroverError as err:
-        _fail(err)
-    except OSError as err:
-        _fail(WareroverError(f"{getattr(err, 'filename', '') or ''}: {err.strerror or err}"))
-    if json_out:
-        typer.echo(json.dumps({k: v for k, v in report.items() if k not in ("grid", "physics")},
-                              indent=2, sort_keys=True))
-        return
-    g, p = report["grid"], report["physics"]
-
-    def f(x, spec=".3f"):
-        return "-" if x is None else format(x, spec)
-
-
-    table = Table(title=f"sim-to-real gap: {sc.name}  seed {sc.seed}  {sc.scheduler.name} + "
-                        f"{sc.planner.name}", show_header=True)
-    for col, just in (("figure", "left"), ("grid", "right"), ("physics", "right"),
-                      ("physics / grid", "right")):
-        table.add_column(col, justify=just)
-    table.add_row(escape("makespan (ticks) [makespan_ratio]"), str(g["ticks"]), str(p["ticks"]),
-                  f(report["makespan_ratio"]))
-    table.add_row(escape("throughput (orders/tick) [tp_ratio]"), f(g["throughput"]),
-                  f(p["throughput"]), f(report["tp_ratio"]))
-    table.add_row(escape("order latency mean (ticks) [latency_ratio]"),
-                  f(g["order_latency_mean_ticks"], ".1f"), f(p["order_latency_mean_ticks"], ".1f"),
-                  f(report["latency_ratio"]))
-    table.add_row("success rate", f(g["success_rate"]), f(p["success_rate"]), "")
-    table.add_row(escape("replans [replans = physics - grid]"), str(g["replans"]), str(p["replans"]),
-                  str(report["replans"]))
-    for label, key in (("delay: dependency waits (s)", "delay_dependency_wait_s"),
-                       ("delay: kinematic lag incl. turns (s)", "delay_kinematic_s"),
-                       ("  of which turns (s)", "delay_turns_s"),
-                       ("delay: injected (s)", "delay_injected_s"),
-                       ("AGV-AGV contacts [agv_contacts]", "agv_contacts"),
-                       ("AGV-static contacts [static_contacts]", "static_contacts"),
-                       ("min clearance, edge to edge (m) [min_clearance_m]",
-                        "min_clearance_m"),
-                       ("limit violations [limit_violations]", "limit_violations"),
-                       ("deadlocks", "deadlocks"),
-                       ("real-time factor [real_time_factor]", "real_time_factor")):
-        v = p.get(key)
-        label = label if "[" in label else f"{label} [{key}]"
-        table.add_row(escape(label), "", f(v, ".2f") if isinstance(v, float) else str(v), "")
-    console = Console()
-    console.print(table)
-    console.print(f"wrote {path}", markup=False)
+    run_gap(scenario=scenario, mode=mode, seed=seed, seeds=seeds, workers=workers, out=out,
+            json_out=json_out, plan=plan, fmt=fmt, yx=yx, fleet=fleet, delays=delays,
+            tick_s=tick_s, dt_s=dt_s, agvs=agvs, pictures=pictures, quiet=quiet,
+            overrides=lambda: _scenario(scenario, set_, seed, scheduler, planner, None,
+                                        orders))
 
 
 @app.command()

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .bodies import AGV, OBSTACLE, SHELF, SHELF_SIDE
+from .causes import CauseRecorder
 from .fleet_state import DRIVE, HOLD, TURN, FleetState
 from .measured import ClearanceMonitor, LimitMonitor
 from .recording import TrajectoryStore
@@ -85,6 +86,8 @@ class Accounting:
         # trajectories
         self._traj_every = max(1, round(1.0 / (trajectory_hz * st.dt)))
         self._traj = TrajectoryStore(n)
+        self.causes = CauseRecorder(st, adg)
+        """Per-step labels of every AGV's time, per action (:mod:`.causes`)."""
         self._install_handlers()
 
     def _install_handlers(self) -> None:
@@ -146,9 +149,11 @@ class Accounting:
         self._act_start[i] = t
         self._act_planned[i] = a.ticks * self.st.tick_s
         self._act_injected[i] = 0.0
+        self.causes.action_begun(i, a)
 
     def action_done(self, i: int, t: float) -> None:
         self.actions_done += 1
+        self.causes.action_done(i)
         self.kin_lag.append(t - self._act_start[i] - self._act_injected[i] - self._act_planned[i])
 
     # ------------------------------------------------------------------------- per step
@@ -167,6 +172,7 @@ class Accounting:
         self.turn_time += (st.mode == TURN) * st.dt
         self._active += int(np.count_nonzero(st.mode != HOLD))
         self._act_injected += (injected & (st.mode == DRIVE)) * st.dt
+        self.causes.step(injected)
         self._swept_check(raw)
         if self._corridor_keys:
             self._check_corridors(raw, raw_ang)

@@ -76,6 +76,13 @@ class TickView:
     """Each AGV's task state (``world.AgvState`` values; 7 = failed), for recordings."""
     corridors: Mapping[int, Any] = field(default_factory=dict)
     """Open safety corridors by id (``faults.corridors.Corridor``)."""
+    dwells: Mapping[int, tuple[tuple[int, int], ...]] = field(default_factory=dict)
+    """Work in place in the committed paths (open-loop execution of a recorded plan; the
+    loop leaves it empty because its world holds AGVs while they work): per AGV,
+    ``(tick, ticks)`` intervals during which its path stands still to pick, hand over,
+    place or park. An executor that skips a plan's waits (physics, through the dependency
+    graph) must still keep the AGV standing there for ``ticks`` ticks from its arrival
+    before its next move; one that follows the ticks (grid) needs nothing more."""
     goals: tuple[int | None, ...] = ()
     """Each AGV's current goal anchor (None while it works in place or is down; a yield
     spot while it makes way), for the freeze detector (``freeze``); empty: unknown."""

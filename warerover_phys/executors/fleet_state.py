@@ -77,6 +77,8 @@ class FleetState:
     listening: np.ndarray = field(init=False)
     """Its next action's cells are free but the message saying so has not arrived yet
     (``executor.comm_latency_s``; at the last decision)."""
+    hold_until: np.ndarray = field(init=False)
+    """Simulated time until which a planned dwell (``TickView.dwells``) holds the AGV."""
 
     def __post_init__(self) -> None:
         n = self.n
@@ -96,6 +98,7 @@ class FleetState:
         self.pending = np.zeros(n, dtype=bool)
         self.last_finish = np.zeros(n)
         self.listening = np.zeros(n, dtype=bool)
+        self.hold_until = np.zeros(n)
 
     @property
     def n(self) -> int:

@@ -63,6 +63,9 @@ class PlanFollower:
         self._cycles_seen: set[frozenset[int]] = set()
         self._asleep = np.zeros(st.n, dtype=bool)
         """AGVs waiting on the dependency graph that need no decision until woken."""
+        self._holds: dict[int, dict[int, int]] = {}
+        """Planned dwells (``TickView.dwells``): AGV -> action seq -> ticks it must stand
+        before that action (from its arrival at the action's start cell)."""
         freeze_s = getattr(spec, "freeze_s", 0.0)
         self.freezes: FreezeDetector | None = FreezeDetector(
             st.n, st.cols, max(1, math.ceil(freeze_s / st.tick_s - 1e-9))) if freeze_s > 0 else None
@@ -85,6 +88,29 @@ class PlanFollower:
                 continue  # a plan to stay where it will stop anyway: nothing changes
             self.adg.set_plan(i, cut)
             self.st.has_next[i] = self.adg.next_action(i) is not None
+            self._set_holds(i, view.dwells.get(i, ()))
+
+    def _set_holds(self, i: int, dwells: tuple[tuple[int, int], ...]) -> None:
+        """Map the dwells ``(tick, ticks)`` of AGV ``i``'s new plan to the actions they hold
+        back: the first action that starts at or after the dwell's first tick. A dwell the
+        AGV already stands in (before its next action) holds from its last arrival."""
+        holds: dict[int, int] = {}
+        if dwells:
+            acts = self.adg.upcoming(i)
+            j = 0
+            for tick, ticks in sorted(dwells):
+                while j < len(acts) and acts[j].tick < tick:
+                    j += 1
+                if j == len(acts):
+                    break
+                holds[acts[j].seq] = holds.get(acts[j].seq, 0) + int(ticks)
+        if holds or i in self._holds:
+            self._holds[i] = holds
+        nxt = self.adg.next_action(i)
+        if nxt is not None and self.adg.current(i) is None and nxt.seq in holds:
+            st = self.st
+            st.hold_until[i] = max(st.hold_until[i],
+                                   st.last_finish[i] + holds[nxt.seq] * st.tick_s)
 
     def _cut(self, i: int, path: TimedPath) -> TimedPath:
         """The part of ``path`` from where the AGV will stand after its current action."""
@@ -206,6 +232,8 @@ class PlanFollower:
                 else:
                     st.mode[i] = HOLD
                 return
+        if t + 1e-9 < st.hold_until[i]:
+            return  # a planned dwell (pick, hand-over, place, parking) is not over
         if delayed:
             return
         if self.spec.adg:
@@ -256,9 +284,10 @@ class PlanFollower:
         else:
             limit = (st.sim_s / st.tick_s) + 1
             ahead = [a for a in self.adg.upcoming(i, LOOKAHEAD) if a.tick <= limit]
+        holds = self._holds.get(i, {})
         for a in ahead:
-            if a.direction != cur.direction:
-                break
+            if a.direction != cur.direction or a.seq in holds:
+                break  # a turn, or a planned dwell before this action: stop here
             run += 1
         if self.spec.adg and run:
             # Committed: no later plan may put another AGV ahead of it on these cells.
@@ -271,6 +300,9 @@ class PlanFollower:
         st.last_finish[i] = t
         self.acc.action_done(i, t)
         nxt = self.adg.next_action(i)
+        hold = self._holds.get(i, {}).get(nxt.seq) if nxt is not None else None
+        if hold:
+            st.hold_until[i] = t + hold * st.tick_s
         if nxt is not None and nxt.direction == done.direction and not st.failed[i] and \
                 st.stop_s[i] > st.cur_end[i] + ARRIVE_EPS_M:
             a = self.adg.start(i) if self.spec.adg and self.adg.ready(i) else (

@@ -250,6 +250,11 @@ class PhysicsExecutor:
         })
         return out
 
+    def cause_log(self):
+        """Every finished action with the labelled physics steps of its interval
+        (:class:`~.causes.CauseLog`), for the open-loop gap's split of lost time."""
+        return self.acc.causes.log() if self._bound else None
+
     def trajectory(self) -> dict[str, np.ndarray] | None:
         """Recorded poses: ``t`` (T,), ``x``, ``y``, ``heading`` (T, N), ``state`` (task
         state, 7 = failed) and ``loaded`` (T, N), and what a renderer needs to draw them:

@@ -38,7 +38,8 @@ from .lock import sweep_lock
 from .results import RESULTS_NAME, ResultsFile
 from .spec import Episode, SweepSpec, compile_scenarios, expand
 
-__all__ = ["Task", "SweepSummary", "run_task", "run_sweep", "plan_sweep", "SPEC_NAME"]
+__all__ = ["Task", "SweepSummary", "run_task", "run_sweep", "plan_sweep", "pool_map",
+           "SPEC_NAME"]
 
 log = logging.getLogger(__name__)
 
@@ -313,6 +314,52 @@ def _run_pool(tasks: Iterable[Task], workers: int,
                 inflight.clear()
                 _kill_pool(pool)
                 log.warning("a worker process died; restarting the pool")
+                pool = _new_pool(workers)
+    finally:
+        _kill_pool(pool)
+
+
+def pool_map(fn: Callable[[Any], Any], items: Iterable[Any], workers: int,
+             ) -> Iterator[tuple[Any, Any, BaseException | None]]:
+    """Run ``fn(item)`` for every item in the sweep's process pool (``workers`` processes,
+    spawned, leaving Ctrl-C to the parent and exiting with it) and yield ``(item, result,
+    error)`` as each finishes; ``workers <= 1`` runs them here, one by one. A worker that
+    dies fails its item (``BrokenProcessPool``) and the pool is rebuilt for the rest.
+    ``fn`` must be a module-level function (it is pickled by name)."""
+    todo = deque(items)
+    if workers <= 1:
+        for item in todo:
+            try:
+                yield item, fn(item), None
+            except Exception as err:  # noqa: BLE001 - handed to the caller
+                yield item, None, err
+        return
+    pool = _new_pool(workers)
+    inflight: dict[Future, Any] = {}
+    try:
+        while todo or inflight:
+            while todo and len(inflight) < 2 * workers:
+                item = todo.popleft()
+                try:
+                    inflight[pool.submit(fn, item)] = item
+                except BrokenProcessPool:
+                    todo.appendleft(item)
+                    break
+            done, _ = wait(list(inflight), return_when=FIRST_COMPLETED)
+            broken = False
+            for fut in done:
+                item = inflight.pop(fut)
+                err = fut.exception()
+                if isinstance(err, KeyboardInterrupt):
+                    raise KeyboardInterrupt
+                broken |= isinstance(err, BrokenProcessPool)
+                yield item, (fut.result() if err is None else None), err
+            if broken:
+                for fut, item in list(inflight.items()):
+                    err = fut.exception() if fut.done() else BrokenProcessPool("pool rebuilt")
+                    yield item, (fut.result() if err is None else None), err
+                inflight.clear()
+                _kill_pool(pool)
                 pool = _new_pool(workers)
     finally:
         _kill_pool(pool)

@@ -1,0 +1,182 @@
+"""Where each AGV's time goes: one label per AGV per physics step, summed per action.
+
+The physics executor calls :class:`CauseRecorder` from its accounting: once per physics step
+(:meth:`CauseRecorder.step`, after the follower has decided) and when an action begins or
+finishes. Every step of every AGV gets exactly one label, by priority:
+
+=============  =====================================================================
+``dwell``      a planned dwell holds it (``TickView.dwells``: pick, hand-over, place,
+               parking)
+``failed``     it is down (a failure)
+``injected``   an injected random delay holds it (``executor.delays``)
+``drive``      it drives an action (accelerating, cruising or braking)
+``turn``       it turns in place towards its next move
+``dependency`` its next action waits on the dependency graph (another AGV's visit is
+               ahead of its own at a cell it must enter; that AGV is its *blocker*)
+``control``    it stands with a released next action that has not started yet (the
+               follower decides every ``DECIDE_EVERY`` steps, and a body settles on its
+               cell centre before a turn)
+=============  =====================================================================
+
+The steps between the finish of an AGV's previous action (or step 0) and the finish of an
+action are that action's *interval*; :meth:`CauseRecorder.log` returns, per finished
+action, its planned start tick and duration, the steps at which it started and finished and
+the label counts of its interval, which add up to the interval's length exactly. Dependency
+waits are also counted per blocker. :mod:`warerover_phys.gap_open` credits the plan's
+durations against these counts to split lost time into causes.
+
+Costs a few vectorised numpy operations per physics step; an AGV's blocker is looked up when
+it starts to wait and then every ``refresh`` steps (one tick at the default step) while it
+waits, so a blocker that changes mid-wait is credited from the next look-up.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .fleet_state import DRIVE, HOLD, TURN
+
+if TYPE_CHECKING:
+    from .adg import Action, ActionGraph
+    from .fleet_state import FleetState
+
+__all__ = ["LABELS", "DWELL", "FAILED", "INJECTED", "DRIVE_L", "TURN_L", "DEPENDENCY",
+           "CONTROL", "CauseLog", "CauseRecorder"]
+
+LABELS = ("dwell", "failed", "injected", "drive", "turn", "dependency", "control")
+"""Step labels, in priority order (index = label code)."""
+DWELL, FAILED, INJECTED, DRIVE_L, TURN_L, DEPENDENCY, CONTROL = range(len(LABELS))
+
+
+@dataclass(frozen=True)
+class CauseLog:
+    """Every finished action with the labelled steps of its interval (arrays of length M,
+    in finishing order), and dependency waits per blocker."""
+
+    dt_s: float
+    """Seconds per physics step."""
+    steps_per_tick: int
+    steps: int
+    """Physics steps run."""
+    agv: np.ndarray
+    seq: np.ndarray
+    """The action's sequence number (per AGV, from 0 in the order of its plan)."""
+    src: np.ndarray
+    dst: np.ndarray
+    """Anchor nodes (``row * cols + col``) it leaves and enters."""
+    tick: np.ndarray
+    """Planned start tick (the last tick it stands at ``src``)."""
+    ticks: np.ndarray
+    """Planned duration in ticks."""
+    start_step: np.ndarray
+    finish_step: np.ndarray
+    """Physics step at which it started / finished (time = step x ``dt_s``)."""
+    counts: np.ndarray
+    """(M, len(LABELS)) steps of each label in the action's interval (from the AGV's
+    previous finish, or step 0, to this finish)."""
+    blockers: dict[tuple[int, int], int]
+    """``(agv, blocker) -> steps`` the AGV waited on a dependency held up by ``blocker``
+    (blocker -1: none found at the look-up)."""
+
+
+class CauseRecorder:
+    """Labels every AGV's physics steps (see the module docstring)."""
+
+    def __init__(self, st: FleetState, adg: ActionGraph, refresh: int = 50) -> None:
+        n = st.n
+        self.st, self.adg, self.refresh = st, adg, refresh
+        self._was_waiting = np.zeros(n, dtype=bool)
+        self.step_no = 0
+        self._cur = np.zeros((n, len(LABELS)), dtype=np.int64)
+        self._rows = np.arange(n)
+        self._begun: dict[int, tuple[Action, int]] = {}
+        self._done: list[tuple] = []
+        self._blocker = np.full(n, -1, dtype=np.int64)
+        self._wait_run = np.zeros(n, dtype=np.int64)
+        self.blockers: dict[tuple[int, int], int] = {}
+
+    # ------------------------------------------------------------------------- hooks
+
+    def action_begun(self, i: int, a: Action) -> None:
+        self._begun[i] = (a, self.step_no)
+
+    def action_done(self, i: int) -> None:
+        got = self._begun.pop(i, None)
+        if got is None:
+            return
+        a, start = got
+        self._flush_wait(i)
+        self._done.append((i, a.seq, a.src, a.dst, a.tick, a.ticks, start, self.step_no,
+                           self._cur[i].copy()))
+        self._cur[i] = 0
+
+    def step(self, injected: np.ndarray) -> None:
+        """Label the physics step that has just run (modes as the follower left them)."""
+        st = self.st
+        t = st.sim_s - st.dt  # the step's start time: what the follower decided on
+        lab = np.full(st.n, CONTROL, dtype=np.int64)
+        lab[st.waiting] = DEPENDENCY
+        lab[st.mode == TURN] = TURN_L
+        lab[st.mode == DRIVE] = DRIVE_L
+        lab[injected & ((st.mode != HOLD) | st.has_next)] = INJECTED
+        lab[st.failed] = FAILED
+        lab[st.hold_until > t + 1e-9] = DWELL
+        self._cur[self._rows, lab] += 1
+        waiting = lab == DEPENDENCY
+        if waiting.any():
+            # Look the blocker up when an AGV starts to wait, then every ``refresh`` steps
+            # while it waits (a look-up reads the cell's queue: too dear for every step).
+            look = waiting & ~self._was_waiting if self.step_no % self.refresh else waiting
+            for i in np.flatnonzero(look):
+                b = self._find_blocker(int(i))
+                if b != self._blocker[i]:
+                    self._flush_wait(int(i))
+                    self._blocker[i] = b
+            self._wait_run[waiting] += 1
+        self._was_waiting = waiting
+        self.step_no += 1
+
+    # ------------------------------------------------------------------------- helpers
+
+    def _find_blocker(self, i: int) -> int:
+        """The AGV whose visit is ahead of ``i``'s at the first cell its next action enters
+        (the one it waits for); -1 if none."""
+        adg = self.adg
+        nxt = adg.next_action(i)
+        if nxt is None:
+            return -1
+        for c in nxt.enters:
+            h = adg.holder(c)
+            if h is not None and h != i:
+                return h
+            q = adg.visits(c)
+            if q and q[0].agv != i:
+                return q[0].agv
+        return -1
+
+    def _flush_wait(self, i: int) -> None:
+        run = int(self._wait_run[i])
+        if run:
+            key = (i, int(self._blocker[i]))
+            self.blockers[key] = self.blockers.get(key, 0) + run
+            self._wait_run[i] = 0
+
+    def log(self) -> CauseLog:
+        """The finished actions so far (see :class:`CauseLog`)."""
+        for i in np.flatnonzero(self._wait_run):
+            self._flush_wait(int(i))
+        rows = self._done
+        cols = list(zip(*rows, strict=True)) if rows else [()] * 9
+
+        def arr(k: int) -> np.ndarray:
+            return np.asarray(cols[k], dtype=np.int64)
+
+        counts = np.stack(cols[8]) if rows else np.zeros((0, len(LABELS)), dtype=np.int64)
+        st = self.st
+        return CauseLog(dt_s=float(st.dt), steps_per_tick=int(round(st.tick_s / st.dt)),
+                        steps=self.step_no, agv=arr(0), seq=arr(1), src=arr(2), dst=arr(3),
+                        tick=arr(4), ticks=arr(5), start_step=arr(6), finish_step=arr(7),
+                        counts=counts, blockers=dict(self.blockers))

@@ -1,0 +1,361 @@
+"""The ``warerover gap`` command: one seed, many seeds, or an imported plan; tables,
+JSON and the output folder. Bad input prints one line and exits with code 2."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
+
+from .console import err_console
+from .console import fail as _fail
+from .errors import ScenarioError, WareroverError
+
+__all__ = ["run_gap"]
+
+MODE_LABEL = {"open": "open-loop", "closed": "closed-loop"}
+
+
+def _f(x: Any, spec: str = ".3f") -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    return format(x, spec) if isinstance(x, float) else str(x)
+
+
+def _parse_agvs(text: str | None) -> list[int] | None:
+    if not text:
+        return None
+    try:
+        out = [int(p) for p in text.split(",") if p.strip()]
+    except ValueError:
+        raise ScenarioError("expected AGV ids like 0,3,5", field="--agvs", value=text) from None
+    if any(i < 0 for i in out):
+        raise ScenarioError("AGV ids are >= 0", field="--agvs", value=text)
+    return out or None
+
+
+def run_gap(*, scenario: Path, mode: str, seed: int | None, seeds: str | None,
+            workers: int | None, out: Path | None, json_out: bool, plan: Path | None,
+            fmt: str | None, yx: bool, fleet: Path | None, delays: str | None,
+            tick_s: float, dt_s: float, agvs: str | None, pictures: bool, quiet: bool,
+            overrides: Callable[[], Any]) -> None:
+    """See ``warerover gap --help``."""
+    try:
+        if mode not in MODE_LABEL:
+            raise WareroverError(f"--mode must be open or closed (got {mode!r})")
+        picked = _parse_agvs(agvs)
+        if plan is not None:
+            if mode != "open" or seeds:
+                raise WareroverError("--plan runs one open-loop execution: it takes neither "
+                                     "--mode closed nor --seeds")
+            return _plan_gap(scenario, plan, fmt, yx, fleet, delays, tick_s, dt_s, seed or 0,
+                             out, json_out, picked, pictures, quiet)
+        sc = overrides()
+        if seeds is not None:
+            from .gap_stats import parse_seeds
+
+            return _many(sc, parse_seeds(seeds), mode, workers, out, json_out, picked,
+                         pictures, quiet)
+        return _one(sc, mode, out, json_out, picked, pictures, quiet)
+    except ScenarioError as err:
+        _fail(err.with_file(str(scenario)) if plan is None else err)
+    except WareroverError as err:
+        _fail(err)
+    except OSError as err:
+        _fail(WareroverError(f"{getattr(err, 'filename', '') or ''}: {err.strerror or err}"))
+
+
+# ----------------------------------------------------------------------------- one seed
+
+def _bar(show: bool):
+    """A rich progress bar on stderr (or a do-nothing stand-in), and its update callback."""
+    if not show:
+        import contextlib
+
+        return contextlib.nullcontext(), None
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    bar = Progress(TextColumn("{task.description}"), BarColumn(),
+                   TextColumn("{task.fields[info]}"), TimeElapsedColumn(),
+                   console=err_console, transient=True)
+    tasks: dict[str, Any] = {}
+
+    def update(phase: str, done: int, total: int) -> None:
+        if phase not in tasks:
+            tasks[phase] = bar.add_task(phase, total=total or None, info="")
+        info = f"tick {done}" + (f" (plan {total})" if total else "")
+        bar.update(tasks[phase], completed=done, total=total or None, info=info)
+
+    return bar, update
+
+
+def _one(sc, mode: str, out: Path | None, json_out: bool, agvs: list[int] | None,
+         pictures: bool, quiet: bool) -> None:
+    from .gap import closed_loop_report, open_loop_gap
+
+    show = not quiet and not json_out and err_console.is_terminal
+    bar, update = _bar(show)
+    with bar:
+        if mode == "closed":
+            report, result = closed_loop_report(sc), None
+        else:
+            g = open_loop_gap(sc, progress=update)
+            report, result = g.report, _result(g, sc.seed)
+    default = Path("runs") / f"{sc.name}-seed{sc.seed}-gap"
+    written = _write_one(out or default, report, result, agvs, pictures)
+    if json_out:
+        print(json.dumps(_finite({k: v for k, v in report.items()
+                                  if k not in ("grid", "physics")}), indent=2, sort_keys=True))
+        return
+    console = Console()
+    if mode == "closed":
+        _closed_table(console, sc, report)
+    else:
+        _open_table(console, f"open-loop gap: {sc.name}  seed {sc.seed}  "
+                             f"{sc.scheduler.name} + {sc.planner.name}", report)
+    console.print(f"wrote {written}", markup=False)
+
+
+def _result(g, seed: int) -> dict:
+    """An open-loop gap as the per-seed result of :func:`.gap_stats.seed_gap`."""
+    from .gap_stats import _flat, wait_map
+
+    plan = g.run.plan
+    fp = [t.footprint for t in plan.types]
+    return {"seed": seed, "report": _flat(g.report), "agents": g.agents, "actions": g.actions,
+            "footprints": fp,
+            "wait_map": wait_map(g.actions, fp, plan.layout.rows, plan.layout.cols),
+            "grid": plan.layout.grid}
+
+
+def _write_one(out: Path, report: dict, result: dict | None, agvs: list[int] | None,
+               pictures: bool) -> Path:
+    """``gap.json`` (+ ``agents.csv``, ``actions.csv`` and the pictures in open loop) into
+    the folder ``out`` as one set, or the report alone to ``out`` if it ends in .json."""
+    text = json.dumps(_finite(report), indent=2, sort_keys=True, default=float) + "\n"
+    if out.suffix == ".json":
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = out.with_name(out.name + ".tmp")
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, out)
+        return out
+    from .atomic import write_set
+    from .gap_stats import _csv
+
+    writers: dict[str, Callable[[Path], Any]] = {
+        "gap.json": lambda p: p.write_text(text, encoding="utf-8")}
+    if result is not None:
+        agents = [{k: v for k, v in a.items() if k != "top_blockers"}
+                  | {"top_blockers": json.dumps(a["top_blockers"])} for a in result["agents"]]
+        writers["agents.csv"] = lambda p: p.write_text(_csv(agents), encoding="utf-8")
+        writers["actions.csv"] = lambda p: p.write_text(_csv(result["actions"]),
+                                                        encoding="utf-8")
+        if pictures:
+            from .gap_plots import available
+            from .gap_plots import writers as picture_writers
+
+            if available():
+                writers.update(picture_writers([result], agvs))
+            else:
+                from .gap_stats import _no_pictures
+
+                _no_pictures()
+    write_set(out, writers, meta={"mode": report.get("mode")})
+    return out
+
+
+def _finite(obj: Any) -> Any:
+    from .gap_stats import _finite as fin
+
+    return fin(obj)
+
+
+# ----------------------------------------------------------------------------- tables
+
+PART_LABELS = {
+    "dependency": "waiting on a dependency", "accel_decel": "acceleration / deceleration",
+    "turning": "turning", "control": "control latency (decide, settle)",
+    "injected": "injected delays", "failures": "failures / corridors",
+    "freeze_recovery": "recovery from freezes", "dwell_overrun": "dwell overrun",
+    "faster_than_plan": "faster than the plan (gain)",
+    "plan_waits_skipped": "plan waits skipped (gain)"}
+
+
+def _open_table(console: Console, title: str, r: dict) -> None:
+    from .gap_open import PARTS
+
+    t = Table(title=title, show_header=True)
+    for col, just in (("figure", "left"), ("planned", "right"), ("executed", "right"),
+                      ("executed / planned", "right")):
+        t.add_column(col, justify=just)
+    t.add_row(escape("makespan (s) [makespan_ratio]"), _f(r["planned_makespan_s"], ".1f"),
+              _f(r["executed_makespan_s"], ".2f"), _f(r["makespan_ratio"]))
+    t.add_row(escape("sum of costs (s) [sum_of_costs_ratio]"),
+              _f(r["planned_sum_of_costs_s"], ".1f"), _f(r["executed_sum_of_costs_s"], ".2f"),
+              _f(r["sum_of_costs_ratio"]))
+    if "orders_makespan_ratio" in r:
+        t.add_row(escape("all orders done (s) [orders_makespan_ratio]"),
+                  _f(r["planned_orders_makespan_s"], ".1f"),
+                  _f(r["executed_orders_makespan_s"], ".2f"), _f(r["orders_makespan_ratio"]))
+        t.add_row(escape("throughput [tp_ratio]"), "", "", _f(r.get("tp_ratio")))
+        t.add_row(escape("order latency [latency_ratio]"), "", "", _f(r.get("latency_ratio")))
+    console.print(t)
+    c = Table(title=f"lost time (executed - planned finish), {r['agents']} AGVs",
+              show_header=True)
+    for col in ("cause", "fleet total (s)", "per AGV mean (s)"):
+        c.add_column(col, justify="left" if col == "cause" else "right")
+    c.add_row(escape("total [lost_s]"), _f(r["lost_s_fleet_total"], ".2f"),
+              _f(r["lost_s_per_agv_mean"], ".2f"))
+    for p in PARTS:
+        c.add_row(escape(f"  {PART_LABELS[p]} [lost_{p}_s]"),
+                  _f(r[f"lost_{p}_s_fleet_total"], ".2f"),
+                  _f(r[f"lost_{p}_s_per_agv_mean"], ".2f"))
+    console.print(c)
+    console.print(f"actions late: {r['actions_late']} of {r['actions']}; contacts AGV-AGV "
+                  f"{r.get('agv_contacts')}, AGV-static {r.get('static_contacts')}; min "
+                  f"separation {_f(r.get('min_separation_m'))} m; deadlocks "
+                  f"{r.get('deadlocks')}; real-time factor {_f(r.get('real_time_factor'), '.1f')}",
+                  markup=False)
+
+
+def _closed_table(console: Console, sc, report: dict) -> None:
+    g, p = report["grid"], report["physics"]
+    table = Table(title=f"closed-loop gap: {sc.name}  seed {sc.seed}  {sc.scheduler.name} + "
+                        f"{sc.planner.name}", show_header=True)
+    for col, just in (("figure", "left"), ("grid", "right"), ("physics", "right"),
+                      ("physics / grid", "right")):
+        table.add_column(col, justify=just)
+    table.add_row(escape("makespan (ticks) [makespan_ratio]"), str(g["ticks"]), str(p["ticks"]),
+                  _f(report["makespan_ratio"]))
+    table.add_row(escape("throughput (orders/tick) [tp_ratio]"), _f(g["throughput"]),
+                  _f(p["throughput"]), _f(report["tp_ratio"]))
+    table.add_row(escape("order latency mean (ticks) [latency_ratio]"),
+                  _f(g["order_latency_mean_ticks"], ".1f"),
+                  _f(p["order_latency_mean_ticks"], ".1f"), _f(report["latency_ratio"]))
+    table.add_row("success rate", _f(g["success_rate"]), _f(p["success_rate"]), "")
+    table.add_row(escape("replans [replans = physics - grid]"), str(g["replans"]),
+                  str(p["replans"]), str(report["replans"]))
+    for label, key in (("delay: dependency waits, fleet total (s)", "delay_dependency_wait_s"),
+                       ("delay: kinematic lag incl. turns, fleet total (s)",
+                        "delay_kinematic_s"),
+                       ("  of which turns, fleet total (s)", "delay_turns_s"),
+                       ("delay: injected, fleet total (s)", "delay_injected_s"),
+                       ("AGV-AGV contacts", "agv_contacts"),
+                       ("AGV-static contacts", "static_contacts"),
+                       ("min separation (m)", "min_separation_m"),
+                       ("deadlocks", "deadlocks"),
+                       ("real-time factor", "real_time_factor")):
+        v = p.get(key)
+        table.add_row(escape(f"{label} [{key}]"), "", _f(v, ".2f"), "")
+    console.print(table)
+
+
+# ----------------------------------------------------------------------------- many seeds
+
+HEADLINE = {
+    "open": ("makespan_ratio", "sum_of_costs_ratio", "orders_makespan_ratio", "tp_ratio",
+             "latency_ratio", "lost_s_per_agv_mean", "lost_dependency_s_per_agv_mean",
+             "lost_accel_decel_s_per_agv_mean", "lost_turning_s_per_agv_mean",
+             "lost_faster_than_plan_s_per_agv_mean", "agv_contacts", "deadlocks"),
+    "closed": ("makespan_ratio", "tp_ratio", "latency_ratio", "replans", "deadlocks",
+               "agv_contacts", "delay_dependency_wait_s_fleet_total",
+               "delay_kinematic_s_fleet_total"),
+}
+
+
+def _many(sc, seeds: list[int], mode: str, workers: int | None, out: Path | None,
+          json_out: bool, agvs: list[int] | None, pictures: bool, quiet: bool) -> None:
+    from .gap_stats import run_seeds, summarise, write_outputs
+
+    if workers is None:
+        workers = min(2, os.cpu_count() or 1)
+    if workers < 1:
+        raise WareroverError(f"--workers must be >= 1 (got {workers})")
+    if out is not None and out.suffix == ".json":
+        raise WareroverError(f"{out}: --seeds writes a folder (summary.json, agents.csv, ...)"
+                             ", not one .json file")
+    show = not quiet and not json_out and err_console.is_terminal
+    if show:
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
+
+        with Progress(TextColumn(f"gap ({MODE_LABEL[mode]}) {sc.name}"), BarColumn(),
+                      MofNCompleteColumn(), TextColumn("seeds"), TimeElapsedColumn(),
+                      TimeRemainingColumn(), console=err_console, transient=True) as bar:
+            task = bar.add_task("seeds", total=len(seeds))
+            results, failed = run_seeds(sc, seeds, mode, workers,
+                                        lambda s, r, e: bar.advance(task))
+    else:
+        results, failed = run_seeds(sc, seeds, mode, workers)
+    for s, e in failed:
+        err_console.print(f"seed {s} failed: {e}", markup=False, highlight=False)
+    if not results:
+        raise WareroverError(f"every seed failed ({len(failed)})")
+    header = {"mode": MODE_LABEL[mode], "scenario": sc.name, "scheduler": sc.scheduler.name,
+              "planner": sc.planner.name, "source": sc.source}
+    folder = out or Path("runs") / f"{sc.name}-seeds-{header['mode']}-gap"
+    write_outputs(folder, header=header, results=results, failed=failed, pictures=pictures,
+                  picture_agvs=agvs)
+    stats = summarise(results)
+    if json_out:
+        print(json.dumps(_finite({**header, "seeds": [r["seed"] for r in results],
+                                  "failed": [s for s, _ in failed], "statistics": stats}),
+                         indent=2, sort_keys=True))
+        return
+    t = Table(title=f"{header['mode']} gap: {sc.name}  {sc.scheduler.name} + {sc.planner.name}"
+                    f"  {len(results)} seeds", show_header=True)
+    for col in ("figure", "mean", "95% CI of the mean", "median", "p95", "max"):
+        t.add_column(col, justify="left" if col == "figure" else "right")
+    for k in HEADLINE[mode]:
+        s = stats.get(k)
+        if not s or not s["n"]:
+            continue
+        t.add_row(escape(k), _f(s["mean"]), f"{_f(s['ci95_low'])} .. {_f(s['ci95_high'])}",
+                  _f(s["median"]), _f(s["p95"]), _f(s["max"]))
+    console = Console()
+    console.print(t)
+    console.print(f"wrote {folder} (summary.json: every figure)", markup=False)
+
+
+# ----------------------------------------------------------------------------- a plan file
+
+def _plan_gap(floor: Path, plan: Path, fmt: str | None, yx: bool, fleet: Path | None,
+              delays: str | None, tick_s: float, dt_s: float, seed: int, out: Path | None,
+              json_out: bool, agvs: list[int] | None, pictures: bool, quiet: bool) -> None:
+    from .gap import plan_gap
+
+    if not (math.isfinite(tick_s) and tick_s > 0):
+        raise WareroverError(f"--tick-s must be a positive number (got {tick_s})")
+    if not (math.isfinite(dt_s) and 0 < dt_s <= tick_s):
+        raise WareroverError(f"--dt-s must be in (0, tick_s] (got {dt_s})")
+    show = not quiet and not json_out and err_console.is_terminal
+    bar, update = _bar(show)
+    with bar:
+        g = plan_gap(floor, plan, fleet=fleet, fmt=fmt, xy=not yx, delays=delays,
+                     tick_s=tick_s, dt_s=dt_s, seed=seed, progress=update)
+    for r in g.report.get("cycle_repairs_detail", []):
+        err_console.print(f"repaired a rotation at timestep {r['timestep']} (agents "
+                          f"{r['agents']})", highlight=False)
+    written = _write_one(out or Path("runs") / f"gap-{plan.stem}", g.report,
+                         _result(g, seed), agvs, pictures)
+    if json_out:
+        print(json.dumps(_finite({k: v for k, v in g.report.items()
+                                  if k not in ("grid", "physics")}), indent=2, sort_keys=True))
+        return
+    console = Console()
+    _open_table(console, f"open-loop gap: plan {plan.name} on {floor.name}  "
+                         f"{g.report['agents']} agents", g.report)
+    console.print(f"wrote {written}", markup=False)

@@ -1,0 +1,274 @@
+"""The plan of the ideal run, as data: what the open-loop gap executes on physics.
+
+:func:`record_grid_run` runs a scenario in the closed loop on the grid executor (scheduler +
+planner, the ideal run) and keeps, per tick, every AGV's executed state, task state and
+cargo. That record is a :class:`TimedPlan`: each AGV's timed path over the whole episode
+(moves and waits, from tick 0) and its *dwells*, the ticks it stands still to work:
+
+- ``pick``, ``handover``, ``place``: ticks it spends in that task state, standing at the
+  shelf or station (``tasks.pick_ticks`` ... of the scenario);
+- ``park``: ticks it stands idle at its home parking cell before its next move (a last
+  parking with no move after it is not a dwell: the AGV has finished).
+
+Every other tick it stands still is a plain *wait* of the plan. An executor that skips a
+plan's waits (physics, through the dependency graph) must still hold every dwell for its
+planned duration: :attr:`TimedPlan.dwell_view` is what the executor is told
+(``TickView.dwells``).
+
+When the last order completes, a 2x2 AGV may be half-way through a two-tick move: the grid
+run is stepped on until every AGV has stood still once, and each path is cut at its first
+standing state from the episode's last tick on, so every path ends standing; the run's
+metrics are those at the end of the episode.
+
+:func:`plan_from_file` makes a :class:`TimedPlan` of an imported MAPF plan (no dwells).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .executors.adg import path_moves
+from .planning.paths import TimedPath
+
+if TYPE_CHECKING:
+    from .config import AgvTypeSpec, Scenario
+    from .layout import Layout
+
+__all__ = ["Dwell", "TimedPlan", "PlannedAction", "record_grid_run", "plan_from_file",
+           "check_executable", "DWELL_KINDS"]
+
+DWELL_KINDS = ("pick", "handover", "place", "park")
+_WORK = {2: "pick", 4: "handover", 6: "place"}  # world.AgvState values
+_IDLE = 0
+
+
+@dataclass(frozen=True)
+class Dwell:
+    """``ticks`` ticks of work in place from ``tick``, standing at anchor ``node``."""
+
+    agv: int
+    tick: int
+    ticks: int
+    kind: str
+    node: int
+
+
+@dataclass(frozen=True)
+class PlannedAction:
+    """One move of the plan, with the dwell and the plain wait before it (ticks)."""
+
+    agv: int
+    seq: int
+    src: int
+    dst: int
+    tick: int
+    """Last tick it stands at ``src`` (it moves during this tick)."""
+    ticks: int
+    """Planned duration of the move."""
+    dwell: int
+    """Planned dwell ticks before the move (from its arrival at ``src``)."""
+    wait: int
+    """Planned plain waits before the move (ticks standing that are not a dwell)."""
+
+    @property
+    def finish(self) -> int:
+        return self.tick + self.ticks
+
+
+@dataclass
+class TimedPlan:
+    """A fixed plan with work in place (see the module docstring)."""
+
+    layout: Layout
+    types: list[AgvTypeSpec]
+    tick_s: float
+    paths: dict[int, TimedPath]
+    """Every AGV's states per tick from tick 0, ending standing."""
+    dwells: dict[int, tuple[Dwell, ...]]
+    source: str
+    """Where the plan comes from (for reports)."""
+    task_state: np.ndarray | None = None
+    """(T + 1, N) task state per tick (``world.AgvState``), if recorded."""
+    loaded: np.ndarray | None = None
+    carried: np.ndarray | None = None
+    """(T + 1, N) carried shelf id per tick (-1: none)."""
+    orders: list[dict] = field(default_factory=list)
+    """Orders completed in the plan: ``{"order", "agv", "arrival_tick", "completed_tick"}``
+    (the completion is the end of a hand-over dwell of that AGV)."""
+    grid_metrics: dict[str, Any] | None = None
+    """The grid run's own metrics (closed loop), if the plan is one."""
+
+    @property
+    def num_agents(self) -> int:
+        return len(self.paths)
+
+    @property
+    def dwell_view(self) -> MappingProxyType:
+        """``TickView.dwells``: per AGV, ``(tick, ticks)`` of each dwell."""
+        return MappingProxyType({i: tuple((d.tick, d.ticks) for d in ds)
+                                 for i, ds in self.dwells.items() if ds})
+
+    def actions(self, i: int) -> list[PlannedAction]:
+        """AGV ``i``'s moves in order, each with the dwell and wait before it."""
+        moves = path_moves(self.paths[i], self.layout.cols)
+        dwells = sorted(self.dwells.get(i, ()), key=lambda d: d.tick)
+        out, j, prev = [], 0, 0
+        for seq, (src, dst, tick, ticks) in enumerate(moves):
+            d = 0
+            while j < len(dwells) and dwells[j].tick <= tick:
+                d += dwells[j].ticks
+                j += 1
+            out.append(PlannedAction(i, seq, src, dst, tick, ticks, d, tick - prev - d))
+            prev = tick + ticks
+        return out
+
+    def trailing_dwell(self, i: int) -> int:
+        """Dwell ticks after AGV ``i``'s last move (work it ends with)."""
+        moves = path_moves(self.paths[i], self.layout.cols)
+        last = moves[-1][2] if moves else -1
+        return sum(d.ticks for d in self.dwells.get(i, ()) if d.tick > last)
+
+    def planned_finish(self, i: int) -> int:
+        """Tick AGV ``i`` finishes its last move or trailing dwell."""
+        acts = self.actions(i)
+        end = acts[-1].finish if acts else 0
+        return end + self.trailing_dwell(i)
+
+
+# ----------------------------------------------------------------------------- grid run
+
+def record_grid_run(scenario: Scenario, progress=None) -> TimedPlan:
+    """Run ``scenario`` (its seed) in the closed loop on the grid executor and return the
+    record as a :class:`TimedPlan` (``grid_metrics`` holds the run's metrics)."""
+    from .sim import Simulation
+
+    sim = Simulation(scenario.with_executor("grid"))
+    w = sim.world
+    n = len(w.agvs)
+    states, task, loaded, carried = [], [], [], []
+
+    def snap() -> None:
+        states.append([a.pos for a in w.agvs])
+        task.append([int(a.state) for a in w.agvs])
+        loaded.append([a.loaded for a in w.agvs])
+        carried.append([a.trip.shelf if a.loaded and a.trip is not None else -1
+                        for a in w.agvs])
+
+    snap()
+    while not sim.done:
+        sim.step()
+        snap()
+        if progress is not None:
+            progress(w.tick, len(w.completed_tick), len(w.status))
+    metrics = sim.metrics.summary(w)
+    metrics.update(sim.executor.summary())
+    # Step on until every AGV has stood still once since the end, so that every path can
+    # end standing: each is cut at its first standing state from the last tick on.
+    last = len(states) - 1
+    stood = [a.pos[0] == a.pos[1] for a in w.agvs]
+    extra = 0
+    while not all(stood) and extra < 16:
+        sim.step()
+        snap()
+        extra += 1
+        stood = [s or a.pos[0] == a.pos[1] for s, a in zip(stood, w.agvs, strict=True)]
+    tick_arr = np.asarray(task, dtype=np.int8)
+    homes = [a.home for a in w.agvs]
+    paths, dwells = {}, {}
+    for i in range(n):
+        seq = [s[i] for s in states]
+        end = next((t + 1 for t in range(last, len(seq)) if seq[t][0] == seq[t][1]), None)
+        if end is None:  # a move still running after 16 extra ticks: dropped
+            end = last + 1
+            while end > 1 and seq[end - 1][0] != seq[end - 1][1]:
+                end -= 1
+        paths[i] = TimedPath(i, 0, tuple(seq[:end]))
+        dwells[i] = _dwells(i, seq[:end], tick_arr[:end, i], homes[i])
+    orders = []
+    for ev in w.events:
+        if ev["event"] == "order_completed":
+            o = w.orders[ev["order"]]
+            orders.append({"order": ev["order"], "agv": ev["agv"], "arrival_tick": o.tick,
+                           "completed_tick": ev["tick"]})
+    types = [a.spec for a in w.agvs]
+    return TimedPlan(
+        layout=w.layout, types=types, tick_s=scenario.tick_s, paths=paths, dwells=dwells,
+        source=f"grid run of {scenario.name} seed {scenario.seed} ({scenario.scheduler.name}"
+               f" + {scenario.planner.name}, closed loop)",
+        task_state=tick_arr, loaded=np.asarray(loaded, dtype=bool),
+        carried=np.asarray(carried, dtype=np.int64), orders=orders, grid_metrics=metrics)
+
+
+def _dwells(i: int, seq: list, task: np.ndarray, home: int) -> tuple[Dwell, ...]:
+    """The dwells of one recorded path (see the module docstring)."""
+    out: list[Dwell] = []
+    last_move = max((t for t in range(len(seq) - 1) if seq[t + 1] != seq[t]), default=-1)
+    run: list[int] | None = None  # [start, length, kind, node]
+    for t in range(len(seq) - 1):
+        a, b = seq[t]
+        standing = a == b and seq[t + 1] == seq[t]
+        kind = None
+        if standing:
+            if int(task[t]) in _WORK:
+                kind = _WORK[int(task[t])]
+            elif int(task[t]) == _IDLE and int(task[t + 1]) == _IDLE and a == home \
+                    and t < last_move:
+                kind = "park"
+        if run is not None and (kind != run[2] or a != run[3] or not standing):
+            out.append(Dwell(i, run[0], run[1], run[2], run[3]))
+            run = None
+        if kind is not None:
+            if run is None:
+                run = [t, 0, kind, a]
+            run[1] += 1
+    if run is not None:
+        out.append(Dwell(i, run[0], run[1], run[2], run[3]))
+    return tuple(out)
+
+
+def check_executable(plan: TimedPlan) -> None:
+    """Raise :class:`~warerover_phys.errors.WareroverError` if the dependency graph of
+    ``plan`` has a cycle: a *rotation* of the grid run (AGVs that each enter the cell the
+    next one leaves in the same tick, which the grid executor allows) has no execution
+    order, so the plan cannot run open loop on physics. The message names the AGVs and
+    cells; such a seed is left out of an open-loop distribution (listed as failed)."""
+    from .errors import WareroverError
+    from .executors.adg import ADGCycleError, build
+
+    try:
+        build(plan.paths, {i: t.footprint for i, t in enumerate(plan.types)},
+              cols=plan.layout.cols)  # checks that the graph is acyclic
+    except ADGCycleError as err:
+        raise WareroverError(
+            f"{plan.source}: the plan has a rotation (AGVs {list(err.agvs)} each enter the "
+            f"cell the next one leaves, cells {[list(c) for c in err.cells]}): the action "
+            "dependency graph cannot order it, so it cannot be executed open loop "
+            "(--mode closed compares this seed)") from None
+
+
+# ----------------------------------------------------------------------------- imported plan
+
+def plan_from_file(floor: str, plan_file: str, fleet: str | None = None, *,
+                   fmt: str | None = None, xy: bool = True, strict: bool = False,
+                   tick_s: float = 1.0) -> tuple[TimedPlan, list]:
+    """An imported MAPF plan (read, validated and cycle-repaired as ``warerover execute``
+    does) as a :class:`TimedPlan` without dwells; returns it and the repairs made."""
+    from .execute import load_fleet, load_floor, plan_to_paths, repair_cycles, validate_plan
+    from .plans import read_plan
+
+    layout, types_by_name, kinds = load_floor(floor)
+    the_plan = read_plan(plan_file, fmt, xy=xy)
+    types = load_fleet(fleet, the_plan.num_agents, types_by_name, kinds)
+    sizes = [t.footprint for t in types]
+    validate_plan(the_plan, layout, sizes, source=str(plan_file))
+    the_plan, repairs = repair_cycles(the_plan, layout, sizes, strict=strict,
+                                      source=str(plan_file))
+    if repairs:
+        validate_plan(the_plan, layout, sizes, source=str(plan_file))
+    paths = plan_to_paths(the_plan, layout.cols)
+    return TimedPlan(layout=layout, types=list(types), tick_s=tick_s, paths=paths,
+                     dwells={}, source=f"plan file {plan_file}"), repairs
