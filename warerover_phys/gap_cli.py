@@ -220,7 +220,8 @@ def _open_table(console: Console, title: str, r: dict) -> None:
     console.print(c)
     console.print(f"actions late: {r['actions_late']} of {r['actions']}; contacts AGV-AGV "
                   f"{r.get('agv_contacts')}, AGV-static {r.get('static_contacts')}; min "
-                  f"separation {_f(r.get('min_separation_m'))} m; deadlocks "
+                  f"clearance {_f(r.get('min_clearance_m'))} m; limit violations "
+                  f"{r.get('limit_violations')}; deadlocks "
                   f"{r.get('deadlocks')}; real-time factor {_f(r.get('real_time_factor'), '.1f')}",
                   markup=False)
 
@@ -249,7 +250,8 @@ def _closed_table(console: Console, sc, report: dict) -> None:
                        ("delay: injected, fleet total (s)", "delay_injected_s"),
                        ("AGV-AGV contacts", "agv_contacts"),
                        ("AGV-static contacts", "static_contacts"),
-                       ("min separation (m)", "min_separation_m"),
+                       ("min clearance, edge to edge (m)", "min_clearance_m"),
+                       ("limit violations", "limit_violations"),
                        ("deadlocks", "deadlocks"),
                        ("real-time factor", "real_time_factor")):
         v = p.get(key)

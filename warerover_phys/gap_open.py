@@ -308,7 +308,8 @@ def open_loop_report(run: OpenLoopRun) -> tuple[dict, list[dict], list[dict]]:
         else 0.0
     out["replans"] = 0
     summ = run.summary
-    for key in ("agv_contacts", "static_contacts", "min_separation_m", "deadlocks",
+    for key in ("agv_contacts", "static_contacts", "min_clearance_m", "min_separation_m",
+                "limit_violations", "deadlocks",
                 "delay_dependency_wait_s", "delay_kinematic_s", "delay_turns_s",
                 "delay_injected_s", "real_time_factor"):
         out[key] = summ.get(key)
