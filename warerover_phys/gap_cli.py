@@ -141,10 +141,10 @@ def _write_one(out: Path, report: dict, result: dict | None, agvs: list[int] | N
     the folder ``out`` as one set, or the report alone to ``out`` if it ends in .json."""
     text = json.dumps(_finite(report), indent=2, sort_keys=True, default=float) + "\n"
     if out.suffix == ".json":
+        from .atomic import write_text
+
         out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = out.with_name(out.name + ".tmp")
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, out)
+        write_text(out, text)
         return out
     from .atomic import write_set
     from .gap_stats import _csv
