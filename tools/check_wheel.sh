@@ -22,13 +22,16 @@ rm -rf "$root/dist"
     || { tail -40 "$work/build.log"; exit 1; }
 wheel="$(ls "$root"/dist/*.whl)"
 echo "$wheel"
-"$py" -m zipfile -l "$wheel" | grep -q "warerover_phys/_layouts/paper_homogeneous.yaml" \
+# The listing once, into a file: `grep -q` on a pipe stops reading early, and the lister's
+# broken pipe would fail the check under pipefail.
+"$py" -m zipfile -l "$wheel" > "$work/listing.txt"
+grep -q "warerover_phys/_layouts/paper_homogeneous.yaml" "$work/listing.txt" \
     || { echo "the wheel holds no packaged layouts"; exit 1; }
-"$py" -m zipfile -l "$wheel" | grep -q "warerover_phys/_layouts/maps/paper_20x15.yaml" \
+grep -q "warerover_phys/_layouts/maps/paper_20x15.yaml" "$work/listing.txt" \
     || { echo "the wheel holds no packaged layout maps"; exit 1; }
-"$py" -m zipfile -l "$wheel" | grep -q "warerover_phys/planning/weights/learned_v1.npz" \
+grep -q "warerover_phys/planning/weights/learned_v1.npz" "$work/listing.txt" \
     || { echo "the wheel holds no learned-planner weights"; exit 1; }
-"$py" -m zipfile -l "$wheel" | grep -q "warerover_phys/serve/static/index.html" \
+grep -q "warerover_phys/serve/static/index.html" "$work/listing.txt" \
     || { echo "the wheel holds no browser page"; exit 1; }
 
 echo "== install into a fresh venv"
