@@ -19,7 +19,7 @@ import numpy as np
 
 from .config import AgvTypeSpec, Scenario
 from .errors import LayoutError, ScenarioError
-from .faults.intrusion_log import CorridorBook
+from .faults.book import CorridorBook
 from .layout import CellType, Layout, build_layout
 from .orders import Order, OrderStream
 from .planning.base import State, TimedPath
