@@ -253,3 +253,39 @@ def test_layout_and_scenario_floors():
     assert layout.rows == 15 and len(kinds) == 9 and types
     layout2, types2, _ = load_floor(root / "maps" / "paper_20x15.yaml")
     assert types2 is None and (layout2.rows, layout2.cols) == (layout.rows, layout.cols)
+
+
+def test_executor_options_reach_the_executor_and_bad_ones_exit_2(tmp_path, solved):
+    """``warerover execute --set FIELD=VALUE``: the real-robot options of the executor
+    section (issue 13) reach the physics executor; a bad one exits 2 naming it."""
+    plan_file = tmp_path / "plan.txt"
+    write_plan(solved, plan_file, "lacam")
+    base = (str(MAP), "--plan", str(plan_file), "--json", "-q")
+    r = _invoke("execute", *base, "--out", str(tmp_path / "a"), "--set", "no_slip=true",
+                "--set", "executor.comm_latency_s=0.2")
+    assert r.exit_code == 0, r.output
+    m = json.loads(r.output)
+    assert m["no_slip"] is True and m["comm_latency_s"] == 0.2
+    assert m["delay_comm_latency_s"] > 0 and m["agv_contacts"] == 0
+    for bad, field in (("bogus=1", "executor.bogus"), ("payload=maybe", "executor.payload"),
+                       ("comm_latency_s=-1", "executor.comm_latency_s"),
+                       ("dt_s=0.1", "executor.dt_s"), ("=3", "--set")):
+        out = tmp_path / f"bad-{field}"
+        r = _invoke("execute", *base, "--out", str(out), "--set", bad)
+        assert r.exit_code == 2, (bad, r.output)
+        assert field in r.output and "Traceback" not in r.output
+        assert not out.exists()
+
+
+def test_parking_changes_nothing_but_the_joints(solved):
+    """``executor.park`` (default on) takes standing AGVs' drive joints out of the pymunk
+    world: the execution is the same as with every joint always in it (same executed
+    states; clearance within the 1 mm a parked body may sit off its hold point)."""
+    layout, _, _ = load_floor(MAP)
+    types = load_fleet(None, solved.num_agents, None, [])
+    on = execute_plan(solved, layout, types, seed=2)
+    off = execute_plan(solved, layout, types, seed=2, options={"park": False})
+    assert on.executed == off.executed
+    assert on.metrics["agv_contacts"] == off.metrics["agv_contacts"] == 0
+    assert abs(on.metrics["min_clearance_m"] - off.metrics["min_clearance_m"]) < 1e-3
+    assert on.metrics["parked_agv_s"] > 0 and off.metrics["parked_agv_s"] == 0

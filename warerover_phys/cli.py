@@ -481,6 +481,11 @@ def execute(floor: Annotated[Path, typer.Argument(
                 help="Format of --export (as --format).")] = "lacam",
             quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")
                              ] = False,
+            sets: Annotated[list[str] | None, typer.Option(
+                "--set", help="Another executor option FIELD=VALUE (repeatable; YAML "
+                              "values), as in a scenario's executor section: "
+                              "no_slip=true, payload=true, comm_latency_s=0.2, "
+                              "shelf_contacts=true, park=false, adg=false ...")] = None,
             ) -> None:
     """Execute a plan made elsewhere exactly as written (no scheduler, no replanning) on
     the physics or grid executor; write metrics, events, paths and trajectories."""
@@ -489,6 +494,8 @@ def execute(floor: Annotated[Path, typer.Argument(
     from .execute import (
         execute_plan,
         executed_plan,
+        executor_options,
+        executor_spec,
         load_fleet,
         load_floor,
         parse_delays,
@@ -504,6 +511,8 @@ def execute(floor: Annotated[Path, typer.Argument(
         if not (math.isfinite(dt_s) and 0 < dt_s <= tick_s):
             raise WareroverError(f"--dt-s must be in (0, tick_s] (got {dt_s})")
         delay_spec = parse_delays(delays)
+        options = executor_options(sets)
+        executor_spec(executor, dt_s=dt_s, delays=delay_spec, options=options)  # check early
         layout, types_by_name, kinds = load_floor(floor)
         the_plan = read_plan(plan, fmt, xy=not yx)
         types = load_fleet(fleet, the_plan.num_agents, types_by_name, kinds)
@@ -528,12 +537,12 @@ def execute(floor: Annotated[Path, typer.Argument(
                 task = bar.add_task("execute", total=the_plan.makespan)
                 result = execute_plan(the_plan, layout, types, executor=executor, seed=seed,
                                       delays=delay_spec, tick_s=tick_s, dt_s=dt_s,
-                                      repairs=repairs, given=given,
+                                      repairs=repairs, given=given, options=options,
                                       progress=lambda t, h: bar.update(task, completed=t))
         else:
             result = execute_plan(the_plan, layout, types, executor=executor, seed=seed,
                                   delays=delay_spec, tick_s=tick_s, dt_s=dt_s, repairs=repairs,
-                                  given=given)
+                                  given=given, options=options)
         out_dir = out or Path("runs") / f"execute-{plan.stem}"
         files = write_execution(result, the_plan, layout, types, out_dir, tick_s)
         if export is not None:

@@ -645,15 +645,19 @@ def execute_plan(plan: Plan, layout: Layout, types: list[AgvTypeSpec], *,
                  tick_s: float = 1.0, dt_s: float = 0.02, trajectory_hz: float = 10.0,
                  max_ticks: int | None = None, executor_params: dict | None = None,
                  repairs: list[Repair] | None = None, given: Plan | None = None,
-                 progress: Callable[[int, int], None] | None = None) -> ExecutionResult:
+                 progress: Callable[[int, int], None] | None = None,
+                 options: dict[str, Any] | None = None) -> ExecutionResult:
     """Execute ``plan`` (validated, cycle-free) on ``executor`` and measure it. ``given``:
     the plan as it was given, before :func:`repair_cycles` made ``plan`` of it; the
     planned figures are then the given plan's, and the repaired plan's are reported
-    beside them."""
+    beside them. ``options``: other fields of the executor section
+    (:class:`~warerover_phys.config.ExecutorSpec`: ``no_slip``, ``payload``,
+    ``comm_latency_s``, ``shelf_contacts``, ``park``, ``speed_scale``, ``adg`` ...), checked
+    by its schema (see :func:`executor_options`)."""
     from .registry import build
 
-    spec = ExecutorSpec(name=executor, params=executor_params or {}, dt_s=dt_s,
-                        delays=delays or DelaySpec(), trajectory_hz=trajectory_hz)
+    spec = executor_spec(executor, dt_s=dt_s, delays=delays, trajectory_hz=trajectory_hz,
+                         params=executor_params, options=options)
     ex = build("executor", spec)
     n = plan.num_agents
     cols = layout.cols
@@ -812,6 +816,56 @@ def executed_plan(result: ExecutionResult, cols: int) -> Plan:
     it moves), for ``--export``."""
     return Plan(tuple(tuple(divmod(a, cols) for a, _ in states)
                       for _, states in sorted(result.executed.items())))
+
+
+def executor_spec(name: str, *, dt_s: float = 0.02, delays: DelaySpec | None = None,
+                  trajectory_hz: float = 10.0, params: dict | None = None,
+                  options: dict[str, Any] | None = None,
+                  source: str = "--set") -> ExecutorSpec:
+    """The executor section of an execution: ``name`` and the command line's own settings,
+    plus ``options`` (other :class:`~warerover_phys.config.ExecutorSpec` fields, by name),
+    validated by the schema; a bad one raises :class:`ScenarioError` naming ``source``'s
+    field and value."""
+    from pydantic import ValidationError
+
+    options = dict(options or {})
+    own = {"name", "params", "dt_s", "delays", "trajectory_hz"} & set(options)
+    if own:
+        key = sorted(own)[0]
+        raise ScenarioError("set it with its own option (--executor, --dt-s, --delays)",
+                            file="<command line>", field=f"{source} executor.{key}",
+                            value=options[key])
+    try:
+        return ExecutorSpec(name=name, params=params or {}, dt_s=dt_s,
+                            delays=delays or DelaySpec(), trajectory_hz=trajectory_hz,
+                            **options)
+    except ValidationError as err:
+        e = err.errors()[0]
+        loc = ".".join(str(p) for p in e["loc"])
+        msg = "unknown executor option" if e["type"] == "extra_forbidden" else e["msg"]
+        raise ScenarioError(msg.removeprefix("Value error, "), file="<command line>",
+                            field=f"{source} executor.{loc}" if loc else source,
+                            value=e.get("input")) from None
+
+
+def executor_options(texts: list[str] | None) -> dict[str, Any]:
+    """``["no_slip=true", "executor.comm_latency_s=0.2"]`` (``--set`` of ``warerover
+    execute``; the ``executor.`` prefix is optional; values are YAML) as a dict."""
+    from .config import parse_override
+
+    out: dict[str, Any] = {}
+    for text in texts or []:
+        try:
+            key, value = parse_override(text)
+        except ScenarioError as err:
+            raise err.with_file("<command line>") from None
+        key = key.removeprefix("executor.")
+        if not key or "." in key:
+            raise ScenarioError("expected an executor field: --set FIELD=VALUE (e.g. "
+                                "no_slip=true)", file="<command line>", field="--set",
+                                value=text)
+        out[key] = value
+    return out
 
 
 def parse_delays(text: str | None) -> DelaySpec:

@@ -155,12 +155,16 @@ class PhysicalFleet:
     """(N,) side (metres) of the shelf shape each AGV carries now (0: none)."""
     shelf_ang: np.ndarray | None = None
     """(N,) body angle for which each carried shelf's vertices were last set."""
+    joints: list[tuple[pymunk.PivotJoint, pymunk.GearJoint]] = field(default_factory=list)
+    """Each AGV's drive joints (pivot, gear) to its control body."""
+    parked: np.ndarray | None = None
+    """(N,) AGVs standing still with their drive joints out of the space (:meth:`park`)."""
 
     @classmethod
     def add_to(cls, space: pymunk.Space, poses: list[tuple[float, float, float]],
                sizes: list[tuple[float, float]], masses: list[float],
                accels: list[float]) -> PhysicalFleet:
-        bodies, ctrls, shapes = [], [], []
+        bodies, ctrls, shapes, joints = [], [], [], []
         for (x, y, heading), (length, width), mass, accel in zip(poses, sizes, masses, accels,
                                                                 strict=True):
             moment = pymunk.moment_for_box(mass, (length, width))
@@ -184,8 +188,29 @@ class PhysicalFleet:
             bodies.append(body)
             ctrls.append(ctrl)
             shapes.append(shape)
+            joints.append((pivot, gear))
         half = np.array(sizes, dtype=float) / 2
-        return cls(bodies, ctrls, shapes, half, {id(s): i for i, s in enumerate(shapes)})
+        return cls(bodies, ctrls, shapes, half, {id(s): i for i, s in enumerate(shapes)},
+                   joints=joints, parked=np.zeros(len(bodies), dtype=bool))
+
+    def park(self, space: pymunk.Space, i: int) -> None:
+        """AGV ``i`` stands still on its hold point: take its drive joints out of the space
+        and zero its velocity. Nothing then moves it (AGV-AGV contacts are not solved, and
+        it rests clear of obstacles), and the solver no longer iterates over its joints:
+        at 1,000 AGVs most of pymunk's step is those joints. Call it after the step's
+        velocities were written, before the step."""
+        body = self.bodies[i]
+        body.velocity = (0.0, 0.0)
+        body.angular_velocity = 0.0
+        space.remove(*self.joints[i])
+        self.parked[i] = True
+
+    def unpark(self, space: pymunk.Space, i: int) -> None:
+        """Put AGV ``i``'s drive joints back (it is about to move). The joints correct
+        velocities only (``max_bias = 0``), so where its control body drifted meanwhile
+        does not matter."""
+        space.add(*self.joints[i])
+        self.parked[i] = False
 
     def carry_shelves(self, space: pymunk.Space, side: np.ndarray, ang: np.ndarray) -> None:
         """``executor.shelf_contacts``: give each AGV the collision shape of the shelf it

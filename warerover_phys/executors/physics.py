@@ -41,14 +41,22 @@ from .accounting import Accounting
 from .adg import ActionGraph
 from .base import ExecutorSetup, StepReport, TickView
 from .bodies import BodyIO, PhysicalFleet, build_space, cell_centre, unsolved_agv_contacts
-from .control import steer
-from .fleet_state import FleetState
+from .control import steer, wrap
+from .fleet_state import HOLD, FleetState
 from .follow import DECIDE_S, PlanFollower
 
 if TYPE_CHECKING:
     from ..config import ExecutorSpec
 
-__all__ = ["PhysicsExecutor"]
+__all__ = ["PhysicsExecutor", "PARK_EPS_M", "PARK_SPEED", "PARK_EPS_RAD"]
+
+PARK_EPS_M = 1e-3
+"""A standing AGV is parked (``executor.park``) once its body is this close to its hold
+point (metres), ..."""
+PARK_SPEED = 1e-3
+"""... moves slower than this (m/s, and turns slower than this in rad/s) ..."""
+PARK_EPS_RAD = 1e-3
+"""... and faces its heading to within this (radians)."""
 
 
 class PhysicsExecutor:
@@ -110,6 +118,10 @@ class PhysicsExecutor:
         self._last_contact: tuple | None = None
         unsolved_agv_contacts(self.space, self.fleet.agv_of_shape, self._contact)
         self._shelf_contacts = bool(getattr(spec, "shelf_contacts", False))
+        self._park = bool(getattr(spec, "park", True))
+        self.parked_steps = 0
+        """AGV-steps spent parked (``executor.park``)."""
+        self._n_parked = 0
         self._bound = True
 
     def _contact(self, a: int, b: int, point: tuple[float, float]) -> None:
@@ -188,9 +200,41 @@ class PhysicsExecutor:
         if self._shelf_contacts:
             self.fleet.orient_shelves(ang)
         self.io.write(vel, w)
+        if self._park:
+            self._update_parking(raw, raw_ang, v_now, w_now, decide)
         self.space.step(st.dt)
         st.sim_s = t + st.dt
         self.acc.after_step(raw, raw_ang, injected, t)
+
+    def _update_parking(self, pos: np.ndarray, ang: np.ndarray, v: np.ndarray,
+                        w: np.ndarray, look: bool) -> None:
+        """``executor.park``: give back the drive joints of parked AGVs that are about to
+        move (no longer standing), and, when ``look``ing (the follower's decision steps),
+        park standing AGVs whose bodies have settled on their hold points (see
+        :data:`PARK_EPS_M`). Runs after this step's commands are written, before the
+        step."""
+        st, fleet = self.state, self.fleet
+        parked = fleet.parked
+        self.parked_steps += self._n_parked
+        if self._n_parked:
+            for i in np.flatnonzero(parked & (st.mode != HOLD)):
+                fleet.unpark(self.space, int(i))
+                self._n_parked -= 1
+        if not look:
+            return
+        cand = (st.mode == HOLD) & ~parked
+        idx = np.flatnonzero(cand)
+        if len(idx) == 0:
+            return
+        err = st.hold_xy[idx] - pos[idx]
+        ok = ((np.einsum("ij,ij->i", err, err) < PARK_EPS_M ** 2)
+              & (np.einsum("ij,ij->i", v[idx], v[idx]) < PARK_SPEED ** 2)
+              & (np.abs(w[idx]) < PARK_SPEED)
+              & (np.abs(wrap(st.heading[idx] - ang[idx])) < PARK_EPS_RAD)
+              & (st.speed[idx] == 0.0))
+        for i in idx[ok]:
+            fleet.park(self.space, int(i))
+            self._n_parked += 1
 
     # ------------------------------------------------------------------------- fault hooks
 
@@ -247,6 +291,7 @@ class PhysicsExecutor:
             "payload": bool(getattr(spec, "payload", False)),
             "comm_latency_s": float(getattr(spec, "comm_latency_s", 0.0)),
             "delay_comm_latency_s": self._comm_wait_s,
+            "parked_agv_s": self.parked_steps * self.dt,
         })
         return out
 
