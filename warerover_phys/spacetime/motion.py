@@ -137,15 +137,28 @@ class TimedPlan:
         return sum(len(m.t_s) for m in self.agents.values())
 
 
-def _per_agent(value, i: int, default):
+def _footprint(value, i: int) -> int:
+    """One agent's footprint from an int for all, a mapping or a sequence by agent."""
     if value is None:
-        return default
+        return 1
     if isinstance(value, Mapping):
-        return value.get(i, default)
-    if isinstance(value, Sequence) and not isinstance(value, str) and value and \
-            isinstance(value[0], Sequence | np.ndarray):
-        return value[i]
-    return value
+        return int(value.get(i, 1))
+    if isinstance(value, int | np.integer):
+        return int(value)
+    return int(value[i])
+
+
+def _body(value, i: int, cell_m: float) -> tuple[float, float]:
+    """One agent's body from a pair for all, a mapping or a sequence of pairs by agent."""
+    if value is None:
+        return (DEFAULT_BODY_M[0] * cell_m, DEFAULT_BODY_M[1] * cell_m)
+    if isinstance(value, Mapping):
+        if i not in value:
+            return (DEFAULT_BODY_M[0] * cell_m, DEFAULT_BODY_M[1] * cell_m)
+        value = value[i]
+    elif len(value) and isinstance(value[0], Sequence | np.ndarray):
+        value = value[i]
+    return (float(value[0]), float(value[1]))
 
 
 def from_plan(plan, *, cell_m: float = 1.0, tick_s: float = 1.0,
@@ -167,16 +180,14 @@ def from_plan(plan, *, cell_m: float = 1.0, tick_s: float = 1.0,
     """
     agents = {}
     for i, path in enumerate(plan.paths):
-        k = int(_per_agent(footprints, i, 1))
-        body = _per_agent(body_m, i, None)
-        if body is None:
-            body = (DEFAULT_BODY_M[0] * cell_m, DEFAULT_BODY_M[1] * cell_m)
+        k = _footprint(footprints, i)
+        body = _body(body_m, i, cell_m)
         cells = np.asarray(path, dtype=float).reshape(-1, 2)
         heads = (np.asarray(plan.headings[i], dtype=float) * (math.pi / 2)
                  if plan.headings is not None else np.zeros(len(cells)))
         agents[i] = AgentMotion(start_s + np.arange(len(cells)) * tick_s,
                                 (cells[:, 1] + k / 2) * cell_m, (cells[:, 0] + k / 2) * cell_m,
-                                heads, (float(body[0]), float(body[1])))
+                                heads, body)
     return TimedPlan(agents, cell_m=cell_m)
 
 
@@ -195,10 +206,8 @@ def from_schedule(schedules: Mapping[int, Sequence[tuple]], *, cell_m: float = 1
     """
     agents = {}
     for aid, entries in schedules.items():
-        k = int(_per_agent(footprints, aid, 1))
-        body = _per_agent(body_m, aid, None)
-        if body is None:
-            body = (DEFAULT_BODY_M[0] * cell_m, DEFAULT_BODY_M[1] * cell_m)
+        k = _footprint(footprints, aid)
+        body = _body(body_m, aid, cell_m)
         xs, ys, hs, ts = [], [], [], []
         for j, entry in enumerate(entries):
             if len(entry) == 2:
@@ -218,8 +227,7 @@ def from_schedule(schedules: Mapping[int, Sequence[tuple]], *, cell_m: float = 1
             hs.append(float(h) * math.pi / 2)
             ts.append(float(t))
         agents[aid] = AgentMotion(np.asarray(ts), np.asarray(xs, dtype=float),
-                                  np.asarray(ys, dtype=float), np.asarray(hs),
-                                  (float(body[0]), float(body[1])))
+                                  np.asarray(ys, dtype=float), np.asarray(hs), body)
     return TimedPlan(agents, cell_m=cell_m, source=source)
 
 

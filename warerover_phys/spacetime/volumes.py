@@ -188,11 +188,16 @@ def _agent_segments(m, end_s: float, shelves: bool):
 
 def build_volumes(plan: TimedPlan, *, tolerance_m: float = 1e-3, margin_m: float = 0.0,
                   max_turn_rad: float = math.pi / 8, shelves: bool = True) -> Volumes:
-    """Every agent's swept volumes (see the module docstring). An agent with one sample
-    (and the plan ending then) has none."""
+    """Every agent's swept volumes (see the module docstring). Agents hold their last pose
+    until the plan's end; when some agent's only sample is at that end, every agent holds
+    it 1 us longer (so a plan of one instant is checked too)."""
     if not (0 < max_turn_rad < math.pi):
         raise ValueError(f"max_turn_rad must be in (0, pi) (got {max_turn_rad})")
     end_s = plan.end_s
+    if any(m.t_s[0] >= end_s for m in plan.agents.values()):
+        # an agent seen only at the plan's last instant: every agent holds its last pose a
+        # moment longer, so that instant has volumes too
+        end_s += max(1e-6, 1e-9 * abs(end_s))
     cols = {k: [] for k in ("agent", "t0", "t1", "x0", "y0", "h0", "x1", "y1", "dh", "L", "W")}
     sh = {k: [] for k in ("agent", "t0", "t1", "x0", "y0", "x1", "y1", "sx", "sy")}
     for aid, m in plan.agents.items():
