@@ -205,9 +205,29 @@ def test_turning_bodies_sweep_their_ends():
     res = validate_spacetime(plan)
     assert [c.agvs for c in res.conflicts] == [(0, 1)]
     assert 0 < res.conflicts[0].t_s < 1
-    assert 0 < res.max_rotation_bound_m < 0.013  # R d^2 / (8 cos(d / 2)), d = pi / 8
+    assert res.max_rotation_bound_m == pytest.approx(math.hypot(0.6, 0.2) * (math.pi / 16) ** 2
+                                                     / 8, rel=1e-6)
     assert 0.1 <= res.conflicts[0].t_start_s and res.conflicts[0].t_end_s <= 0.9
     assert validate_spacetime(TimedPlan({0: still, 1: parked})).ok
+
+
+def test_neighbours_turning_in_place_together_are_clear():
+    """Two 0.7 m squares on neighbouring 1 m cells, both turning a quarter in place in the
+    same tick: their corners sweep circles 0.495 m round, 10 mm apart at closest. The turn's
+    bound must stay inside that (a looser bound, or pieces of pi / 8, made this a false
+    conflict)."""
+    for turn in (math.pi / 2, -math.pi / 2, math.pi):
+        a = AgentMotion.from_samples([(0.5, 0.5, 0, 0), (0.5, 0.5, turn, 1)])
+        b = AgentMotion.from_samples([(1.5, 0.5, math.pi / 2, 0), (1.5, 0.5, math.pi, 1)])
+        c = AgentMotion.from_samples([(0.5, 1.5, 0, 0), (0.5, 1.5, -turn, 1)])
+        res = validate_spacetime(TimedPlan({0: a, 1: b, 2: c}))
+        assert res.ok, (turn, res.conflicts)
+    # 0.72 m squares (corner circles 0.509 m) do meet
+    a = AgentMotion.from_samples([(0.5, 0.5, 0, 0), (0.5, 0.5, math.pi / 2, 1)],
+                                 body_m=(0.72, 0.72))
+    b = AgentMotion.from_samples([(1.5, 0.5, 0, 0), (1.5, 0.5, math.pi / 2, 1)],
+                                 body_m=(0.72, 0.72))
+    assert not validate_spacetime(TimedPlan({0: a, 1: b})).ok
 
 
 def test_touching_within_the_tolerance_is_not_a_conflict():

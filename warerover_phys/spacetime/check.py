@@ -35,7 +35,7 @@ __all__ = ["SpacetimeConflict", "SpacetimeResult", "validate_spacetime", "candid
 
 DEFAULT_TOLERANCE_M = 1e-3
 """Outlines that touch or overlap by at most this much (m) do not conflict."""
-DEFAULT_MAX_TURN_RAD = math.pi / 8
+DEFAULT_MAX_TURN_RAD = math.pi / 16
 """Largest turn (rad) one volume covers; longer turns are split (see ``volumes``)."""
 
 

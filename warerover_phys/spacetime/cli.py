@@ -22,7 +22,7 @@ def check_trajectory(
                             ] = 0.0,
         max_turn_rad: Annotated[float, typer.Option(
             help="Turn covered by one swept volume (rad); longer turns are split.")
-                                ] = math.pi / 8,
+                                ] = math.pi / 16,
         shelves: Annotated[bool, typer.Option(
             "--shelves/--no-shelves", help="Include carried shelves (shelf_m).")] = True,
         max_conflicts: Annotated[int, typer.Option(help="Conflicts to report at most.")] = 20,
