@@ -55,6 +55,15 @@ def spacetime_pairs(plan: Plan, body=SMALL) -> set[tuple[int, int]]:
 
 # --- the volumes ---------------------------------------------------------------------------
 
+@pytest.mark.parametrize("module", ["motion", "check"])
+def test_docstring_examples(module):
+    import doctest
+    import importlib
+
+    result = doctest.testmod(importlib.import_module(f"warerover_phys.spacetime.{module}"))
+    assert result.attempted > 0 and result.failed == 0
+
+
 def random_plan(seed: int, agents: int = 12, samples: int = 6) -> TimedPlan:
     rng = np.random.default_rng(seed)
     return TimedPlan({a: AgentMotion(np.cumsum(rng.uniform(0.1, 1.0, samples)),
@@ -116,8 +125,8 @@ def test_grid_broad_phase_finds_every_overlapping_box_pair():
     xmin, xmax, ymin, ymax = vol.extents()
     i, j = np.triu_indices(len(vol), 1)
     meet = ((vol.agent[i] != vol.agent[j]) & (xmin[i] <= xmax[j]) & (xmin[j] <= xmax[i]) &
-            (ymin[i] <= ymax[j]) & (ymin[j] <= ymax[i]) & (vol.t0[i] <= vol.t1[j]) &
-            (vol.t0[j] <= vol.t1[i]))
+            (ymin[i] <= ymax[j]) & (ymin[j] <= ymax[i]) & (vol.t0[i] < vol.t1[j]) &
+            (vol.t0[j] < vol.t1[i]))
     assert set(zip(a.tolist(), b.tolist(), strict=True)) == \
         set(zip(i[meet].tolist(), j[meet].tolist(), strict=True))
 

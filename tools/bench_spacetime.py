@@ -95,15 +95,17 @@ def run(name: str, plan: Plan, obstacles: np.ndarray, body: tuple[float, float])
     actions = sum(len(p) - 1 for p in plan.paths)
     row = {"workload": name, "agents": plan.num_agents, "actions": actions,
            "samples": res.samples, "volumes": res.volumes, "box_pairs": res.broad_pairs,
-           "circle_pairs": res.circle_pairs, "colliding_pairs": res.colliding_pairs,
+           "circle_pairs": res.circle_pairs, "fcl_pairs": res.fcl_pairs,
+           "colliding_pairs": res.colliding_pairs,
            "conflicts": len(res.conflicts), "per_tick_vertex_swap": tick_conflicts,
            "timings_s": {k: round(v, 4) for k, v in res.timings_s.items()},
            "per_tick_validator_s": round(tick_s, 4),
            "rotation_bound_m": round(res.max_rotation_bound_m, 5)}
     tm = res.timings_s
     print(f"{name:>9}: {row['agents']} AGVs x {actions // max(1, row['agents'])} actions, "
-          f"{res.volumes} volumes; pairs: {res.broad_pairs} box, {res.circle_pairs} to fcl, "
-          f"{res.colliding_pairs} colliding; {len(res.conflicts)} conflicts "
+          f"{res.volumes} volumes; pairs: {res.broad_pairs} box, {res.circle_pairs} circle, "
+          f"{res.fcl_pairs} to fcl, {res.colliding_pairs} colliding; {len(res.conflicts)} "
+          f"conflicts "
           f"(per-tick: {tick_conflicts} vertex/swap)")
     print(f"{'':>9}  total {tm['total']:.2f} s = build {tm['build']:.2f} + broad "
           f"{tm['broad']:.2f} + circles {tm['circle']:.2f} + fcl {tm['narrow']:.2f} + merge "

@@ -1,5 +1,5 @@
-"""Find the swept volumes of two agents that meet: broad phase, two exact-conservative
-filters, then python-fcl's GJK on convex polyhedra.
+"""Find the swept volumes of two agents that meet: broad phase, two exact filters (one that
+rules pairs out, one that rules them in), then python-fcl's GJK on convex polyhedra.
 
 1. **Broad phase** (``broad_phase="grid"``, default): every volume goes into the cells of an
    ``(x, y)`` hash grid its bounding box touches (cell side: the 95th percentile of the
@@ -12,8 +12,10 @@ filters, then python-fcl's GJK on convex polyhedra.
 2. **Bounding circles**: over the two volumes' common time span, each slice lies within its
    half-diagonal of its linearly moving centre; a pair whose centres never come closer than
    the two half-diagonals cannot meet (closed form, vectorised).
-3. **Narrow phase**: ``fcl.collide`` on the two hulls as ``fcl.Convex`` (solids: a volume
-   inside another counts, unlike a ``BVHModel`` surface).
+3. **Sure hits**: every slice also holds a disk round its centre (the smaller half extent);
+   a pair whose centres come closer than the two disks' radii meets for certain.
+4. **Narrow phase**: ``fcl.collide`` on the two hulls as ``fcl.Convex`` (solids: a volume
+   inside another counts, unlike a ``BVHModel`` surface) for the rest.
 
 Colliding volume pairs of the same two agents whose time spans touch or overlap are merged
 into one :class:`SpacetimeConflict`.
@@ -28,7 +30,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from .motion import TimedPlan
-from .volumes import BODY, Volumes, build_volumes
+from .volumes import Volumes, build_volumes
 
 __all__ = ["SpacetimeConflict", "SpacetimeResult", "validate_spacetime", "candidate_pairs",
            "DEFAULT_TOLERANCE_M", "DEFAULT_MAX_TURN_RAD"]
@@ -77,7 +79,10 @@ class SpacetimeResult:
     broad_pairs: int
     """Pairs of volumes of different agents whose bounding boxes meet."""
     circle_pairs: int
-    """Of those, pairs that pass the bounding-circle test (sent to fcl)."""
+    """Of those, pairs that pass the bounding-circle test."""
+    fcl_pairs: int
+    """Of those, pairs fcl decided (the others meet for sure: their centres come closer
+    than the two disks every slice holds)."""
     colliding_pairs: int
     """Of those, pairs fcl found colliding."""
     truncated: bool
@@ -106,51 +111,56 @@ def _bounds(vol: Volumes):
 
 def candidate_pairs(vol: Volumes) -> tuple[np.ndarray, np.ndarray]:
     """Pairs ``(a, b)``, ``a < b``, of volumes of different agents whose bounding boxes in
-    ``(x, y, t)`` meet (touching included), by the hash grid and time sweep."""
+    ``(x, y, t)`` meet (touching in space included), by the hash grid and time sweep.
+
+    Their time spans must overlap: two volumes that share only an instant ``T`` are left out,
+    as each agent also has a volume starting at ``T`` (every agent holds its pose to the plan's
+    end) and those two overlap in time and hold the same slices at ``T``.
+
+    A volume goes into every grid cell its box touches; a pair is kept only in the cell that
+    holds the low corner of the two boxes' intersection (found there exactly once: no
+    deduplication pass)."""
     n = len(vol)
     if n < 2:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     xmin, xmax, ymin, ymax, t0, t1 = _bounds(vol)
     side = float(np.percentile(np.maximum(xmax - xmin, ymax - ymin), 95))
     side = max(side, 1e-6)
-    gx0 = np.floor(xmin / side).astype(np.int64)
-    gx1 = np.floor(xmax / side).astype(np.int64)
-    gy0 = np.floor(ymin / side).astype(np.int64)
-    gy1 = np.floor(ymax / side).astype(np.int64)
-    nx, ny = gx1 - gx0 + 1, gy1 - gy0 + 1
-    count = nx * ny
+    ox, oy = float(xmin.min()), float(ymin.min())
+    gx0 = np.floor((xmin - ox) / side).astype(np.int64)
+    gx1 = np.floor((xmax - ox) / side).astype(np.int64)
+    gy0 = np.floor((ymin - oy) / side).astype(np.int64)
+    gy1 = np.floor((ymax - oy) / side).astype(np.int64)
+    ny = gy1 - gy0 + 1
+    count = (gx1 - gx0 + 1) * ny
     owner = np.repeat(np.arange(n), count)
     k = np.arange(len(owner)) - np.repeat(np.cumsum(count) - count, count)
     cx = gx0[owner] + k // ny[owner]
     cy = gy0[owner] + k % ny[owner]
-    cx -= cx.min()
-    cy -= cy.min()
-    key = cx * (int(cy.max()) + 1) + cy
-    order = np.lexsort((t0[owner], key))
-    owner, key = owner[order], key[order]
-    change = np.empty(len(key), dtype=bool)
-    change[0] = True
-    change[1:] = key[1:] != key[:-1]
-    rank = np.cumsum(change) - 1
+    key = cx * (int(gy1.max()) + 1) + cy
     base = float(t0.min())
     span = float(t1.max() - base) * 2.0 + 1.0
-    # times offset by their grid cell's rank: one sorted array, cells never interleave
-    start = (t0[owner] - base) + rank * span
-    stop = (t1[owner] - base) + rank * span
-    end = np.searchsorted(start, stop, side="right")  # first entry starting after we stop
+    # times offset by their grid cell's number: one sorted array, cells never interleave
+    # (float rounding of these keys is ~1e-8 s at most: a pair overlapping in time by less
+    # than that may be left out; bodies move far less than the tolerance in it)
+    start = (t0[owner] - base) + key * span
+    order = np.argsort(start, kind="stable")
+    owner, cx, cy, start = owner[order], cx[order], cy[order], start[order]
+    stop = (t1[owner] - base) + key[order] * span
+    end = np.searchsorted(start, stop, side="left")  # first entry starting when we stop
     pos = np.arange(len(owner))
     m = np.maximum(end - pos - 1, 0)
     left = np.repeat(pos, m)
     right = left + 1 + (np.arange(len(left)) - np.repeat(np.cumsum(m) - m, m))
     a, b = owner[left], owner[right]
-    keep = vol.agent[a] != vol.agent[b]
-    a, b = a[keep], b[keep]
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
-    uniq = np.unique(lo * n + hi)
-    a, b = uniq // n, uniq % n
-    meet = ((xmin[a] <= xmax[b]) & (xmin[b] <= xmax[a]) & (ymin[a] <= ymax[b]) &
-            (ymin[b] <= ymax[a]) & (t0[a] <= t1[b]) & (t0[b] <= t1[a]))
-    return a[meet], b[meet]
+    keep = ((vol.agent[a] != vol.agent[b]) & (xmin[a] <= xmax[b]) & (xmin[b] <= xmax[a]) &
+            (ymin[a] <= ymax[b]) & (ymin[b] <= ymax[a]) & (t0[a] < t1[b]) & (t0[b] < t1[a]))
+    a, b, left = a[keep], b[keep], left[keep]
+    home_x = np.floor((np.maximum(xmin[a], xmin[b]) - ox) / side).astype(np.int64)
+    home_y = np.floor((np.maximum(ymin[a], ymin[b]) - oy) / side).astype(np.int64)
+    home = (home_x == cx[left]) & (home_y == cy[left])
+    a, b = a[home], b[home]
+    return np.minimum(a, b), np.maximum(a, b)
 
 
 def _closest(vol: Volumes, a: np.ndarray, b: np.ndarray):
@@ -237,41 +247,44 @@ def _fcl_broad(vol: Volumes) -> tuple[np.ndarray, np.ndarray]:
 
 def _merge(vol: Volumes, a: np.ndarray, b: np.ndarray, cell_m: float | None,
            max_conflicts: int) -> tuple[list[SpacetimeConflict], bool]:
-    """Colliding volume pairs -> conflicts per agent pair and touching time span."""
+    """Colliding volume pairs -> conflicts per agent pair and touching time span (numpy: a
+    run of pairs of the same agents whose spans touch or overlap is one conflict)."""
     if not len(a):
         return [], False
     swap = vol.agent[a] > vol.agent[b]
     a, b = np.where(swap, b, a), np.where(swap, a, b)
     dist, t, mx, my, ta, tb = _closest(vol, a, b)
-    order = np.lexsort((ta, vol.agent[b], vol.agent[a]))
-    names = {BODY: "body"}
-    out: list[SpacetimeConflict] = []
-    cur = None
-    eps = 1e-9
-
-    def close(c: dict) -> None:
+    pa, pb = vol.agent[a], vol.agent[b]
+    order = np.lexsort((ta, pb, pa))
+    a, b, pa, pb = a[order], b[order], pa[order], pb[order]
+    dist, t, mx, my, ta, tb = (v[order] for v in (dist, t, mx, my, ta, tb))
+    new_pair = np.empty(len(a), dtype=bool)
+    new_pair[0] = True
+    new_pair[1:] = (pa[1:] != pa[:-1]) | (pb[1:] != pb[:-1])
+    # latest end so far within each agent pair (pairs offset so the running max restarts)
+    pair_no = np.cumsum(new_pair) - 1
+    lo, hi = float(ta.min()), float(tb.max())
+    offset = pair_no * ((hi - lo) * 2.0 + 1.0)
+    reach = np.maximum.accumulate((tb - lo) + offset) - offset + lo
+    start = new_pair.copy()
+    start[1:] |= ta[1:] > reach[:-1] + 1e-9
+    first = np.flatnonzero(start)
+    count = np.diff(np.append(first, len(a)))
+    group = np.repeat(np.arange(len(first)), count)
+    t_hi = np.maximum.reduceat(tb, first)
+    # the closest approach in each group
+    best = np.lexsort((dist, group))
+    best = best[np.searchsorted(group[best], np.arange(len(first)))]
+    part = np.array(["body", "shelf"])  # by BODY, SHELF
+    out = []
+    for g, k in enumerate(best.tolist()):
         cell = None
         if cell_m:
-            cell = (int(math.floor(c["y"] / cell_m)), int(math.floor(c["x"] / cell_m)))
-        out.append(SpacetimeConflict((c["p"], c["q"]), c["ta"], c["tb"], c["x"], c["y"],
-                                     c["t"], c["parts"], c["n"], cell))
-
-    for k in order.tolist():
-        p, q = int(vol.agent[a[k]]), int(vol.agent[b[k]])
-        parts = (f"{names.get(int(vol.part[a[k]]), 'shelf')}-"
-                 f"{names.get(int(vol.part[b[k]]), 'shelf')}")
-        if cur is not None and cur["p"] == p and cur["q"] == q and ta[k] <= cur["tb"] + eps:
-            cur["tb"] = max(cur["tb"], float(tb[k]))
-            cur["n"] += 1
-            if dist[k] < cur["d"]:
-                cur.update(d=float(dist[k]), t=float(t[k]), x=float(mx[k]), y=float(my[k]),
-                           parts=parts)
-            continue
-        if cur is not None:
-            close(cur)
-        cur = dict(p=p, q=q, ta=float(ta[k]), tb=float(tb[k]), d=float(dist[k]),
-                   t=float(t[k]), x=float(mx[k]), y=float(my[k]), parts=parts, n=1)
-    close(cur)
+            cell = (int(math.floor(my[k] / cell_m)), int(math.floor(mx[k] / cell_m)))
+        out.append(SpacetimeConflict(
+            (int(pa[k]), int(pb[k])), float(ta[first[g]]), float(t_hi[g]), float(mx[k]),
+            float(my[k]), float(t[k]), f"{part[vol.part[a[k]]]}-{part[vol.part[b[k]]]}",
+            int(count[g]), cell))
     out.sort(key=lambda c: (c.t_start_s, c.agvs))
     return out[:max_conflicts], len(out) > max_conflicts
 
@@ -311,24 +324,28 @@ def validate_spacetime(plan: TimedPlan, *, tolerance_m: float = DEFAULT_TOLERANC
         a, b = candidate_pairs(vol)
         broad = len(a)
         t_broad = clock()
+        sure = np.zeros(0, dtype=bool)
         if len(a):
             dist = _closest(vol, a, b)[0]
             near = dist < vol.radius[a] + vol.radius[b]
-            a, b = a[near], b[near]
+            a, b, dist = a[near], b[near], dist[near]
+            sure = dist < vol.inner[a] + vol.inner[b]
         circle = len(a)
         t_circle = clock()
-        hit = _narrow(vol, a, b)
+        fcl_pairs = int((~sure).sum())
+        hit = sure.copy()
+        hit[~sure] = _narrow(vol, a[~sure], b[~sure])
         a, b = a[hit], b[hit]
     else:
         a, b = _fcl_broad(vol)
-        broad = circle = len(a)
+        broad = circle = fcl_pairs = len(a)
         t_broad = t_circle = clock()
     t_narrow = clock()
     conflicts, truncated = _merge(vol, a, b, plan.cell_m, max_conflicts)
     t_end = clock()
     return SpacetimeResult(
         conflicts=conflicts, agents=len(plan.agents), samples=plan.samples, volumes=len(vol),
-        broad_pairs=broad, circle_pairs=circle, colliding_pairs=len(a), truncated=truncated,
+        broad_pairs=broad, circle_pairs=circle, fcl_pairs=fcl_pairs, colliding_pairs=len(a), truncated=truncated,
         tolerance_m=tolerance_m, margin_m=margin_m,
         max_rotation_bound_m=vol.max_rotation_bound_m,
         timings_s={"build": t_built - t_start, "broad": t_broad - t_built,

@@ -56,7 +56,7 @@ def check_trajectory(
     else:
         tm = res.timings_s
         typer.echo(f"{plan.source}: {res.agents} AGVs, {res.samples} samples, {res.volumes} "
-                   f"swept volumes; {res.broad_pairs} box pairs, {res.circle_pairs} to fcl, "
+                   f"swept volumes; {res.broad_pairs} box pairs, {res.fcl_pairs} to fcl, "
                    f"{res.colliding_pairs} colliding; {tm['total']:.3f} s")
         typer.echo(f"tolerance {tolerance_m:g} m, margin {margin_m:g} m, turns bounded within "
                    f"{res.max_rotation_bound_m * 1000:.2f} mm")

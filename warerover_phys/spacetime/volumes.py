@@ -75,6 +75,9 @@ class Volumes:
     h1: np.ndarray
     hl: np.ndarray
     hw: np.ndarray
+    inner: np.ndarray | None = None
+    """Radius of a disk round the interpolated centre that every slice of the volume holds
+    (the rectangle's smaller half extent before any turn enlargement)."""
     max_rotation_bound_m: float = 0.0
     """The largest rotation enlargement used (0 without turns)."""
 
@@ -232,45 +235,49 @@ def build_volumes(plan: TimedPlan, *, tolerance_m: float = 1e-3, margin_m: float
     if not cols["agent"]:
         z = np.zeros(0)
         return Volumes(np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int8),
-                       *([z] * 10))
+                       *([z] * 10), inner=z)
     b = {k: np.concatenate(v) for k, v in cols.items()}
     # split turns into pieces of at most max_turn_rad
     pieces = np.maximum(1, np.ceil(np.abs(b["dh"]) / max_turn_rad - 1e-9)).astype(np.int64)
-    rep = np.repeat(np.arange(len(pieces)), pieces)
-    j = np.arange(len(rep)) - np.repeat(np.cumsum(pieces) - pieces, pieces)
-    n = pieces[rep]
-    s0, s1 = j / n, (j + 1) / n
-
-    def lerp(a: np.ndarray, c: np.ndarray, s: np.ndarray) -> np.ndarray:
-        return a[rep] + (c[rep] - a[rep]) * s
-
-    h0 = b["h0"][rep] + b["dh"][rep] * s0
-    h1 = b["h0"][rep] + b["dh"][rep] * s1
-    half_l = b["L"][rep] / 2 + margin_m
-    half_w = b["W"][rep] / 2 + margin_m
-    delta = rotation_bound_m(np.hypot(half_l, half_w), b["dh"][rep] / n)
-    shrink = tolerance_m / 2
-    body = dict(agent=b["agent"][rep], t0=lerp(b["t0"], b["t1"], s0),
-                t1=lerp(b["t0"], b["t1"], s1), x0=lerp(b["x0"], b["x1"], s0),
-                y0=lerp(b["y0"], b["y1"], s0), h0=h0, x1=lerp(b["x0"], b["x1"], s1),
-                y1=lerp(b["y0"], b["y1"], s1), h1=h1,
-                hl=np.maximum(half_l + delta - shrink, 1e-9),
-                hw=np.maximum(half_w + delta - shrink, 1e-9))
-    # the last piece ends exactly on the next sample
+    r = {k: np.repeat(v, pieces) for k, v in b.items()}  # segment values per piece
+    n = r.pop("pieces") if "pieces" in r else np.repeat(pieces, pieces)
+    j = np.arange(len(n)) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+    s0 = j / n
+    s1 = (j + 1) / n
     last = j == n - 1
-    body["t1"][last] = b["t1"][rep][last]
-    body["x1"][last] = b["x1"][rep][last]
-    body["y1"][last] = b["y1"][rep][last]
+    s1[last] = 1.0
+
+    def lerp(start: str, stop: str, s: np.ndarray) -> np.ndarray:
+        return r[start] + (r[stop] - r[start]) * s
+
+    half_l = r["L"] / 2 + margin_m
+    half_w = r["W"] / 2 + margin_m
+    delta = rotation_bound_m(np.hypot(half_l, half_w), r["dh"] / n)
+    shrink = tolerance_m / 2
+    body = dict(agent=r["agent"], t0=lerp("t0", "t1", s0), t1=lerp("t0", "t1", s1),
+                x0=lerp("x0", "x1", s0), y0=lerp("y0", "y1", s0),
+                h0=r["h0"] + r["dh"] * s0, x1=lerp("x0", "x1", s1), y1=lerp("y0", "y1", s1),
+                h1=r["h0"] + r["dh"] * s1,
+                hl=np.maximum(half_l + delta - shrink, 1e-9),
+                hw=np.maximum(half_w + delta - shrink, 1e-9),
+                inner=np.maximum(np.minimum(half_l, half_w) - shrink, 0.0))
+    # the last piece ends exactly on the next sample
+    body["t1"][last] = r["t1"][last]
+    body["x1"][last] = r["x1"][last]
+    body["y1"][last] = r["y1"][last]
     parts = [body]
-    part_ids = [np.full(len(rep), BODY, dtype=np.int8)]
+    part_ids = [np.full(len(n), BODY, dtype=np.int8)]
     if sh["agent"]:
         s = {k: np.concatenate(v) for k, v in sh.items()}
         zero = np.zeros(len(s["agent"]))
         parts.append(dict(agent=s["agent"], t0=s["t0"], t1=s["t1"], x0=s["x0"], y0=s["y0"],
                           h0=zero, x1=s["x1"], y1=s["y1"], h1=zero,
                           hl=np.maximum(s["sx"] / 2 + margin_m - shrink, 1e-9),
-                          hw=np.maximum(s["sy"] / 2 + margin_m - shrink, 1e-9)))
+                          hw=np.maximum(s["sy"] / 2 + margin_m - shrink, 1e-9),
+                          inner=np.maximum(np.minimum(s["sx"], s["sy"]) / 2 + margin_m - shrink,
+                                           0.0)))
         part_ids.append(np.full(len(s["agent"]), SHELF, dtype=np.int8))
-    cat = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    cat = parts[0] if len(parts) == 1 else \
+        {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
     return Volumes(part=np.concatenate(part_ids),
                    max_rotation_bound_m=float(delta.max()) if len(delta) else 0.0, **cat)
