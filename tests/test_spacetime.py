@@ -487,3 +487,20 @@ def test_a_run_folder_with_a_mixed_file_set_is_refused(physics_run, tmp_path):
     save(dst / "trajectories.npz", {**traj, "x": traj["x"] + 0.1})
     proc = run_cli("check-trajectory", dst, cwd=tmp_path)
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
+
+
+def test_the_command_line_starts_without_the_validator():
+    """Registering check-trajectory loads neither the validator nor fcl (nor numpy through
+    them): ``warerover --help`` stays fast."""
+    import subprocess
+    import sys
+
+    from hardening_helpers import REPO, cli_env
+
+    code = ("import sys, warerover_phys.cli; "
+            "print(sorted(m for m in ('fcl', 'trimesh', 'warerover_phys.spacetime.check', "
+            "'warerover_phys.spacetime.motion') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], cwd=REPO, env=cli_env(),
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]"
