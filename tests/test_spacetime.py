@@ -155,6 +155,7 @@ def test_bodies_that_cut_a_corner_conflict_though_every_tick_is_valid():
     assert c.agvs == (0, 1) and c.parts == "body-body"
     assert 0 < c.t_s < 1 and c.t_start_s == 0 and c.t_end_s == 1
     assert c.x_m == pytest.approx(1.25) and c.y_m == pytest.approx(0.75)
+    assert 0.301 <= c.t_contact_s <= 0.302  # |dx| = 1 - t < 0.699 once t > 0.301 (|dy| = t)
     assert validate_spacetime(from_plan(plan, body_m=SMALL)).ok
 
 
@@ -191,6 +192,27 @@ def test_bodies_that_cross_between_samples_are_found():
     c = res.conflicts[0]
     assert (c.t_s, c.x_m, c.y_m, c.cell) == (pytest.approx(0.5), pytest.approx(1.5),
                                              pytest.approx(1.5), (1, 1))
+
+
+@settings(max_examples=30, deadline=None)
+@given(gap=st.floats(0.8, 20), v=st.floats(0.1, 30), w=st.floats(0.0, 30),
+       turn=st.floats(0, 3))
+def test_first_contact_time_is_found_never_early(gap, v, w, turn):
+    """Head-on along x: A's and B's 0.7 m squares first overlap by more than the 1 mm
+    tolerance at t* = (gap - 0.699) / (v + w); the bisection reports it within 1 ms, never
+    before. If B turns as it comes it reaches at least as far ahead (a square's extent is
+    at least its half side), so contact comes no later."""
+    a = AgentMotion.from_samples([(0, 0, 0, 0), (v, 0, 0, 1)])
+    b = AgentMotion.from_samples([(gap, 0, 0, 0), (gap - w, 0, turn, 1)])
+    res = validate_spacetime(TimedPlan({0: a, 1: b}))
+    t_star = (gap - 0.699) / (v + w)
+    if t_star > 1:  # they never get that close within the plan
+        assert res.ok
+        return
+    c = res.conflicts[0]
+    assert c.t_contact_s <= t_star + 1e-3 + 1e-9  # a turned square reaches at least as far
+    if turn == 0:
+        assert t_star - 1e-9 <= c.t_contact_s
 
 
 def test_fast_bodies_passing_through_each_other_between_samples():
