@@ -63,7 +63,8 @@ class SpacetimeConflict:
     cell: tuple[int, int] | None = None
     t_contact_s: float | None = None
     """When the two outlines first overlap by more than the tolerance (to within
-    ``contact_resolution_s``, never early); None when not refined."""
+    ``contact_resolution_s`` and never early for moves; during a turn the volumes' turn
+    enlargement may make it early); None when not refined."""
 
     def __str__(self) -> str:
         where = f" in cell {self.cell}" if self.cell is not None else ""
