@@ -478,6 +478,20 @@ def test_a_physics_run_has_no_conflict(physics_run):
     assert "ok: no two bodies met" in proc.stdout
 
 
+def test_a_heterogeneous_physics_run_has_no_conflict(tmp_path):
+    """2x2 AGVs (1.6 m bodies) beside 1x1 ones, carrying shelves, on physics."""
+    from warerover_phys import load_scenario, run_episode
+    from warerover_phys.outputs import write_outputs
+
+    sc = load_scenario(LAYOUTS / "paper_heterogeneous.yaml",
+                       [("executor.name", "physics"), ("max_ticks", 40)])
+    write_outputs(run_episode(sc, seed=2), tmp_path / "r")
+    plan = load_trajectory_file(tmp_path / "r")
+    assert {m.body_m for m in plan.agents.values()} == {(0.7, 0.7), (1.6, 1.6)}
+    res = validate_spacetime(plan)
+    assert res.ok, res.conflicts[:3]
+
+
 def test_a_doctored_physics_run_is_caught(physics_run, tmp_path):
     """Teleport AGV 1 onto AGV 0 for one sample: the CLI lists the conflict, exit 1."""
     with np.load(physics_run / "trajectories.npz") as data:
