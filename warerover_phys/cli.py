@@ -5,7 +5,8 @@
 ideal grid run's plan unchanged on physics and reports the sim-to-real gap (``--mode
 closed``: two closed-loop episodes); ``warerover check SCENARIO`` only loads and
 checks a scenario; ``warerover render TRAJECTORY_FILE --out PATH`` re-renders a recorded run
-to MP4 or PNG (``run --video PATH`` renders right after the run). Bad input
+to MP4 or PNG (``run --video PATH`` renders right after the run); ``warerover
+check-trajectory RUN_DIR`` proves that no two bodies met between recorded samples. Bad input
 prints one line naming the file, field and value, and exits with code 2.
 """
 
@@ -600,3 +601,8 @@ _register_serve(app)
 from .lorr_cli import register as _register_lorr  # noqa: E402
 
 _register_lorr(app)
+
+# `warerover check-trajectory` (space-time validation) lives in warerover_phys/spacetime/cli.py.
+from .spacetime.cli import register as _register_spacetime  # noqa: E402
+
+_register_spacetime(app)
