@@ -265,8 +265,9 @@ def test_first_contact_time_is_found_never_early(gap, v, w, turn):
     b = AgentMotion.from_samples([(gap, 0, 0, 0), (gap - w, 0, turn, 1)])
     res = validate_spacetime(TimedPlan({0: a, 1: b}))
     t_star = (gap - 0.699) / (v + w)
-    if t_star > 1:  # they never get that close within the plan
-        assert res.ok
+    if t_star > 1:  # straight, they never get that close within the plan (turned, B's
+        if turn == 0:  # corners reach further ahead, and may still meet A)
+            assert res.ok
         return
     c = res.conflicts[0]
     assert c.t_contact_s <= t_star + 1e-3 + 1e-9  # a turned square reaches at least as far
