@@ -32,6 +32,27 @@ claimed for the next tick, and with none of its turn locks taken by another turn
 same step. No move enters a dead end (a no-turn anchor faced so that it can never turn
 again). Without turn-aware movers nothing changes.
 
+Rotations (issue 15, ``planner.rotations``): a mover with ``rot`` (its quarter and half turn
+ticks) and ``rdist`` (ticks to its goal from every (anchor, heading),
+:func:`~warerover_phys.planning.rotation.rotation_dist`) moves only straight ahead; turns in
+place are steps of their own, as in the League of Robot Runners' PIBT entries:
+
+- its options are ranked by ``rdist``: the cell ahead, or a turn towards a side or back
+  neighbour (turn ticks + move + the distance from there), or waiting. A turn holds only
+  its own cells, so for PIBT it *is* staying: an agent whose best option is a turn (or
+  that cannot go ahead) takes its own cells, and priority inheritance treats it as an
+  agent that stays (it cannot be pushed off sideways);
+- after the step every such agent that stays turns one quarter: towards its best option's
+  direction, or, if a higher-priority agent tried and failed to push it away, towards the
+  free neighbour it should escape to next (away from that agent), so that next step it can
+  make room by driving ahead (without this two agents meeting head-on in a corridor would
+  wait for each other for ever);
+- a quarter turn of more than one tick is a pose ``(a, a, r)`` (standing on ``a``, ``r``
+  ticks of the turn to go), forced like the rest of a slow move; the headings returned
+  (``out_headings``) are those each agent has once its pose is done;
+- a forced target (LaCAM's constraints) may be a turn: ``-1 - heading`` for "stay and turn
+  a quarter to ``heading``"; a forced node never turns.
+
 The step is used by the lifelong PIBT planner and, with forced moves as its constraints, as
 the configuration generator of :mod:`footprint_lacam`.
 """
@@ -46,10 +67,11 @@ import numpy as np
 
 from .base import State, footprint_nodes
 from .graph import UNREACHABLE
+from .rotation import UNREACHABLE_T, quarters, turn_towards
 from .sweep import lock_keys, move_dir, sweep_cells
 
 __all__ = ["Mover", "Pose", "pose_cells", "successor", "arrive", "pose_states",
-           "footprint_step", "next_headings"]
+           "footprint_step", "next_headings", "pose_path"]
 
 Pose = tuple[int, int, int]
 """``(a, b, r)``: at rest on ``b`` if ``r == 0``, else moving ``a -> b``, ``r`` ticks to go."""
@@ -83,6 +105,11 @@ class Mover:
     tdist: Mapping[tuple[int, int], int] | None = None
     """Moves to its goal from each state ``(anchor, heading index)`` that can reach it
     (turn-aware movers with no-turn anchors; None: use ``dist``)."""
+    rot: tuple[int, int] | None = None
+    """Rotation-aware mover: ticks of a quarter and a half turn in place (None: turns are
+    free)."""
+    rdist: np.ndarray | None = None
+    """Rotation-aware mover: ticks to its goal from ``[anchor, heading]``."""
 
     @property
     def turns(self) -> bool:
@@ -124,6 +151,31 @@ def next_headings(headings: Sequence[int], before: Sequence[Pose], after: Sequen
                  for h, p, q in zip(headings, before, after, strict=True))
 
 
+def pose_path(poses: Sequence[Pose], heads: Sequence[int], first: int,
+              ) -> tuple[tuple[State, ...], tuple[int, ...]]:
+    """:func:`pose_states` with the heading of every state, for a rotation-aware agent:
+    ``heads[j]`` is its heading once ``poses[j]`` is done, ``first`` the heading it has in
+    the first state. A turn pose ``(a, a, r > 0)`` keeps the heading it had before the
+    turn; the turn's last state shows the new one. Trailing repeats (same state and
+    heading) are dropped."""
+    states: list[State] = []
+    hs: list[int] = []
+    prev = first
+    for (a, b, r), h in zip(poses, heads, strict=True):
+        sh = prev if a == b and r > 0 else h
+        states.append((a, b))
+        hs.append(sh)
+        prev = sh
+    tail = arrive(poses[-1])
+    for j, st in enumerate(tail):
+        states.append(st)
+        hs.append(heads[-1] if j == len(tail) - 1 else prev)
+    end = len(states)
+    while end > 1 and states[end - 1] == states[end - 2] and hs[end - 1] == hs[end - 2]:
+        end -= 1
+    return tuple(states[:end]), tuple(hs[:end])
+
+
 def pose_states(poses: Sequence[Pose]) -> tuple[State, ...]:
     """Per-tick states of a sequence of poses, finishing any move still under way, without
     trailing repeats (after its last state an AGV stays where it is)."""
@@ -159,6 +211,13 @@ class _Step:
         self.chain = 0
         """Log length when the current top-level push began."""
         self.budget = budget
+        self.rotating = headings is not None and any(mv.rot is not None for mv in movers)
+        self.forced_turn: dict[int, int] = {}
+        """Rotation-aware agents forced to stay and turn: agent -> heading after it."""
+        self.escape: dict[int, int] = {}
+        """Rotation-aware agents a higher-priority agent failed to push away: the
+        direction to turn to, to make room next step."""
+        self.pushers: list[int] = []
 
     # ------------------------------------------------------------------ bookkeeping
 
@@ -296,6 +355,12 @@ class _Step:
         """Targets of an agent at rest, best first (its own node last among equals)."""
         mv, here = self.movers[i], self.poses[i][1]
         d, tie = mv.dist, self.tie
+        if mv.rot is not None and self.rotating:
+            near = list(dict.fromkeys(t for _, t, _ in self.rot_options(i)))
+            if avoid:
+                near = [v for v in near
+                        if avoid.isdisjoint(footprint_nodes(v, mv.k, self.cols))]
+            return near
         if mv.tdist is not None and self.headings is not None:
             return self._turn_candidates(i, avoid)
         near = [v for v in mv.neighbors[here] if d[v] < UNREACHABLE] + [here]
@@ -303,6 +368,55 @@ class _Step:
             near = [v for v in near
                     if avoid.isdisjoint(footprint_nodes(v, mv.k, self.cols))]
         return sorted(near, key=lambda v: d[v] + tie[v])
+
+    def rot_options(self, i: int) -> list[tuple[float, int, int]]:
+        """A rotation-aware agent's options at rest, best first: ``(ticks to its goal,
+        target node, direction)``: the cell ahead (target that cell), a turn towards
+        another neighbour (target its own node, direction the neighbour's) or waiting
+        (its own node, direction -1)."""
+        mv, here = self.movers[i], self.poses[i][1]
+        assert mv.rot is not None and mv.rdist is not None and self.headings is not None
+        rd, tie, cols = mv.rdist, self.tie, self.cols
+        h = self.headings[i]
+        q1, q2 = mv.rot
+        opts: list[tuple[float, int, int]] = []
+        for v in mv.neighbors[here]:
+            d = move_dir(here, v, cols)
+            r = int(rd[v, d])
+            if r >= UNREACHABLE_T:
+                continue
+            if d == h or h > 3:
+                opts.append((mv.m + r + tie[v], v, d))
+            else:
+                q = q1 if quarters(h, d) == 1 else q2
+                opts.append((q + mv.m + r + tie[v], here, d))
+        wait = int(rd[here, h]) if h < 4 else int(rd[here].min())
+        opts.append((1 + min(wait, UNREACHABLE_T) + tie[here], here, -1))
+        opts.sort()
+        return opts
+
+    def note_escape(self, i: int) -> None:
+        """Agent ``i`` (rotation-aware, at rest) could not be pushed away: remember the
+        neighbour it should turn to, to make room next step (free now, unclaimed, off the
+        pusher's cells; fewest quarter turns, then nearest to its goal)."""
+        mv, here = self.movers[i], self.poses[i][1]
+        assert mv.rdist is not None and self.headings is not None
+        p = self.pushers[-1] if self.pushers else None
+        bad = frozenset() if p is None else self.cur_set[p].union(self.nxt_cells[p])
+        best = None
+        for v in mv.neighbors[here]:
+            d = move_dir(here, v, self.cols)
+            r = int(mv.rdist[v, d])
+            cells = footprint_nodes(v, mv.k, self.cols)
+            if r >= UNREACHABLE_T or not bad.isdisjoint(cells) or \
+                    any(self.occ_next.get(c, i) != i for c in cells):
+                continue
+            busy = sum(1 for c in cells if self.occ_now.get(c, i) != i)
+            key = (busy, quarters(self.headings[i], d), r + self.tie[v])
+            if best is None or key < best[0]:
+                best = (key, d)
+        if best is not None:
+            self.escape[i] = best[1]
 
     def _turn_candidates(self, i: int, avoid: frozenset[int]) -> list[int]:
         """:meth:`candidates` by the moves left from the state (anchor, heading) each
@@ -337,10 +451,14 @@ class _Step:
         self.budget -= len(ahead)
         mark = len(self.log)
         self.decide(i, pose, cells, turn)
-        for x in ahead:
-            if self.nxt[x] is None and not self.push(x):
-                self.rollback(mark)
-                return False
+        self.pushers.append(i)
+        try:
+            for x in ahead:
+                if self.nxt[x] is None and not self.push(x):
+                    self.rollback(mark)
+                    return False
+        finally:
+            self.pushers.pop()
         return True
 
     def push(self, i: int, avoid: frozenset[int] = frozenset()) -> bool:
@@ -363,6 +481,8 @@ class _Step:
                 return True
         if not avoid:
             self.stuck.add(i)
+            if self.rotating and self.movers[i].rot is not None:
+                self.note_escape(i)
         return False
 
     # ------------------------------------------------------------------ swap
@@ -395,6 +515,11 @@ class _Step:
         for u in mj.neighbors[here]:
             if mj.dist[u] >= UNREACHABLE or mi.dist[u] < ref:
                 continue
+            if self.rotating and mj.rot is not None:
+                assert self.headings is not None
+                if move_dir(here, u, self.cols) != self.headings[j] or \
+                        mj.rdist[u, self.headings[j]] >= UNREACHABLE_T:
+                    continue  # it can step aside only straight ahead
             if self.turning and mj.turns:
                 assert self.headings is not None
                 d = move_dir(here, u, self.cols)
@@ -452,6 +577,9 @@ class _Step:
         self.keep.update(self.log[mark:])
 
     def force(self, i: int, target: int) -> bool:
+        if target < 0:  # stay and turn a quarter (rotation-aware agents)
+            self.forced_turn[i] = -1 - target
+            target = self.poses[i][1]
         pose = successor(self.poses[i], target, self.movers[i].m)
         cells = pose_cells(pose, self.movers[i].k, self.cols)
         if not self.fits(i, cells):
@@ -466,7 +594,7 @@ class _Step:
 def footprint_step(movers: Sequence[Mover], poses: Sequence[Pose], prio: Sequence[float],
                    tie: np.ndarray, cols: int, forced: Mapping[int, int] | None = None,
                    budget: int | None = None, headings: Sequence[int] | None = None,
-                   ) -> list[Pose] | None:
+                   out_headings: list[int] | None = None) -> list[Pose] | None:
     """Next pose of every agent, or None if the ``forced`` targets (agent -> node; the
     agent's own node to stay) contradict each other or cannot be made room for.
 
@@ -475,7 +603,9 @@ def footprint_step(movers: Sequence[Mover], poses: Sequence[Pose], prio: Sequenc
     number of pushes (default ``50 * len(poses) + 100``); when it runs out, agents only
     take targets nobody stands on. ``headings``: per agent the direction index it faces
     (:func:`~warerover_phys.planning.sweep.move_dir`; 4: unknown), needed for turn-aware
-    movers (see the module doc).
+    movers (see the module doc). ``out_headings`` (an empty list; with ``headings``) gets
+    each agent's heading once its next pose is done (turns of rotation-aware agents
+    included).
     """
     n = len(poses)
     step = _Step(movers, poses, cols, tie, 50 * n + 100 if budget is None else budget,
@@ -502,4 +632,36 @@ def footprint_step(movers: Sequence[Mover], poses: Sequence[Pose], prio: Sequenc
     finally:
         sys.setrecursionlimit(limit)
     out = [p for p in step.nxt if p is not None]
-    return out if len(out) == n else None
+    if len(out) != n:
+        return None
+    if out_headings is not None and headings is not None:
+        out_headings[:] = next_headings(headings, poses, out, cols)
+        if step.rotating:
+            _rotate(step, out, out_headings, fixed)
+    return out
+
+
+def _rotate(step: _Step, out: list[Pose], heads: list[int], fixed: Mapping[int, int]) -> None:
+    """Turn the rotation-aware agents that stay (see the module doc), in place."""
+    for i, mv in enumerate(step.movers):
+        if mv.rot is None or step.poses[i][2] != 0 or out[i][1] != step.poses[i][1]:
+            continue
+        h = heads[i]
+        if i in step.forced_turn:
+            new = step.forced_turn[i]
+        elif i in fixed or h > 3:
+            continue
+        else:
+            d = step.escape.get(i)
+            if d is None:
+                best = step.rot_options(i)[0]
+                d = best[2] if best[1] == step.poses[i][1] else -1
+            if d < 0 or d == h:
+                continue
+            new = turn_towards(h, d)
+        if new == h:
+            continue
+        heads[i] = new
+        q = mv.rot[0] if quarters(h, new) == 1 else mv.rot[1]
+        here = step.poses[i][1]
+        out[i] = (here, here, q - 1) if q > 1 else (here, here, 0)
