@@ -395,13 +395,14 @@ class _Step:
         opts.sort()
         return opts
 
-    def note_escape(self, i: int) -> None:
-        """Agent ``i`` (rotation-aware, at rest) could not be pushed away: remember the
-        neighbour it should turn to, to make room next step (free now, unclaimed, off the
-        pusher's cells; fewest quarter turns, then nearest to its goal)."""
+    def note_escape(self, i: int, against: int | None = None) -> None:
+        """Agent ``i`` (rotation-aware, at rest) could not be pushed away by ``against``
+        (default: the agent pushing it now), or must make way for it: remember the
+        neighbour it should turn to, to make room next step (off that agent's cells,
+        unclaimed; fewest agents on it now, fewest quarter turns, nearest to its goal)."""
         mv, here = self.movers[i], self.poses[i][1]
         assert mv.rdist is not None and self.headings is not None
-        p = self.pushers[-1] if self.pushers else None
+        p = against if against is not None else (self.pushers[-1] if self.pushers else None)
         bad = frozenset() if p is None else self.cur_set[p].union(self.nxt_cells[p])
         best = None
         for v in mv.neighbors[here]:
@@ -469,7 +470,13 @@ class _Step:
         partner = -1
         if not avoid and cands[0] != here:
             partner = self.head_on(i, cands[0])
-            if partner >= 0:
+            if partner >= 0 and self.rotating and self.movers[i].rot is not None:
+                # Head-on with an agent that cannot step aside: make way by turning
+                # towards a free side (next step it drives off), staying meanwhile.
+                self.note_escape(i, partner)
+                cands = [here]
+                partner = -1
+            elif partner >= 0:
                 cands.reverse()  # make way, then pull the partner along behind
             else:
                 self.nudge(i, cands[0])
@@ -515,11 +522,10 @@ class _Step:
         for u in mj.neighbors[here]:
             if mj.dist[u] >= UNREACHABLE or mi.dist[u] < ref:
                 continue
-            if self.rotating and mj.rot is not None:
-                assert self.headings is not None
-                if move_dir(here, u, self.cols) != self.headings[j] or \
-                        mj.rdist[u, self.headings[j]] >= UNREACHABLE_T:
-                    continue  # it can step aside only straight ahead
+            if self.rotating and mj.rot is not None and \
+                    mj.rdist[u, move_dir(here, u, self.cols)] >= UNREACHABLE_T:
+                continue  # (a side step of a rotation-aware agent turns first: it
+                # escapes there next step, see note_escape)
             if self.turning and mj.turns:
                 assert self.headings is not None
                 d = move_dir(here, u, self.cols)
