@@ -190,7 +190,8 @@ class _Step:
     """The working state of one step (see the module doc)."""
 
     def __init__(self, movers: Sequence[Mover], poses: Sequence[Pose], cols: int,
-                 tie: np.ndarray, budget: int, headings: Sequence[int] | None = None) -> None:
+                 tie: np.ndarray, budget: int, headings: Sequence[int] | None = None,
+                 rotation: str = "stay") -> None:
         self.movers, self.poses, self.cols, self.tie = movers, poses, cols, tie
         self.headings = headings
         self.turning = headings is not None and any(mv.turns for mv in movers)
@@ -211,7 +212,12 @@ class _Step:
         self.chain = 0
         """Log length when the current top-level push began."""
         self.budget = budget
-        self.rotating = headings is not None and any(mv.rot is not None for mv in movers)
+        self.cascade = rotation == "cascade"
+        self.rotating = headings is not None and any(mv.rot is not None for mv in movers) \
+            and not self.cascade
+        """Rotation-aware movers, a turn counting as staying (see the module doc)."""
+        if self.cascade and headings is None:
+            self.cascade = False
         self.forced_turn: dict[int, int] = {}
         """Rotation-aware agents forced to stay and turn: agent -> heading after it."""
         self.escape: dict[int, int] = {}
@@ -355,6 +361,8 @@ class _Step:
         """Targets of an agent at rest, best first (its own node last among equals)."""
         mv, here = self.movers[i], self.poses[i][1]
         d, tie = mv.dist, self.tie
+        if mv.rot is not None and self.cascade:
+            return self._cascade_candidates(i, avoid)
         if mv.rot is not None and self.rotating:
             near = list(dict.fromkeys(t for _, t, _ in self.rot_options(i)))
             if avoid:
@@ -395,11 +403,33 @@ class _Step:
         opts.sort()
         return opts
 
+    def _cascade_candidates(self, i: int, avoid: frozenset[int]) -> list[int]:
+        """Targets of a rotation-aware agent in ``cascade`` mode: every neighbour and its
+        own node, ranked by the ticks to its goal through them (the turn towards a
+        neighbour included)."""
+        mv, here = self.movers[i], self.poses[i][1]
+        assert mv.rot is not None and mv.rdist is not None and self.headings is not None
+        rd, tie, cols, h = mv.rdist, self.tie, self.cols, self.headings[i]
+        q1, q2 = mv.rot
+        score = {here: 1 + int(rd[here, h] if h < 4 else rd[here].min()) + tie[here]}
+        for v in mv.neighbors[here]:
+            d = move_dir(here, v, cols)
+            r = int(rd[v, d])
+            if r >= UNREACHABLE_T:
+                continue
+            n = 0 if h > 3 else quarters(h, d)
+            score[v] = (0, q1, q2)[n] + mv.m + r + tie[v]
+        near = sorted(score, key=score.__getitem__)
+        if avoid:
+            near = [v for v in near if avoid.isdisjoint(footprint_nodes(v, mv.k, cols))]
+        return near
+
     def note_escape(self, i: int, against: int | None = None) -> None:
         """Agent ``i`` (rotation-aware, at rest) could not be pushed away by ``against``
         (default: the agent pushing it now), or must make way for it: remember the
         neighbour it should turn to, to make room next step (off that agent's cells,
-        unclaimed; fewest agents on it now, fewest quarter turns, nearest to its goal)."""
+        unclaimed, not ahead (that failed); fewest agents on it now, fewest quarter turns,
+        nearest to its goal)."""
         mv, here = self.movers[i], self.poses[i][1]
         assert mv.rdist is not None and self.headings is not None
         p = against if against is not None else (self.pushers[-1] if self.pushers else None)
@@ -409,7 +439,7 @@ class _Step:
             d = move_dir(here, v, self.cols)
             r = int(mv.rdist[v, d])
             cells = footprint_nodes(v, mv.k, self.cols)
-            if r >= UNREACHABLE_T or not bad.isdisjoint(cells) or \
+            if r >= UNREACHABLE_T or d == self.headings[i] or not bad.isdisjoint(cells) or \
                     any(self.occ_next.get(c, i) != i for c in cells):
                 continue
             busy = sum(1 for c in cells if self.occ_now.get(c, i) != i)
@@ -469,14 +499,11 @@ class _Step:
         here = self.poses[i][1]
         partner = -1
         if not avoid and cands[0] != here:
-            partner = self.head_on(i, cands[0])
-            if partner >= 0 and self.rotating and self.movers[i].rot is not None:
-                # Head-on with an agent that cannot step aside: make way by turning
-                # towards a free side (next step it drives off), staying meanwhile.
-                self.note_escape(i, partner)
-                cands = [here]
-                partner = -1
-            elif partner >= 0:
+            # A rotation-aware agent never makes way for a head-on partner: it pushes, and
+            # the partner, unable to leave ahead, turns to escape (note_escape).
+            partner = -1 if self.rotating and self.movers[i].rot is not None else \
+                self.head_on(i, cands[0])
+            if partner >= 0:
                 cands.reverse()  # make way, then pull the partner along behind
             else:
                 self.nudge(i, cands[0])
@@ -600,7 +627,8 @@ class _Step:
 def footprint_step(movers: Sequence[Mover], poses: Sequence[Pose], prio: Sequence[float],
                    tie: np.ndarray, cols: int, forced: Mapping[int, int] | None = None,
                    budget: int | None = None, headings: Sequence[int] | None = None,
-                   out_headings: list[int] | None = None) -> list[Pose] | None:
+                   out_headings: list[int] | None = None, rotation: str = "stay",
+                   ) -> list[Pose] | None:
     """Next pose of every agent, or None if the ``forced`` targets (agent -> node; the
     agent's own node to stay) contradict each other or cannot be made room for.
 
@@ -611,11 +639,14 @@ def footprint_step(movers: Sequence[Mover], poses: Sequence[Pose], prio: Sequenc
     (:func:`~warerover_phys.planning.sweep.move_dir`; 4: unknown), needed for turn-aware
     movers (see the module doc). ``out_headings`` (an empty list; with ``headings``) gets
     each agent's heading once its next pose is done (turns of rotation-aware agents
-    included).
+    included). ``rotation``: how rotation-aware movers take part (``stay``: a turn is a
+    way of staying, the default; ``cascade``: they are ranked like any agent, with turn
+    costs, then every one whose target is not ahead turns towards it instead and the
+    agents that would enter its cells stay too; see the module doc).
     """
     n = len(poses)
     step = _Step(movers, poses, cols, tie, 50 * n + 100 if budget is None else budget,
-                 headings)
+                 headings, rotation)
     fixed = {i: p[1] for i, p in enumerate(poses) if p[2] > 0}
     fixed.update(forced or {})
     for i in sorted(fixed):
@@ -644,7 +675,55 @@ def footprint_step(movers: Sequence[Mover], poses: Sequence[Pose], prio: Sequenc
         out_headings[:] = next_headings(headings, poses, out, cols)
         if step.rotating:
             _rotate(step, out, out_headings, fixed)
+        elif step.cascade and not _cascade(step, out, out_headings, fixed):
+            return None
     return out
+
+
+def _cascade(step: _Step, out: list[Pose], heads: list[int], fixed: Mapping[int, int]) -> bool:
+    """``cascade`` mode: a rotation-aware agent whose target is not ahead turns a quarter
+    towards it and stays; then every agent that would enter cells of an agent that stays
+    stays too, until none does. False if a forced move would have to stay."""
+    assert step.headings is not None
+    cols = step.cols
+    for i, mv in enumerate(step.movers):
+        p = step.poses[i]
+        if mv.rot is None or p[2] != 0 or out[i][1] == p[1]:
+            continue
+        h = step.headings[i]
+        d = move_dir(p[1], out[i][1], cols)
+        if h > 3 or d == h:
+            continue
+        if i in fixed:
+            return False
+        new = turn_towards(h, d)
+        heads[i] = new
+        q = mv.rot[0]
+        out[i] = (p[1], p[1], q - 1) if q > 1 else (p[1], p[1], 0)
+    while True:
+        owner: dict[int, int] = {}
+        clash = None
+        for i, pose in enumerate(out):
+            for c in pose_cells(pose, step.movers[i].k, cols):
+                j = owner.get(c)
+                if j is not None:
+                    clash = (j, i)
+                    break
+                owner[c] = i
+            if clash is not None:
+                break
+        if clash is None:
+            return True
+        for x in clash:  # the one that moves into the other's cells stays
+            p = step.poses[x]
+            if p[2] == 0 and out[x][1] != p[1]:
+                if x in fixed:
+                    return False
+                out[x] = (p[1], p[1], 0)
+                heads[x] = step.headings[x]
+                break
+        else:
+            return False
 
 
 def _rotate(step: _Step, out: list[Pose], heads: list[int], fixed: Mapping[int, int]) -> None:

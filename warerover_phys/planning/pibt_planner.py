@@ -143,8 +143,10 @@ class PIBTPlanner:
     replans_all = True
     """The loop must send every AGV every tick."""
 
-    def __init__(self, swap: bool = True, **_: object) -> None:
+    def __init__(self, swap: bool = True, rotation: str = "cascade", **_: object) -> None:
         self.swap = swap
+        self.rotation = rotation
+        """How rotation-aware AGVs take part in a step (``footprint_step``'s ``rotation``)."""
 
     def plan(self, request: PlanRequest) -> PlanResult:
         agents: list[AgentRequest] = sorted(request.agents, key=lambda a: a.agv)
@@ -188,7 +190,8 @@ class PIBTPlanner:
         heads = headings_for(agents, res, tick)
         out_heads: list[int] = []
         nxt = footprint_step(movers, poses, prio, tie, res.cols, forced=held,
-                             headings=heads, out_headings=out_heads)
+                             headings=heads, out_headings=out_heads,
+                             rotation=self.rotation)
         if nxt is None:  # holds never contradict each other; be safe and keep still
             nxt = [successor(p, p[1], mv.m) for p, mv in zip(poses, movers, strict=True)]
             out_heads = list(heads) if heads is not None else []
