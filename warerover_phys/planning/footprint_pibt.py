@@ -628,7 +628,7 @@ def footprint_step(movers: Sequence[Mover], poses: Sequence[Pose], prio: Sequenc
                    tie: np.ndarray, cols: int, forced: Mapping[int, int] | None = None,
                    budget: int | None = None, headings: Sequence[int] | None = None,
                    out_headings: list[int] | None = None, rotation: str = "stay",
-                   ) -> list[Pose] | None:
+                   undo: Mapping[int, int] | None = None) -> list[Pose] | None:
     """Next pose of every agent, or None if the ``forced`` targets (agent -> node; the
     agent's own node to stay) contradict each other or cannot be made room for.
 
@@ -642,7 +642,10 @@ def footprint_step(movers: Sequence[Mover], poses: Sequence[Pose], prio: Sequenc
     included). ``rotation``: how rotation-aware movers take part (``stay``: a turn is a
     way of staying, the default; ``cascade``: they are ranked like any agent, with turn
     costs, then every one whose target is not ahead turns towards it instead and the
-    agents that would enter its cells stay too; see the module doc).
+    agents that would enter its cells stay too; see the module doc). ``undo`` (cascade
+    mode): per agent the heading it turned away from in the step before; it does not turn
+    straight back to it (it waits instead), which stops two agents from turning to and
+    fro in step with each other.
     """
     n = len(poses)
     step = _Step(movers, poses, cols, tie, 50 * n + 100 if budget is None else budget,
@@ -675,12 +678,13 @@ def footprint_step(movers: Sequence[Mover], poses: Sequence[Pose], prio: Sequenc
         out_headings[:] = next_headings(headings, poses, out, cols)
         if step.rotating:
             _rotate(step, out, out_headings, fixed)
-        elif step.cascade and not _cascade(step, out, out_headings, fixed):
+        elif step.cascade and not _cascade(step, out, out_headings, fixed, undo or {}):
             return None
     return out
 
 
-def _cascade(step: _Step, out: list[Pose], heads: list[int], fixed: Mapping[int, int]) -> bool:
+def _cascade(step: _Step, out: list[Pose], heads: list[int], fixed: Mapping[int, int],
+             undo: Mapping[int, int]) -> bool:
     """``cascade`` mode: a rotation-aware agent whose target is not ahead turns a quarter
     towards it and stays; then every agent that would enter cells of an agent that stays
     stays too, until none does. False if a forced move would have to stay."""
@@ -697,8 +701,10 @@ def _cascade(step: _Step, out: list[Pose], heads: list[int], fixed: Mapping[int,
         if i in fixed:
             return False
         new = turn_towards(h, d)
+        if undo.get(i) == new:
+            new = h  # no turning straight back: wait
         heads[i] = new
-        q = mv.rot[0]
+        q = mv.rot[0] if new != h else 1
         out[i] = (p[1], p[1], q - 1) if q > 1 else (p[1], p[1], 0)
     while True:
         owner: dict[int, int] = {}

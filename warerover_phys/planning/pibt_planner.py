@@ -95,6 +95,22 @@ def headings_for(agents: Sequence[AgentRequest], res: ReservationTable | None = 
     return tuple(out)
 
 
+def _last_turns(res: ReservationTable, agents: Sequence[AgentRequest],
+                tick: int) -> dict[int, int]:
+    """Per rotation-aware agent (index) that turned in the tick before ``tick``, the
+    heading it turned away from (read from its committed path)."""
+    out = {}
+    for i, a in enumerate(agents):
+        path = res.paths.get(a.agv)
+        if a.turn_ticks is None or path is None or path.headings is None:
+            continue
+        before, now = path.heading_at(tick - 1), path.heading_at(tick)
+        if path.start_tick <= tick - 1 and before != now and \
+                path.state_at(tick - 1) == path.state_at(tick):
+            out[i] = before
+    return out
+
+
 def _turn_end(res: ReservationTable, agent: AgentRequest, tick: int) -> tuple[int, int] | None:
     """A rotation-aware AGV in the middle of a committed turn of more than one tick:
     (ticks left, heading after it), else None."""
@@ -191,7 +207,7 @@ class PIBTPlanner:
         out_heads: list[int] = []
         nxt = footprint_step(movers, poses, prio, tie, res.cols, forced=held,
                              headings=heads, out_headings=out_heads,
-                             rotation=self.rotation)
+                             rotation=self.rotation, undo=_last_turns(res, agents, tick))
         if nxt is None:  # holds never contradict each other; be safe and keep still
             nxt = [successor(p, p[1], mv.m) for p, mv in zip(poses, movers, strict=True)]
             out_heads = list(heads) if heads is not None else []
