@@ -403,6 +403,15 @@ class _Step:
         opts.sort()
         return opts
 
+    def _ahead_of(self, i: int) -> int | None:
+        """The neighbour straight ahead of a rotation-aware agent at rest (None if none)."""
+        mv, here = self.movers[i], self.poses[i][1]
+        h = self.headings[i] if self.headings is not None else 4
+        if h > 3:
+            return None
+        v = here + (1, self.cols, -1, -self.cols)[h]
+        return v if v in mv.neighbors[here] else None
+
     def _cascade_candidates(self, i: int, avoid: frozenset[int]) -> list[int]:
         """Targets of a rotation-aware agent in ``cascade`` mode: every neighbour and its
         own node, ranked by the ticks to its goal through them (the turn towards a
@@ -505,6 +514,13 @@ class _Step:
                 self.head_on(i, cands[0])
             if partner >= 0:
                 cands.reverse()  # make way, then pull the partner along behind
+                if self.cascade and self.movers[i].rot is not None:
+                    # ... by driving ahead if it can (a side step would be a turn, and
+                    # turning to the worst side every step spins it round)
+                    ahead = self._ahead_of(i)
+                    if ahead in cands:
+                        cands.remove(ahead)
+                        cands.insert(0, ahead)
             else:
                 self.nudge(i, cands[0])
         for idx, target in enumerate(cands):
