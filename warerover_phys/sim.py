@@ -258,6 +258,13 @@ class Simulation:
         if stray:
             raise ValueError(f"planner {self.planner.name!r} returned paths for AGVs "
                              f"{sorted(stray)}, which it was not asked to plan")
+        if self._rot:
+            flat = sorted(aid for aid, p in result.paths.items() if aid in self._rot and (
+                p.headings is None or len(p.headings) != len(p.states)))
+            if flat:
+                raise ValueError(f"planner {self.planner.name!r} returned paths without one "
+                                 f"heading per state for the rotation-aware AGVs {flat} "
+                                 "(planner.rotations: true): it does not plan rotations")
         failed = set(result.failed)
         for a in agents:
             path = result.paths.get(a.agv)
