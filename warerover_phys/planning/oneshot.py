@@ -66,9 +66,13 @@ ONESHOT_PLANNERS = ("lacam", "pibt", "astar", "learned")
 
 
 def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner: str = "lacam",
-          time_limit_s: float = 60.0, seed: int = 0) -> OneShotResult:
+          time_limit_s: float = 60.0, seed: int = 0, guide: bool = True) -> OneShotResult:
     """Solve a one-shot instance with the named planner; paths are not validated here
-    (use :func:`warerover_phys.validate.validate_states`)."""
+    (use :func:`warerover_phys.validate.validate_states`).
+
+    ``guide`` (``lacam`` and ``pibt``): PIBT follows guide paths that spread the agents over
+    the map (:mod:`~warerover_phys.planning.scatter`), for first solutions of far lower cost.
+    """
     graph = grid_graph(obstacles)
     lb = 0
     for s, g in zip(starts, goals, strict=True):
@@ -80,10 +84,10 @@ def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner:
     deadline = time.monotonic() + time_limit_s
     if planner == "pibt":
         from .pibt import pibt_oneshot
-        paths, stats = pibt_oneshot(graph, starts, goals, deadline, seed)
+        paths, stats = pibt_oneshot(graph, starts, goals, deadline, seed, guide=guide)
     elif planner == "lacam":
         from .lacam import lacam
-        paths, stats = lacam(graph, starts, goals, deadline, seed)
+        paths, stats = lacam(graph, starts, goals, deadline, seed, guide=guide)
     elif planner == "astar":
         paths, stats = _prioritized(graph, starts, goals, deadline)
     elif planner == "learned":
