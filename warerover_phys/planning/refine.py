@@ -77,23 +77,27 @@ class _Plan:
         self.occ: dict[int, int] = {}
         self.parked: dict[int, int] = {}
         self.visits: dict[int, list[int]] = {}
+        self.safe: dict[int, list[tuple[int, int]]] = {}
+        """Safe intervals per node (:func:`_intervals`), dropped when a path there changes."""
         for i, p in enumerate(paths):
             self.add(i, p)
 
     def add(self, i: int, path: list[int]) -> None:
-        n, occ, visits = self.n, self.occ, self.visits
+        n, occ, visits, safe = self.n, self.occ, self.visits, self.safe
         for t, v in enumerate(path):
             occ[t * n + v] = i
             visits.setdefault(v, []).append(t)
+            safe.pop(v, None)
         self.parked[path[-1]] = len(path) - 1
         self.paths[i] = path
 
     def remove(self, i: int) -> list[int]:
         path = self.paths[i]
-        n, occ, visits = self.n, self.occ, self.visits
+        n, occ, visits, safe = self.n, self.occ, self.visits, self.safe
         for t, v in enumerate(path):
             del occ[t * n + v]
             visits[v].remove(t)
+            safe.pop(v, None)
         del self.parked[path[-1]]
         return path
 
@@ -109,12 +113,14 @@ def _astar(neighbors: Sequence[Sequence[int]], plan: _Plan, start: int, goal: in
     earliest = max(ticks) + 1 if ticks else 0
     if dist[start] > ub:
         return None
-    heap = [(max(dist[start], earliest), 0, start, -1)]
+    # Entries (f, h, -t, node, parent key): among equal f, nearer the goal, then later
+    # (when the goal is free only late, f is flat and this keeps the search goal-directed).
+    heap = [(max(dist[start], earliest), dist[start], 0, start, -1)]
     closed: dict[int, int] = {}
     push, pop = heapq.heappush, heapq.heappop
     expanded = 0
     while heap:
-        f, neg_t, v, par = pop(heap)
+        _f, _h, neg_t, v, par = pop(heap)
         t = -neg_t
         key = t * n + v
         if key in closed:
@@ -143,13 +149,120 @@ def _astar(neighbors: Sequence[Sequence[int]], plan: _Plan, start: int, goal: in
                 j = occ.get(t * n + u)
                 if j is not None and occ.get(base + v) == j:
                     continue  # swap with agent j
-            f1 = t1 + dist[u]
+            h = dist[u]
+            f1 = t1 + h
             if f1 < earliest:
                 f1 = earliest
             if f1 > ub:
                 continue
-            push(heap, (f1, -t1, u, key))
+            push(heap, (f1, h, -t1, u, key))
     return None
+
+
+_INF = 1 << 40
+
+
+def _intervals(plan: _Plan, v: int) -> list[tuple[int, int]]:
+    """Safe intervals of node v: maximal runs of ticks ``(lo, hi)`` (inclusive) at which no
+    kept path is at v; the last one runs to ``_INF`` unless an agent parks on v."""
+    park = plan.parked.get(v)
+    out = []
+    lo = 0
+    for b in sorted(plan.visits.get(v, ())):
+        if park is not None and b >= park:
+            break
+        if b > lo:
+            out.append((lo, b - 1))
+        lo = b + 1
+    hi = _INF if park is None else park - 1
+    if lo <= hi:
+        out.append((lo, hi))
+    return out
+
+
+def _sipp(neighbors: Sequence[Sequence[int]], plan: _Plan, start: int, goal: int,
+          dist: Sequence[int], ub: int, deadline: float, max_expansions: int,
+          ) -> list[int] | None:
+    """Space-time A* over safe intervals (SIPP, Phillips and Likhachev 2011): the same
+    paths as :func:`_astar` (shortest, avoiding every kept path, cost at most ``ub``) with
+    waiting folded into intervals, so a late free goal does not flood the search."""
+    n, occ = plan.n, plan.occ
+    cache = plan.safe
+
+    def safe(v: int) -> list[tuple[int, int]]:
+        iv = cache.get(v)
+        if iv is None:
+            iv = cache[v] = _intervals(plan, v)
+        return iv
+
+    goal_iv = safe(goal)
+    if not goal_iv or goal_iv[-1][1] != _INF:
+        return None
+    earliest = goal_iv[-1][0]
+    s_iv = safe(start)
+    if not s_iv or s_iv[0][0] != 0:
+        return None
+    f0 = max(dist[start], earliest)
+    if f0 > ub:
+        return None
+    # entries (f, h, -t, node, interval index, parent state key); states keyed node, interval
+    heap = [(f0, dist[start], 0, start, 0, -1)]
+    closed: dict[int, tuple[int, int]] = {}  # state key -> (parent state key, arrival tick)
+    push, pop = heapq.heappush, heapq.heappop
+    expanded = 0
+    while heap:
+        _f, _h, neg_t, v, k, par = pop(heap)
+        key = (v << 16) | k
+        if key in closed:
+            continue
+        t = -neg_t
+        closed[key] = (par, t)
+        ivs = safe(v)
+        hi_v = ivs[k][1]
+        if v == goal and hi_v == _INF:
+            return _unwind(closed, key, n)
+        expanded += 1
+        if expanded > max_expansions or (expanded & 127 == 0 and time.monotonic() > deadline):
+            return None
+        last = hi_v + 1  # the latest arrival at a neighbour (leaving v at hi_v)
+        for u in neighbors[v]:
+            h = dist[u]
+            for k2, (lo, hi) in enumerate(safe(u)):
+                if lo > last or lo > ub:
+                    break
+                if hi < t + 1:
+                    continue
+                t2 = lo if lo > t + 1 else t + 1
+                # a swap: some agent goes u -> v while we go v -> u; leave a tick later
+                while t2 <= hi and t2 <= last:
+                    j = occ.get((t2 - 1) * n + u)
+                    if j is None or occ.get(t2 * n + v) != j:
+                        break
+                    t2 += 1
+                if t2 > hi or t2 > last:
+                    continue
+                f = t2 + h
+                if u == goal and hi == _INF and f < earliest:
+                    f = earliest
+                if f > ub or ((u << 16) | k2) in closed:
+                    continue
+                push(heap, (f, h, -t2, u, k2, key))
+    return None
+
+
+def _unwind(closed: dict[int, tuple[int, int]], key: int, n: int) -> list[int]:
+    """The node list of the path that ends in state ``key`` (waits spelt out)."""
+    steps = []
+    while key != -1:
+        par, t = closed[key]
+        steps.append((key >> 16, t))
+        key = par
+    steps.reverse()
+    path: list[int] = []
+    for (v, t), nxt in zip(steps, steps[1:] + [None], strict=True):
+        leave = t if nxt is None else nxt[1] - 1
+        path.extend([v] * (leave - t + 1))
+    return path
 
 
 def refine(neighbors: Sequence[Sequence[int]], paths: Sequence[Sequence[int]],
@@ -220,7 +333,7 @@ def refine(neighbors: Sequence[Sequence[int]], paths: Sequence[Sequence[int]],
             d = lists[a]
             if d is None:
                 d = lists[a] = dists[a].tolist()
-            path = _astar(neighbors, plan, olds[a][0], goals[a], d, ub, deadline,
+            path = _sipp(neighbors, plan, olds[a][0], goals[a], d, ub, deadline,
                           max_expansions)
             if path is None:
                 ok = False
