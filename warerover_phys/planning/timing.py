@@ -253,6 +253,18 @@ def schedule(paths: Mapping[int, TimedPath], fleet: Sequence[AgvTypeSpec], *, co
         if not late or passes >= max_passes:
             break
         splits.update(late)
+    # A split added in an early pass may have become needless once other runs were split
+    # and its run reached it later: the AGV now stops there and goes on at once. Drop each
+    # such split again, earliest first, where the schedule keeps every dependency without it.
+    for sp in sorted(splits, key=lambda k: times[k][0]):
+        if late or ready[sp] >= times[(sp[0], sp[1] - 1)][1] - _EPS:
+            continue  # it really waits there (or no feasible schedule was reached)
+        trial = splits - {sp}
+        passes += 1
+        t2, r2, ru2, late2 = _pass(order, acts, deps, model, dwell_s, turn_s, joins, sweeps,
+                                   trial)
+        if not late2:
+            splits, times, ready, runs = trial, t2, r2, ru2
     out: dict[int, tuple[TimedAction, ...]] = {}
     finish: dict[int, float] = {}
     finish_unit: dict[int, float] = {}
