@@ -112,7 +112,8 @@ def _timed(report: dict, agents: list[dict], actions: list[dict], plan, timing: 
     from .gap_open import motion_timed
     from .planning.timing import schedule_plan
 
-    sched = schedule_plan(plan, payload=bool(getattr(spec, "payload", False)))
+    sched = schedule_plan(plan, payload=bool(getattr(spec, "payload", False)),
+                          comm_latency_s=float(getattr(spec, "comm_latency_s", 0.0)))
     report, agents, actions = motion_timed(report, agents, actions, plan, sched)
     return report, agents, actions, sched
 

@@ -170,6 +170,20 @@ def test_a_follower_waits_for_the_leader_and_a_run_is_split():
     assert sched.finish_s[1] > MotionModel.of(SMALL, 1.0).run_s(5)
 
 
+def test_a_communication_latency_delays_every_dependency():
+    cols = 8
+    lead = TimedPath(0, 0, tuple((c, c) for c in (2, 3, 4, 5, 6, 7)) + ((7, 7),))
+    follow = TimedPath(1, 0, ((0, 0),) + tuple((c, c) for c in (1, 2, 3, 4, 5)) + ((5, 5),))
+    paths = {0: lead, 1: follow}
+    slow = AgvTypeSpec(max_speed_mps=0.5, max_accel_mps2=0.5)
+    base = schedule(paths, [slow, SMALL], cols=cols, rows=1)
+    late = schedule(paths, [slow, SMALL], cols=cols, rows=1, comm_latency_s=0.5)
+    assert late.finish_s[0] == base.finish_s[0]  # the leader waits for no one
+    assert late.finish_s[1] > base.finish_s[1]
+    for a in late.actions[1]:
+        assert a.start_s >= a.ready_s - 1e-9
+
+
 def test_dwells_hold_and_turns_overlap_them():
     cols = 5
     # east 2 cells, dwell 3 ticks, then south 1 cell (a quarter turn during the dwell)

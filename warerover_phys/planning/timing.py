@@ -33,7 +33,8 @@ So a run's first move starts at ``max(arrival + turn, arrival + dwell, ready)`` 
 the latest finish among its dependencies), and the schedule is the earliest one that keeps
 every dependency: what a perfect robot with the model's limits needs for this plan. Top
 speeds are the types' own (the executor's random ``speed_scale`` is left out), acceleration
-the loaded limit while the plan says the AGV carries a shelf when ``payload`` is set.
+the loaded limit while the plan says the AGV carries a shelf when ``payload`` is set, and a
+communication latency (``comm_latency_s``) delays every dependency on another AGV.
 
 >>> from warerover_phys.config import AgvTypeSpec
 >>> from warerover_phys.planning.base import TimedPath
@@ -182,7 +183,7 @@ def schedule(paths: Mapping[int, TimedPath], fleet: Sequence[AgvTypeSpec], *, co
              rows: int, cell_m: float = 1.0, tick_s: float = 1.0,
              dwells: Mapping[int, Sequence[tuple[int, int]]] | None = None,
              loaded: np.ndarray | None = None, payload: bool = False,
-             max_passes: int = 10_000) -> Schedule:
+             comm_latency_s: float = 0.0, max_passes: int = 10_000) -> Schedule:
     """The motion-timed schedule of a plan (see the module docstring).
 
     ``paths``: every AGV's timed path (all from the same tick, starting and ending standing);
@@ -190,7 +191,9 @@ def schedule(paths: Mapping[int, TimedPath], fleet: Sequence[AgvTypeSpec], *, co
     ``tick_s``: seconds per plan tick (dwells and the unit figures); ``dwells``: per AGV
     ``(tick, ticks)`` of its work in place; ``loaded`` (T + 1, N): whether each AGV carries
     a shelf at each tick (with ``payload``: the loaded acceleration limit applies to moves
-    that start loaded). Raises ``ADGCycleError`` if the plan has no execution order.
+    that start loaded); ``comm_latency_s`` (``executor.comm_latency_s``): an AGV hears this
+    long after another AGV's action finished that its cells are free. Raises
+    ``ADGCycleError`` if the plan has no execution order.
     """
     agvs = sorted(paths)
     sizes = {i: int(fleet[i].footprint) for i in agvs}
@@ -249,7 +252,7 @@ def schedule(paths: Mapping[int, TimedPath], fleet: Sequence[AgvTypeSpec], *, co
     while True:
         passes += 1
         times, ready, runs, late = _pass(order, acts, deps, model, dwell_s, turn_s, joins,
-                                          sweeps, splits)
+                                          sweeps, splits, comm_latency_s)
         if not late or passes >= max_passes:
             break
         splits.update(late)
@@ -262,7 +265,7 @@ def schedule(paths: Mapping[int, TimedPath], fleet: Sequence[AgvTypeSpec], *, co
         trial = splits - {sp}
         passes += 1
         t2, r2, ru2, late2 = _pass(order, acts, deps, model, dwell_s, turn_s, joins, sweeps,
-                                   trial)
+                                   trial, comm_latency_s)
         if not late2:
             splits, times, ready, runs = trial, t2, r2, ru2
     out: dict[int, tuple[TimedAction, ...]] = {}
@@ -318,7 +321,7 @@ def _topological(acts: Mapping[int, list], deps: Mapping[tuple[int, int], list]
     return out
 
 
-def _pass(order, acts, deps, model, dwell_s, turn_s, joins, sweeps, splits):
+def _pass(order, acts, deps, model, dwell_s, turn_s, joins, sweeps, splits, latency=0.0):
     """One earliest-time pass with the given run splits. Returns start/finish per action,
     ready times, run index per action, and the actions where a run must be split (the first
     late move of each run)."""
@@ -331,7 +334,7 @@ def _pass(order, acts, deps, model, dwell_s, turn_s, joins, sweeps, splits):
     flagged: set[tuple[int, int]] = set()  # runs (agv, first index) already split this pass
     for key in order:
         i, n = key
-        r = max((times[d][1] for d in deps[key]), default=0.0)
+        r = max((times[d][1] + latency for d in deps[key]), default=0.0)
         ready[key] = r
         m = model[key]
         if n > 0 and joins[key] and key not in splits:
@@ -361,10 +364,10 @@ def _pass(order, acts, deps, model, dwell_s, turn_s, joins, sweeps, splits):
     return times, ready, runs, late
 
 
-def schedule_plan(plan, *, payload: bool = False) -> Schedule:
+def schedule_plan(plan, *, payload: bool = False, comm_latency_s: float = 0.0) -> Schedule:
     """The schedule of a :class:`~warerover_phys.gap_plan.TimedPlan` (the open-loop gap's
-    plan: paths, dwells, cargo); ``payload``: the executor's ``payload`` setting."""
+    plan: paths, dwells, cargo); ``payload``, ``comm_latency_s``: the executor's settings."""
     lay = plan.layout
     return schedule(plan.paths, plan.types, cols=lay.cols, rows=lay.rows, cell_m=lay.cell_m,
                     tick_s=plan.tick_s, dwells=dict(plan.dwell_view), loaded=plan.loaded,
-                    payload=payload)
+                    payload=payload, comm_latency_s=comm_latency_s)
