@@ -17,8 +17,10 @@ plan the way the physics executor drives it (:mod:`warerover_phys.executors.foll
   ``K`` starting at ``S`` lasts from ``S + reach_s(m, K)`` to ``S + reach_s(m + 1, K)``. If a
   move's dependencies are not met when the AGV would enter it (its start inside the run), the
   run is *split* there: the AGV stops at the cell before and starts a new run when they are.
-  Splitting only delays actions, so the splits are found by repeating the earliest-time pass
-  until none is needed (at most one new split per run and pass).
+  Where to split depends on the other AGVs' runs, so the earliest-time pass is repeated,
+  each deciding the runs' lengths from the ready times of the pass before, until no move is
+  entered before it is ready (ready times only grow from pass to pass, so no split is kept
+  that the schedule does not need).
 - **Turns** (differential drive): before a move in a direction other than the AGV's heading
   (AGVs start facing east, as the physics executor places them) it turns in place for
   :meth:`MotionModel.turn_s`. As in the executor the turn starts when the AGV arrives, during
@@ -42,7 +44,7 @@ communication latency (``comm_latency_s``) delays every dependency on another AG
 >>> s = schedule({0: TimedPath(0, 0, tuple((c, c) for c in range(5)))}, [AgvTypeSpec()],
 ...              cols=5, rows=1)
 >>> round(s.makespan_s, 4), s.makespan_unit_s, len(s.actions[0])
-(3.6667, 4.0, 4)
+(4.1667, 4.0, 4)
 """
 
 from __future__ import annotations
@@ -183,7 +185,7 @@ def schedule(paths: Mapping[int, TimedPath], fleet: Sequence[AgvTypeSpec], *, co
              rows: int, cell_m: float = 1.0, tick_s: float = 1.0,
              dwells: Mapping[int, Sequence[tuple[int, int]]] | None = None,
              loaded: np.ndarray | None = None, payload: bool = False,
-             comm_latency_s: float = 0.0, max_passes: int = 10_000) -> Schedule:
+             comm_latency_s: float = 0.0, max_passes: int = 200) -> Schedule:
     """The motion-timed schedule of a plan (see the module docstring).
 
     ``paths``: every AGV's timed path (all from the same tick, starting and ending standing);
@@ -247,27 +249,27 @@ def schedule(paths: Mapping[int, TimedPath], fleet: Sequence[AgvTypeSpec], *, co
             n_deps += 1
     order = _topological(acts, deps)
     sweeps = {(i, n): bool(a.sweeps) for i in agvs for n, a in enumerate(acts[i])}
-    splits: set[tuple[int, int]] = set()
+    # Where a run must stop depends on when the other AGVs free its cells, which depends
+    # on where their runs stop. Each pass decides every run's length from the ready times
+    # the pass before found (a run stops before its first move that would be entered before
+    # it is ready) and computes the earliest times in dependency order. Ready times only
+    # grow from pass to pass (from none at all), so a pass in which no move is entered
+    # before it is ready is the schedule, with no split it does not need.
     passes = 0
+    predict: dict[tuple[int, int], float] = {}
+    forced: set[tuple[int, int]] = set()
     while True:
         passes += 1
-        times, ready, runs, late = _pass(order, acts, deps, model, dwell_s, turn_s, joins,
-                                          sweeps, splits, comm_latency_s)
-        if not late or passes >= max_passes:
+        times, ready, runs, late, splits = _pass(order, acts, deps, model, dwell_s, turn_s,
+                                                 joins, sweeps, predict, forced,
+                                                 comm_latency_s)
+        if not late:
             break
-        splits.update(late)
-    # A split added in an early pass may have become needless once other runs were split
-    # and its run reached it later: the AGV now stops there and goes on at once. Drop each
-    # such split again, earliest first, where the schedule keeps every dependency without it.
-    for sp in sorted(splits, key=lambda k: times[k][0]):
-        if late or ready[sp] >= times[(sp[0], sp[1] - 1)][1] - _EPS:
-            continue  # it really waits there (or no feasible schedule was reached)
-        trial = splits - {sp}
-        passes += 1
-        t2, r2, ru2, late2 = _pass(order, acts, deps, model, dwell_s, turn_s, joins, sweeps,
-                                   trial, comm_latency_s)
-        if not late2:
-            splits, times, ready, runs = trial, t2, r2, ru2
+        if passes < max_passes:
+            predict = ready
+        else:  # not settled yet (never seen): split where late, which only adds splits
+            forced |= splits | set(late)
+            predict = {}
     out: dict[int, tuple[TimedAction, ...]] = {}
     finish: dict[int, float] = {}
     finish_unit: dict[int, float] = {}
@@ -321,47 +323,60 @@ def _topological(acts: Mapping[int, list], deps: Mapping[tuple[int, int], list]
     return out
 
 
-def _pass(order, acts, deps, model, dwell_s, turn_s, joins, sweeps, splits, latency=0.0):
-    """One earliest-time pass with the given run splits. Returns start/finish per action,
-    ready times, run index per action, and the actions where a run must be split (the first
-    late move of each run)."""
+def _pass(order, acts, deps, model, dwell_s, turn_s, joins, sweeps, predict, forced,
+          latency=0.0):
+    """One earliest-time pass (see :func:`schedule`). ``predict``: per action the ready time
+    its run's length is decided with (missing: 0); ``forced``: actions that start a run
+    whatever ``predict`` says. Returns start/finish per action, ready times, run index per
+    action, the moves entered before they were ready (at most one per run) and the moves
+    that start a run although they could have continued the one before (the splits)."""
     times: dict[tuple[int, int], tuple[float, float]] = {}
     ready: dict[tuple[int, int], float] = {}
     runs: dict[tuple[int, int], int] = {}
     late: list[tuple[int, int]] = []
-    # Per AGV: run start index, run length, run start time, run index.
-    seg: dict[int, tuple[int, int, float, int]] = {}
-    flagged: set[tuple[int, int]] = set()  # runs (agv, first index) already split this pass
+    splits: set[tuple[int, int]] = set()
+    # Per AGV: run start index, run length, run start time, run index, flagged late.
+    seg: dict[int, list] = {}
     for key in order:
         i, n = key
         r = max((times[d][1] + latency for d in deps[key]), default=0.0)
         ready[key] = r
         m = model[key]
-        if n > 0 and joins[key] and key not in splits:
-            first, length, t0, run = seg[i]
+        cur = seg.get(i)
+        if cur is not None and n < cur[0] + cur[1]:  # inside the AGV's current run
+            first, length, t0, run, flagged = cur
             pos = n - first
             start = t0 + m.reach_s(pos, length)
-            if r > start + _EPS and (i, first) not in flagged:
+            if r > start + _EPS and not flagged:
                 late.append(key)
-                flagged.add((i, first))
+                cur[4] = True
             times[key] = (start, t0 + m.reach_s(pos + 1, length))
             runs[key] = run
             continue
+        if n > 0 and joins[key]:
+            splits.add(key)
         arrive = times[(i, n - 1)][1] if n else 0.0
         if sweeps[key]:
             go = max(max(arrive, r) + turn_s[key], arrive + dwell_s[key])
         else:
             go = max(arrive + turn_s[key], arrive + dwell_s[key], r)
-        length = 1
         row = acts[i]
+        length = 1
         while n + length < len(row) and joins[(i, n + length)] \
-                and (i, n + length) not in splits:
+                and (i, n + length) not in forced:
             length += 1
-        run = seg[i][3] + 1 if i in seg else 0
-        seg[i] = (n, length, go, run)
+        if predict:
+            # Stop before the first move that would be entered before it is ready; the
+            # moves before it are reached later in the shorter run, so they stay ready.
+            for j in range(1, length):
+                if predict.get((i, n + j), 0.0) > go + m.reach_s(j, length) + _EPS:
+                    length = j
+                    break
+        run = cur[3] + 1 if cur is not None else 0
+        seg[i] = [n, length, go, run, False]
         times[key] = (go, go + m.reach_s(1, length))
         runs[key] = run
-    return times, ready, runs, late
+    return times, ready, runs, late, splits
 
 
 def schedule_plan(plan, *, payload: bool = False, comm_latency_s: float = 0.0) -> Schedule:
