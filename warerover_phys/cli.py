@@ -334,6 +334,10 @@ def gap(scenario: Annotated[Path, typer.Argument(
         pictures: Annotated[bool, typer.Option(
             "--pictures/--no-pictures", help="Write the PNG pictures (open loop).")] = True,
         quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
+        timing: Annotated[str | None, typer.Option(
+            help="Planned time of the plan: unit (one move per tick) or motion (the motion-"
+                 "model schedule over the dependency graph; open loop only). Overrides "
+                 "planner.timing.")] = None,
         set_: SetOpt = None, scheduler: SchedOpt = None, planner: PlanOpt = None,
         orders: OrdersOpt = None) -> None:
     """The sim-to-real gap. Open loop (default): the plan of the ideal grid run (or --plan
@@ -345,7 +349,7 @@ def gap(scenario: Annotated[Path, typer.Argument(
     run_gap(scenario=scenario, mode=mode, seed=seed, seeds=seeds, workers=workers, out=out,
             json_out=json_out, plan=plan, fmt=fmt, yx=yx, fleet=fleet, delays=delays,
             tick_s=tick_s, dt_s=dt_s, agvs=agvs, pictures=pictures, quiet=quiet,
-            overrides=lambda: _scenario(scenario, set_, seed, scheduler, planner, None,
+            timing=timing, overrides=lambda: _scenario(scenario, set_, seed, scheduler, planner, None,
                                         orders))
 
 

@@ -358,3 +358,99 @@ def _order_figures(run: OpenLoopRun, agents: list[dict], actions: list[dict]) ->
             "orders_makespan_ratio": em / pm if pm else 1.0,
             "tp_ratio": pm / em if em else None,
             "latency_ratio": float(np.mean(lat_e) / np.mean(lat_p)) if np.mean(lat_p) else None}
+
+
+# ----------------------------------------------------------------------------- motion timing
+
+MOTION_UNIT_KEYS = ("planned_makespan_s", "makespan_ratio", "planned_sum_of_costs_s",
+                    "sum_of_costs_ratio", "planned_orders_makespan_s", "orders_makespan_ratio",
+                    "tp_ratio", "latency_ratio", "lost_s_fleet_total", "lost_s_per_agv_mean",
+                    "lost_s_per_agv_max", "actions_late", "action_lost_s_mean")
+"""Report figures that motion timing takes from the schedule; their unit values are kept
+as ``KEY_unit``."""
+
+
+def motion_timed(report: dict, agents: list[dict], actions: list[dict], plan: TimedPlan,
+                 sched) -> tuple[dict, list[dict], list[dict]]:
+    """The open-loop report, per-AGV and per-action rows with the *planned* side timed by
+    ``sched`` (a :class:`~warerover_phys.planning.timing.Schedule` of ``plan``;
+    ``planner.timing: motion``): planned finish, makespan, sum of costs and the orders'
+    completion come from the schedule, and every ratio and lost time is against it. The
+    unit figures stay beside them (``KEY_unit``, per AGV ``planned_finish_unit_s`` and
+    ``lost_unit_s``, per action ``lost_unit_s``). The split of lost time into causes stays
+    the unit plan's: the parts add up to ``lost_unit_s`` (``lost_parts_timing``)."""
+    new_agents = []
+    for a in agents:
+        i = a["agv"]
+        planned = float(sched.finish_s[i])
+        done = a["executed_finish_s"]
+        new_agents.append({**a, "planned_finish_s": planned,
+                           "planned_finish_unit_s": a["planned_finish_s"],
+                           "lost_s": done - planned if a["completed"] else math.nan,
+                           "lost_unit_s": a["lost_s"]})
+    new_actions = []
+    for act in actions:
+        t = sched.actions[act["agv"]][act["seq"]]
+        new_actions.append({**act, "planned_start_s": t.start_s, "planned_finish_s": t.finish_s,
+                            "planned_turn_s": t.turn_s,
+                            "lost_s": act["executed_finish_s"] - t.finish_s,
+                            "lost_unit_s": act["lost_s"]})
+    out = dict(report)
+    for k in MOTION_UNIT_KEYS:
+        if k in report:
+            out[f"{k}_unit"] = report[k]
+    pf = [a["planned_finish_s"] for a in new_agents]
+    p_ms, p_soc = max(pf, default=0.0), sum(pf)
+    e_ms, e_soc = report["executed_makespan_s"], report["executed_sum_of_costs_s"]
+    out.update({"timing": "motion", "lost_parts_timing": "unit",
+                "planned_makespan_s": p_ms, "makespan_ratio": e_ms / p_ms if p_ms else 1.0,
+                "planned_sum_of_costs_s": p_soc,
+                "sum_of_costs_ratio": e_soc / p_soc if p_soc else 1.0,
+                "schedule_splits": sched.splits, "schedule_dependencies": sched.dependencies})
+    out.update(_motion_order_figures(plan, sched, report))
+    lost = [a["lost_s"] for a in new_agents]
+    out["lost_s_fleet_total"], out["lost_s_per_agv_mean"] = _stat(lost)
+    out["lost_s_per_agv_max"] = max((v for v in lost if v == v), default=0.0)
+    out["actions_late"] = sum(1 for a in new_actions if a["lost_s"] > 1e-9)
+    out["action_lost_s_mean"] = float(np.mean([a["lost_s"] for a in new_actions])) \
+        if new_actions else 0.0
+    return out, new_agents, new_actions
+
+
+def _motion_order_figures(plan: TimedPlan, sched, report: dict) -> dict:
+    """The orders' planned completion in the schedule: the end of the hand-over dwell that
+    completes each order, from the scheduled arrival of the move before it (as
+    :func:`_order_figures` reckons the executed side)."""
+    if not plan.orders or "executed_orders_makespan_s" not in report:
+        return {}
+    tick_s = plan.tick_s
+    ends: dict[int, list[tuple[int, float]]] = {}
+    for i in range(plan.num_agents):
+        acts = plan.actions(i)
+        timed = sched.actions[i]
+        for d in plan.dwells.get(i, ()):
+            if d.kind != "handover":
+                continue
+            k = sum(1 for a in acts if a.tick < d.tick)
+            arrive = timed[k - 1].finish_s if k else 0.0
+            ends.setdefault(i, []).append((d.tick + d.ticks, arrive + d.ticks * tick_s))
+    planned, lat, lat_unit = [], [], []
+    for o in plan.orders:
+        cands = [(end, p) for end, p in ends.get(o["agv"], ()) if end - 1 < o["completed_tick"]]
+        if not cands:
+            continue
+        end, p = max(cands)
+        p += (o["completed_tick"] - end) * tick_s
+        planned.append(p)
+        lat.append(p - o["arrival_tick"] * tick_s)
+        lat_unit.append((o["completed_tick"] - o["arrival_tick"]) * tick_s)
+    if not planned:
+        return {}
+    pm, em = max(planned), report["executed_orders_makespan_s"]
+    out = {"planned_orders_makespan_s": pm, "orders_makespan_ratio": em / pm if pm else 1.0,
+           "tp_ratio": pm / em if em else None}
+    ratio_unit = report.get("latency_ratio")
+    if ratio_unit is not None and np.mean(lat_unit) and np.mean(lat):
+        # the executed mean latency is the unit ratio times the unit planned mean
+        out["latency_ratio"] = float(ratio_unit * np.mean(lat_unit) / np.mean(lat))
+    return out
