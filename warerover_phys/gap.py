@@ -9,7 +9,11 @@ sides then run the same plan, so the ratio is the physics gap alone. A *rotation
 grid run (AGVs turning round a cycle in one tick, which the dependency graph cannot order)
 is replaced by a local detour first (:func:`.gap_plan.repair_rotations`); the planned
 figures stay the grid run's, the repaired plan's are beside them (``repaired_*``,
-``cycle_repairs*``) and the ticks it added are the cause ``rotation_repair``. Figures (seconds of
+``cycle_repairs*``) and the ticks it added are the cause ``rotation_repair``. The grid
+run's failures (``faults``) are replayed on physics: the same AGV goes down at the same tick
+for the same number of ticks (it brakes and starts nothing), whatever it is doing then;
+that time is the cause ``failures``. Corridors are not opened on the physics side (the
+plan is fixed: nobody can be replanned around them). Figures (seconds of
 simulated time; ratios are executed / planned):
 
 - ``makespan_ratio`` (last AGV's finish), ``sum_of_costs_ratio`` (sum of the AGVs' finish

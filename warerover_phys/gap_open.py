@@ -116,12 +116,16 @@ def execute_timed(plan: TimedPlan, executor_spec, *, seed: int = 0,
     executed = {i: [paths[i].states[0]] for i in range(n)}
     behind = [0] * n
     events: list[dict] = []
+    down = _down_by_tick(plan)
     wall0 = time.perf_counter()
     tick = 0
     done = False
     while tick < limit:
         loaded, carried, task = tracker.cargo(tick)
-        view = TickView(tick=tick, plans=plans, behind=tuple(behind), failed=frozenset(),
+        failed = down.get(tick, frozenset())
+        if failed:
+            task = tuple(7 if i in failed else s for i, s in enumerate(task))  # FAILED
+        view = TickView(tick=tick, plans=plans, behind=tuple(behind), failed=failed,
                         loaded=loaded, carried=carried, task_state=task, dwells=dwells)
         report = ex.step(view)
         for i, s in report.states.items():
@@ -143,6 +147,16 @@ def execute_timed(plan: TimedPlan, executor_spec, *, seed: int = 0,
     return OpenLoopRun(plan=plan, executed=executed, ticks=tick, completed=done,
                        summary=ex.summary(), log=log, trajectory=ex.trajectory(),
                        wall_s=wall, events=events)
+
+
+def _down_by_tick(plan: TimedPlan) -> dict[int, frozenset[int]]:
+    """AGVs down at each tick: the plan's failures (those of its grid run) replayed at the
+    same ticks for the same number of ticks, whatever the AGV is doing then."""
+    out: dict[int, set[int]] = {}
+    for f in plan.failures:
+        for t in range(f.tick, f.tick + f.ticks):
+            out.setdefault(t, set()).add(f.agv)
+    return {t: frozenset(s) for t, s in out.items()}
 
 
 class _Progress:
@@ -309,6 +323,8 @@ def open_loop_report(run: OpenLoopRun) -> tuple[dict, list[dict], list[dict]]:
     }
     out.update(_order_figures(run, agents, actions))
     out.update(_repair_figures(plan, agents))
+    out["failures"] = len(plan.failures)
+    out["failure_down_ticks"] = sum(f.ticks for f in plan.failures)
     lost = [a["lost_s"] for a in agents]
     out["lost_s_fleet_total"], out["lost_s_per_agv_mean"] = _stat(lost)
     out["lost_s_per_agv_max"] = max((v for v in lost if v == v), default=0.0)

@@ -38,7 +38,7 @@ if TYPE_CHECKING:
     from .config import AgvTypeSpec, Scenario
     from .layout import Layout
 
-__all__ = ["Dwell", "TimedPlan", "PlannedAction", "record_grid_run", "plan_from_file",
+__all__ = ["Dwell", "Failure", "TimedPlan", "PlannedAction", "record_grid_run", "plan_from_file",
            "check_executable", "repair_rotations", "DWELL_KINDS"]
 
 DWELL_KINDS = ("pick", "handover", "place", "park")
@@ -55,6 +55,16 @@ class Dwell:
     ticks: int
     kind: str
     node: int
+
+
+@dataclass(frozen=True)
+class Failure:
+    """AGV ``agv`` is down for ``ticks`` ticks from ``tick`` (a failure of the grid run,
+    replayed at the same tick in the open loop)."""
+
+    agv: int
+    tick: int
+    ticks: int
 
 
 @dataclass(frozen=True)
@@ -106,6 +116,8 @@ class TimedPlan:
     rotation repair (:func:`repair_rotations`, :func:`plan_from_file`); None: as given."""
     repairs: tuple = ()
     """The rotations repaired (:class:`warerover_phys.execute.Repair`), in order."""
+    failures: tuple[Failure, ...] = ()
+    """The grid run's failures (``faults``), by tick of the run as given."""
 
     @property
     def num_agents(self) -> int:
@@ -206,12 +218,28 @@ def record_grid_run(scenario: Scenario, progress=None) -> TimedPlan:
             orders.append({"order": ev["order"], "agv": ev["agv"], "arrival_tick": o.tick,
                            "completed_tick": ev["tick"]})
     types = [a.spec for a in w.agvs]
+    failures = _failures(w.events, len(states))
     return TimedPlan(
         layout=w.layout, types=types, tick_s=scenario.tick_s, paths=paths, dwells=dwells,
         source=f"grid run of {scenario.name} seed {scenario.seed} ({scenario.scheduler.name}"
                f" + {scenario.planner.name}, closed loop)",
         task_state=tick_arr, loaded=np.asarray(loaded, dtype=bool),
-        carried=np.asarray(carried, dtype=np.int64), orders=orders, grid_metrics=metrics)
+        carried=np.asarray(carried, dtype=np.int64), orders=orders, grid_metrics=metrics,
+        failures=failures)
+
+
+def _failures(events: list[dict], end: int) -> tuple[Failure, ...]:
+    """The failures of a run's event log: from ``agv_failed`` to ``agv_repaired`` (or the
+    end of the record, tick ``end``, for one never repaired)."""
+    out, down = [], {}
+    for ev in events:
+        if ev["event"] == "agv_failed":
+            down[ev["agv"]] = ev["tick"]
+        elif ev["event"] == "agv_repaired" and ev["agv"] in down:
+            t = down.pop(ev["agv"])
+            out.append(Failure(ev["agv"], t, ev["tick"] - t))
+    out += [Failure(a, t, max(0, end - t)) for a, t in down.items()]
+    return tuple(sorted(out, key=lambda f: (f.tick, f.agv)))
 
 
 def _dwells(i: int, seq: list, task: np.ndarray, home: int) -> tuple[Dwell, ...]:
@@ -368,7 +396,7 @@ def repair_rotations(plan: TimedPlan, *, strict: bool = False,
         task_state=next(it) if plan.task_state is not None else None,
         loaded=next(it) if plan.loaded is not None else None,
         carried=next(it) if plan.carried is not None else None,
-        orders=orders, grid_metrics=plan.grid_metrics,
+        orders=orders, grid_metrics=plan.grid_metrics, failures=plan.failures,
         given_finish=tuple(plan.planned_finish(i) for i in range(n)),
         repairs=tuple(repairs))
     _check_repaired(plan, out)
