@@ -66,10 +66,12 @@ def test_two_robots_facing_each_other_get_past_each_other():
 
 
 @settings(max_examples=40, deadline=None)
-@given(seed=st.integers(0, 10_000), n=st.integers(1, 6))
-def test_random_steps_are_valid_and_sparse_robots_arrive(seed, n):
+@given(seed=st.integers(0, 10_000), n=st.integers(1, 6), open_floor=st.booleans())
+def test_random_steps_are_valid_and_sparse_robots_arrive(seed, n, open_floor):
     rng = np.random.default_rng(seed)
-    obstacles = rng.random((7, 7)) < 0.15
+    # Random floors may have dead ends, where PIBT (no swaps here) can live-lock: arrival is
+    # asserted on open floors only; every step is checked on both.
+    obstacles = rng.random((7, 7)) < (0.0 if open_floor else 0.15)
     free = [int(v) for v in np.flatnonzero(~obstacles.ravel())]
     graph = grid_graph(obstacles)
     # keep one connected component
@@ -80,5 +82,5 @@ def test_random_steps_are_valid_and_sparse_robots_arrive(seed, n):
     cells = rng.choice(free, size=2 * n, replace=False)
     starts, goals = [int(c) for c in cells[:n]], [int(c) for c in cells[n:]]
     steps = _run(obstacles, starts, goals, 400, seed)
-    if n <= 2:
+    if n <= 2 and open_floor:
         assert steps is not None, "one or two robots on an open floor reach their goals"

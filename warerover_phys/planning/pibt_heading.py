@@ -10,7 +10,9 @@ taken in priority order; a robot ranks its four actions by the cost-to-go of the
 
 ``dist`` the robot's distance table to its goal (moves, any heading) and ``turns(v, h)`` the
 fewest quarter turns from ``h`` to a heading that points at a neighbour one move closer to
-the goal (0 on the goal). It takes the best action whose cell is free next timestep: moving
+the goal (0 on the goal); between equal costs it prefers moving forward, then waiting, then
+turning (so a robot on its goal does not spin). It takes the best action whose cell is free
+next timestep: moving
 forward reserves the cell ahead (and asks the robot standing there, if it has not chosen yet,
 to move away first, by priority inheritance: that robot may only move forward, since turning
 or waiting keeps it on the wanted cell); a turn or a wait keeps the robot's own cell. A robot
@@ -106,9 +108,9 @@ def heading_pibt_step(neighbors: Sequence[Sequence[int]], cols: int, config: Seq
             out.append((cost + 0.5 * float(tie[ahead]), "F", ahead, h))
         base = float(d[v])
         for act, nh_ in (("R", (h + 1) % 4), ("C", (h - 1) % 4)):
-            out.append((base + turns_to_progress(d, v, nh_, neighbors, cols) + 0.25, act, v,
+            out.append((base + turns_to_progress(d, v, nh_, neighbors, cols) + 0.3, act, v,
                         nh_))
-        out.append((base + turns_to_progress(d, v, h, neighbors, cols) + 0.1, "W", v, h))
+        out.append((base + turns_to_progress(d, v, h, neighbors, cols) + 0.27, "W", v, h))
         out.sort(key=lambda o: o[0])
         return out
 
