@@ -150,6 +150,11 @@ class AgvTypeSpec(_Model):
     def carries(self) -> int:
         return self.cargo_class if self.cargo_class is not None else self.footprint
 
+    def can_carry(self, shelf_size: int) -> bool:
+        """It lifts a shelf from under it: the shelf must match its footprint and cargo
+        class."""
+        return shelf_size == self.footprint and shelf_size <= self.carries
+
     def ticks_per_move(self, cell_m: float, tick_s: float) -> int:
         """Ticks one cell move takes at top speed (at least 1).
 

@@ -125,9 +125,7 @@ def carried_shelf_m(layout, spec) -> float:
     lift, else 0 (``layout`` None: no shelves)."""
     if layout is None:
         return 0.0
-    from ..world import can_carry
-
-    if any(can_carry(spec, size) for size in {sh.size for sh in layout.shelves}):
+    if any(spec.can_carry(size) for size in {sh.size for sh in layout.shelves}):
         return SHELF_BOX * int(spec.footprint) * float(layout.cell_m)
     return 0.0
 
