@@ -150,6 +150,11 @@ class AgvTypeSpec(_Model):
     def carries(self) -> int:
         return self.cargo_class if self.cargo_class is not None else self.footprint
 
+    def can_carry(self, shelf_size: int) -> bool:
+        """It lifts a shelf from under it: the shelf must match its footprint and cargo
+        class."""
+        return shelf_size == self.footprint and shelf_size <= self.carries
+
     def ticks_per_move(self, cell_m: float, tick_s: float) -> int:
         """Ticks one cell move takes at top speed (at least 1).
 
@@ -392,6 +397,14 @@ class PlannerSpec(_Model):
     """Parameters of a plug-in planner (its ``Params`` model)."""
     weights: str | None = None
     """``learned``: path of its weights (``.npz``); default the shipped ones."""
+    timing: Literal["unit", "motion"] = "unit"
+    """How a plan's time is reckoned. ``unit``: one cell move per tick (``ticks_per_move``
+    ticks for slow AGVs), turns free, as the planners plan. ``motion``: the same plan timed
+    by each AGV type's motion model over the action dependency graph
+    (:mod:`~warerover_phys.planning.timing`: runs from rest to rest at the acceleration
+    limit, turns in place at the turn rate, dwells, every dependency kept); the open-loop
+    gap then takes its planned figures from that schedule (the unit ones beside them as
+    ``*_unit``). The closed loop plans in ticks either way."""
     replan_blocked_ticks: Ticks = 3
     """Replan an AGV that could not follow its plan for this many ticks."""
     max_expansions: Budget = 50_000

@@ -5,7 +5,15 @@ the grid executor: scheduler + planner) is executed *unchanged* on physics: ever
 sequence of moves, waits and dwells (pick, hand-over, place, parking) over the whole
 episode, with no scheduler, no planner and no replanning, through the action dependency
 graph; a dwell takes at least its planned time (:mod:`.gap_plan`, :mod:`.gap_open`). Both
-sides then run the same plan, so the ratio is the physics gap alone. Figures (seconds of
+sides then run the same plan, so the ratio is the physics gap alone. A *rotation* of the
+grid run (AGVs turning round a cycle in one tick, which the dependency graph cannot order)
+is replaced by a local detour first (:func:`.gap_plan.repair_rotations`); the planned
+figures stay the grid run's, the repaired plan's are beside them (``repaired_*``,
+``cycle_repairs*``) and the ticks it added are the cause ``rotation_repair``. The grid
+run's failures (``faults``) are replayed on physics: the same AGV goes down at the same tick
+for the same number of ticks (it brakes and starts nothing), whatever it is doing then;
+that time is the cause ``failures``. Corridors are not opened on the physics side (the
+plan is fixed: nobody can be replanned around them). Figures (seconds of
 simulated time; ratios are executed / planned):
 
 - ``makespan_ratio`` (last AGV's finish), ``sum_of_costs_ratio`` (sum of the AGVs' finish
@@ -26,7 +34,14 @@ physics run replans, meets other failures and ends with other assignments), so t
 mixes the physics gap with a different history. The delay figures (``delay_*_s``) are fleet
 totals of the physics run.
 
-Every report carries ``mode`` (``"open-loop"`` or ``"closed-loop"``).
+**Timing** (``planner.timing``): ``unit`` (the default) takes the planned side as the plan's
+ticks x ``tick_s``; ``motion`` (open loop only) takes it from the plan's motion-timed
+schedule (:mod:`.planning.timing`: what a robot with its type's limits needs for this plan,
+every dependency kept), so ``makespan_ratio`` measures what the schedule did not foresee;
+the unit figures stay beside them as ``KEY_unit`` (:func:`.gap_open.motion_timed`).
+
+Every report carries ``mode`` (``"open-loop"`` or ``"closed-loop"``) and ``timing``
+(``"unit"`` or ``"motion"``).
 """
 
 from __future__ import annotations
@@ -65,6 +80,9 @@ class OpenLoopGap:
     actions: list[dict] = field(default_factory=list)
     run: Any = None
     """The :class:`~.gap_open.OpenLoopRun` (executed states, cause log, trajectory)."""
+    schedule: Any = None
+    """``planner.timing: motion``: the :class:`~.planning.timing.Schedule` the planned
+    figures come from (None: unit timing)."""
 
 
 def open_loop_gap(scenario: Scenario, seed: int | None = None,
@@ -72,37 +90,58 @@ def open_loop_gap(scenario: Scenario, seed: int | None = None,
     """Record the ideal run of ``scenario`` on the grid and execute its plan unchanged on
     the scenario's physics executor (its ``executor`` section: dt, delays, parameters)."""
     from .gap_open import execute_timed, open_loop_report
-    from .gap_plan import check_executable, record_grid_run
+    from .gap_plan import check_executable, record_grid_run, repair_rotations
 
     base = scenario.with_seed(seed) if seed is not None else scenario
     plan = record_grid_run(
         base, None if progress is None else lambda t, d, n: progress("grid", t, 0))
+    plan = repair_rotations(plan)
     check_executable(plan)
     spec = base.with_executor("physics").executor
     run = execute_timed(plan, spec, seed=base.seed, progress=None if progress is None else
                         lambda t, h: progress("physics", t, h))
     report, agents, actions = open_loop_report(run)
+    report, agents, actions, sched = _timed(report, agents, actions, plan,
+                                            base.planner.timing, spec)
     head = {"mode": "open-loop", "scenario": base.name, "seed": base.seed,
             "scheduler": base.scheduler.name, "planner": base.planner.name}
     report = {**head, **report}
     g = plan.grid_metrics or {}
     report["success_rate_grid"] = g.get("success_rate")
-    return OpenLoopGap(report=report, agents=agents, actions=actions, run=run)
+    return OpenLoopGap(report=report, agents=agents, actions=actions, run=run, schedule=sched)
+
+
+def _timed(report: dict, agents: list[dict], actions: list[dict], plan, timing: str,
+           spec) -> tuple[dict, list[dict], list[dict], Any]:
+    """``timing`` ``unit``: the figures as they are (labelled); ``motion``: the planned side
+    from the plan's motion-timed schedule (:func:`.gap_open.motion_timed`), and the
+    schedule."""
+    if timing != "motion":
+        return {**report, "timing": "unit"}, agents, actions, None
+    from .gap_open import motion_timed
+    from .planning.timing import schedule_plan
+
+    sched = schedule_plan(plan, payload=bool(getattr(spec, "payload", False)),
+                          comm_latency_s=float(getattr(spec, "comm_latency_s", 0.0)))
+    report, agents, actions = motion_timed(report, agents, actions, plan, sched)
+    return report, agents, actions, sched
 
 
 def plan_gap(floor, plan_file, *, fleet=None, fmt: str | None = None, xy: bool = True,
              delays: str | None = None, tick_s: float = 1.0, dt_s: float = 0.02,
              seed: int = 0, strict: bool = False, trajectory_hz: float = 10.0,
+             timing: str = "unit",
              progress: Callable[[str, int, int], None] | None = None) -> OpenLoopGap:
     """The open-loop gap of an imported MAPF plan (any format ``warerover execute`` reads,
     validated and cycle-repaired alike) on ``floor``: the plan's timesteps are the planned
-    side, its execution on physics the executed side (no dwells)."""
+    side (``timing`` ``motion``: its motion-timed schedule), its execution on physics the
+    executed side (no dwells)."""
     from .config import ExecutorSpec
     from .execute import parse_delays
     from .gap_open import execute_timed, open_loop_report
     from .gap_plan import plan_from_file
 
-    plan, repairs = plan_from_file(str(floor), str(plan_file), None if fleet is None
+    plan, _ = plan_from_file(str(floor), str(plan_file), None if fleet is None
                                    else str(fleet), fmt=fmt, xy=xy, strict=strict,
                                    tick_s=tick_s)
     spec = ExecutorSpec(name="physics", dt_s=dt_s, delays=parse_delays(delays),
@@ -110,11 +149,10 @@ def plan_gap(floor, plan_file, *, fleet=None, fmt: str | None = None, xy: bool =
     run = execute_timed(plan, spec, seed=seed, progress=None if progress is None else
                         lambda t, h: progress("physics", t, h))
     report, agents, actions = open_loop_report(run)
+    report, agents, actions, sched = _timed(report, agents, actions, plan, timing, spec)
     report = {"mode": "open-loop", "scenario": Path(str(floor)).stem, "seed": seed,
-              "plan": str(plan_file), **report,
-              "cycle_repairs": len(repairs),
-              "cycle_repairs_detail": [r.as_dict() for r in repairs]}
-    return OpenLoopGap(report=report, agents=agents, actions=actions, run=run)
+              "plan": str(plan_file), **report}
+    return OpenLoopGap(report=report, agents=agents, actions=actions, run=run, schedule=sched)
 
 
 def closed_loop_report(scenario: Scenario, seed: int | None = None) -> dict:
@@ -126,7 +164,7 @@ def closed_loop_report(scenario: Scenario, seed: int | None = None) -> dict:
     grid = run_episode(base.with_executor("grid")).metrics
     phys = run_episode(base.with_executor("physics")).metrics
     out = {
-        "mode": "closed-loop",
+        "mode": "closed-loop", "timing": "unit",
         "scenario": base.name, "seed": base.seed, "scheduler": base.scheduler.name,
         "planner": base.planner.name,
         "makespan_grid_ticks": grid["ticks"], "makespan_physics_ticks": phys["ticks"],

@@ -21,6 +21,7 @@ from .errors import ScenarioError, WareroverError
 __all__ = ["run_gap"]
 
 MODE_LABEL = {"open": "open-loop", "closed": "closed-loop"}
+TIMINGS = ("unit", "motion")
 
 
 def _f(x: Any, spec: str = ".3f") -> str:
@@ -45,19 +46,21 @@ def run_gap(*, scenario: Path, mode: str, seed: int | None, seeds: str | None,
             workers: int | None, out: Path | None, json_out: bool, plan: Path | None,
             fmt: str | None, yx: bool, fleet: Path | None, delays: str | None,
             tick_s: float, dt_s: float, agvs: str | None, pictures: bool, quiet: bool,
-            overrides: Callable[[], Any]) -> None:
+            overrides: Callable[[], Any], timing: str | None = None) -> None:
     """See ``warerover gap --help``."""
     try:
         if mode not in MODE_LABEL:
             raise WareroverError(f"--mode must be open or closed (got {mode!r})")
+        if timing is not None and timing not in TIMINGS:
+            raise WareroverError(f"--timing must be unit or motion (got {timing!r})")
         picked = _parse_agvs(agvs)
         if plan is not None:
             if mode != "open" or seeds:
                 raise WareroverError("--plan runs one open-loop execution: it takes neither "
                                      "--mode closed nor --seeds")
             return _plan_gap(scenario, plan, fmt, yx, fleet, delays, tick_s, dt_s, seed or 0,
-                             out, json_out, picked, pictures, quiet)
-        sc = overrides()
+                             out, json_out, picked, pictures, quiet, timing or "unit")
+        sc = _with_timing(overrides(), timing, mode)
         if seeds is not None:
             from .gap_stats import parse_seeds
 
@@ -70,6 +73,19 @@ def run_gap(*, scenario: Path, mode: str, seed: int | None, seeds: str | None,
         _fail(err)
     except OSError as err:
         _fail(WareroverError(f"{getattr(err, 'filename', '') or ''}: {err.strerror or err}"))
+
+
+def _with_timing(sc, timing: str | None, mode: str):
+    """The scenario with ``--timing`` (if given) as its ``planner.timing``; motion timing
+    with ``--mode closed`` is refused (it times the open loop's one plan)."""
+    if timing is not None and timing != sc.planner.timing:
+        sc = sc.model_copy(update={"planner": sc.planner.model_copy(update={"timing": timing})})
+    if mode == "closed" and sc.planner.timing == "motion":
+        raise WareroverError("motion timing (--timing motion / planner.timing: motion) times "
+                             "the one plan of the open loop; --mode closed compares two "
+                             "closed-loop episodes in ticks: use --mode open, or --timing "
+                             "unit")
+    return sc
 
 
 # ----------------------------------------------------------------------------- one seed
@@ -108,6 +124,7 @@ def _one(sc, mode: str, out: Path | None, json_out: bool, agvs: list[int] | None
         else:
             g = open_loop_gap(sc, progress=update)
             report, result = g.report, _result(g, sc.seed)
+    _print_repairs(report)
     default = Path("runs") / f"{sc.name}-seed{sc.seed}-gap"
     written = _write_one(out or default, report, result, agvs, pictures)
     if json_out:
@@ -123,6 +140,17 @@ def _one(sc, mode: str, out: Path | None, json_out: bool, agvs: list[int] | None
     console.print(f"wrote {written}", markup=False)
 
 
+def _print_repairs(report: dict) -> None:
+    """One line on stderr per rotation repaired (see :func:`.gap_plan.repair_rotations`)."""
+    for r in report.get("cycle_repairs_detail", []):
+        err_console.print(f"repaired a rotation at timestep {r['timestep']} (agents "
+                          f"{r['agents']}, {r['moves']} detour moves)", highlight=False)
+    if report.get("cycle_repairs"):
+        err_console.print(f"planned figures are the plan as given; the repair added "
+                          f"{report['cycle_repair_added_ticks']} planned ticks over the fleet "
+                          "(repaired_* figures, lost_rotation_repair_s)", highlight=False)
+
+
 def _result(g, seed: int) -> dict:
     """An open-loop gap as the per-seed result of :func:`.gap_stats.seed_gap`."""
     from .gap_stats import _flat, wait_map
@@ -132,7 +160,15 @@ def _result(g, seed: int) -> dict:
     return {"seed": seed, "report": _flat(g.report), "agents": g.agents, "actions": g.actions,
             "footprints": fp,
             "wait_map": wait_map(g.actions, fp, plan.layout.rows, plan.layout.cols),
-            "grid": plan.layout.grid}
+            "grid": plan.layout.grid, **_schedule_data(g)}
+
+
+def _schedule_data(g) -> dict:
+    """``{"schedule": ...}`` (``schedule.json``) for a motion-timed gap, else nothing."""
+    if getattr(g, "schedule", None) is None:
+        return {}
+    plan = g.run.plan
+    return {"schedule": g.schedule.to_json(plan.layout.cols, plan.source)}
 
 
 def _write_one(out: Path, report: dict, result: dict | None, agvs: list[int] | None,
@@ -157,6 +193,9 @@ def _write_one(out: Path, report: dict, result: dict | None, agvs: list[int] | N
         writers["agents.csv"] = lambda p: p.write_text(_csv(agents), encoding="utf-8")
         writers["actions.csv"] = lambda p: p.write_text(_csv(result["actions"]),
                                                         encoding="utf-8")
+        if result.get("schedule") is not None:
+            sched_text = json.dumps(_finite(result["schedule"]), indent=1) + "\n"
+            writers["schedule.json"] = lambda p: p.write_text(sched_text, encoding="utf-8")
         if pictures:
             from .gap_plots import available
             from .gap_plots import writers as picture_writers
@@ -183,6 +222,7 @@ PART_LABELS = {
     "dependency": "waiting on a dependency", "accel_decel": "acceleration / deceleration",
     "turning": "turning", "control": "control latency (decide, settle)",
     "injected": "injected delays", "failures": "failures / corridors",
+    "rotation_repair": "rotation repair (planned ticks added)",
     "freeze_recovery": "recovery from freezes", "dwell_overrun": "dwell overrun",
     "faster_than_plan": "faster than the plan (gain)",
     "plan_waits_skipped": "plan waits skipped (gain)"}
@@ -191,15 +231,23 @@ PART_LABELS = {
 def _open_table(console: Console, title: str, r: dict) -> None:
     from .gap_open import PARTS
 
-    t = Table(title=title, show_header=True)
+    motion = r.get("timing") == "motion"
+    t = Table(title=f"{title}  planned: {r.get('timing', 'unit')} timing", show_header=True)
     for col, just in (("figure", "left"), ("planned", "right"), ("executed", "right"),
                       ("executed / planned", "right")):
         t.add_column(col, justify=just)
     t.add_row(escape("makespan (s) [makespan_ratio]"), _f(r["planned_makespan_s"], ".1f"),
               _f(r["executed_makespan_s"], ".2f"), _f(r["makespan_ratio"]))
+    if motion:
+        t.add_row(escape("  unit timing [makespan_ratio_unit]"),
+                  _f(r.get("planned_makespan_s_unit"), ".1f"), "", _f(r.get("makespan_ratio_unit")))
     t.add_row(escape("sum of costs (s) [sum_of_costs_ratio]"),
               _f(r["planned_sum_of_costs_s"], ".1f"), _f(r["executed_sum_of_costs_s"], ".2f"),
               _f(r["sum_of_costs_ratio"]))
+    if motion:
+        t.add_row(escape("  unit timing [sum_of_costs_ratio_unit]"),
+                  _f(r.get("planned_sum_of_costs_s_unit"), ".1f"), "",
+                  _f(r.get("sum_of_costs_ratio_unit")))
     if "orders_makespan_ratio" in r:
         t.add_row(escape("all orders done (s) [orders_makespan_ratio]"),
                   _f(r["planned_orders_makespan_s"], ".1f"),
@@ -207,12 +255,14 @@ def _open_table(console: Console, title: str, r: dict) -> None:
         t.add_row(escape("throughput [tp_ratio]"), "", "", _f(r.get("tp_ratio")))
         t.add_row(escape("order latency [latency_ratio]"), "", "", _f(r.get("latency_ratio")))
     console.print(t)
-    c = Table(title=f"lost time (executed - planned finish), {r['agents']} AGVs",
-              show_header=True)
+    c = Table(title=f"lost time (executed - planned finish), {r['agents']} AGVs"
+                    + (f", against the unit plan (motion timing: {_f(r['lost_s_fleet_total'], '.2f')}"
+                       " s in all)" if motion else ""), show_header=True)
     for col in ("cause", "fleet total (s)", "per AGV mean (s)"):
         c.add_column(col, justify="left" if col == "cause" else "right")
-    c.add_row(escape("total [lost_s]"), _f(r["lost_s_fleet_total"], ".2f"),
-              _f(r["lost_s_per_agv_mean"], ".2f"))
+    unit = "_unit" if motion else ""
+    c.add_row(escape(f"total [lost_s{unit}]"), _f(r[f"lost_s_fleet_total{unit}"], ".2f"),
+              _f(r[f"lost_s_per_agv_mean{unit}"], ".2f"))
     for p in PARTS:
         c.add_row(escape(f"  {PART_LABELS[p]} [lost_{p}_s]"),
                   _f(r[f"lost_{p}_s_fleet_total"], ".2f"),
@@ -306,7 +356,8 @@ def _many(sc, seeds: list[int], mode: str, workers: int | None, out: Path | None
         err_console.print(f"seed {s} failed: {e}", markup=False, highlight=False)
     if not results:
         raise WareroverError(f"every seed failed ({len(failed)})")
-    header = {"mode": MODE_LABEL[mode], "scenario": sc.name, "scheduler": sc.scheduler.name,
+    header = {"mode": MODE_LABEL[mode], "timing": sc.planner.timing if mode == "open" else "unit",
+              "scenario": sc.name, "scheduler": sc.scheduler.name,
               "planner": sc.planner.name, "source": sc.source}
     folder = out or Path("runs") / f"{sc.name}-seeds-{header['mode']}-gap"
     write_outputs(folder, header=header, results=results, failed=failed, pictures=pictures,
@@ -318,10 +369,13 @@ def _many(sc, seeds: list[int], mode: str, workers: int | None, out: Path | None
                          indent=2, sort_keys=True))
         return
     t = Table(title=f"{header['mode']} gap: {sc.name}  {sc.scheduler.name} + {sc.planner.name}"
-                    f"  {len(results)} seeds", show_header=True)
+                    f"  {len(results)} seeds  planned: {header['timing']} timing",
+              show_header=True)
     for col in ("figure", "mean", "95% CI of the mean", "median", "p95", "max"):
         t.add_column(col, justify="left" if col == "figure" else "right")
-    for k in HEADLINE[mode]:
+    extra = ("makespan_ratio_unit", "orders_makespan_ratio_unit") \
+        if header["timing"] == "motion" else ()
+    for k in HEADLINE[mode] + extra:
         s = stats.get(k)
         if not s or not s["n"]:
             continue
@@ -336,7 +390,8 @@ def _many(sc, seeds: list[int], mode: str, workers: int | None, out: Path | None
 
 def _plan_gap(floor: Path, plan: Path, fmt: str | None, yx: bool, fleet: Path | None,
               delays: str | None, tick_s: float, dt_s: float, seed: int, out: Path | None,
-              json_out: bool, agvs: list[int] | None, pictures: bool, quiet: bool) -> None:
+              json_out: bool, agvs: list[int] | None, pictures: bool, quiet: bool,
+              timing: str = "unit") -> None:
     from .gap import plan_gap
 
     if not (math.isfinite(tick_s) and tick_s > 0):
@@ -347,10 +402,8 @@ def _plan_gap(floor: Path, plan: Path, fmt: str | None, yx: bool, fleet: Path | 
     bar, update = _bar(show)
     with bar:
         g = plan_gap(floor, plan, fleet=fleet, fmt=fmt, xy=not yx, delays=delays,
-                     tick_s=tick_s, dt_s=dt_s, seed=seed, progress=update)
-    for r in g.report.get("cycle_repairs_detail", []):
-        err_console.print(f"repaired a rotation at timestep {r['timestep']} (agents "
-                          f"{r['agents']})", highlight=False)
+                     tick_s=tick_s, dt_s=dt_s, seed=seed, timing=timing, progress=update)
+    _print_repairs(g.report)
     written = _write_one(out or Path("runs") / f"gap-{plan.stem}", g.report,
                          _result(g, seed), agvs, pictures)
     if json_out:

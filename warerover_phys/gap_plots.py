@@ -37,6 +37,7 @@ COLOURS = {
     "obstacle": "#404040",
     "dependency": "#d62728", "accel_decel": "#ff7f0e", "turning": "#9467bd",
     "control": "#8c564b", "injected": "#e377c2", "failures": "#7f7f7f",
+    "rotation_repair": "#393b79",
     "freeze_recovery": "#bcbd22", "dwell_overrun": "#17becf", "faster_than_plan": "#2ca02c",
     "plan_waits_skipped": "#98df8a",
 }
@@ -78,12 +79,15 @@ def time_space(path: Path, actions: list[dict], agvs: list[int], tick_s: float,
     for ax, i in zip(axes, agvs, strict=True):
         mine = sorted((a for a in actions if a["agv"] == i), key=lambda a: a["seq"])
         pt, py, et, ey = [0.0], [0], [0.0], [0]
+        motion = bool(mine) and "planned_start_s" in mine[0]  # planner.timing: motion
         for k, a in enumerate(mine):
-            pt += [a["planned_start_tick"] * tick_s, a["planned_finish_tick"] * tick_s]
+            pt += [a["planned_start_s"], a["planned_finish_s"]] if motion else \
+                [a["planned_start_tick"] * tick_s, a["planned_finish_tick"] * tick_s]
             py += [k, k + 1]
             et += [a["executed_start_s"], a["executed_finish_s"]]
             ey += [k, k + 1]
-        ax.plot(pt, py, "--", color=COLOURS["planned"], lw=2.0, label="planned (grid plan)")
+        ax.plot(pt, py, "--", color=COLOURS["planned"], lw=2.0,
+                label="planned (motion schedule)" if motion else "planned (grid plan)")
         ax.plot(et, ey, "-", color=COLOURS["executed"], lw=2.0, label="executed (physics)")
         ax.set_ylabel(f"AGV {i}\ncells moved")
         ax.grid(alpha=0.3)
@@ -114,7 +118,8 @@ def lost_by_cause(path: Path, agents: list[dict], title: str = "") -> None:
             ax.bar(x, neg, bottom=down, color=COLOURS[part],
                    label=None if pos.any() else part.replace("_", " "))
             down += neg
-    total = np.array([a.get("lost_s", 0.0) for a in agents], dtype=float)
+    # The parts split the lost time against the unit plan (also with motion timing).
+    total = np.array([a.get("lost_unit_s", a.get("lost_s", 0.0)) for a in agents], dtype=float)
     ax.plot(x, total, "o", color="black", label="lost time (total)")
     ax.axhline(0, color="black", lw=0.8)
     lo, hi = ax.get_ylim()
@@ -184,6 +189,7 @@ def _mean_agents(results: list[dict]) -> list[dict]:
     out = []
     for i, rows in sorted(by.items()):
         keys = ["lost_s", *[f"lost_{p}_s" for p in PARTS]]
+        keys += ["lost_unit_s"] if "lost_unit_s" in rows[0] else []
         out.append({"agv": i, **{k: float(np.nanmean([r[k] for r in rows])) for k in keys}})
     return out
 

@@ -12,6 +12,7 @@ standard deviation and a 95% confidence interval of the mean (Student t, as
 - ``seeds.csv``: one row per seed (every scalar figure);
 - ``agents.csv`` and ``agents.parquet`` (open loop): one row per seed x AGV, full
   precision (lost time and its parts, planned and executed finish, top blockers);
+- ``schedule.json`` (``planner.timing: motion``): every seed's motion-timed schedule;
 - the pictures of :mod:`.gap_plots`.
 """
 
@@ -29,6 +30,9 @@ from .config import Scenario
 __all__ = ["parse_seeds", "seed_gap", "run_seeds", "summarise", "write_outputs",
            "wait_map", "STAT_KEYS"]
 
+SCHEDULES_FORMAT = "warerover-schedules/1"
+"""``format`` of a many-seed ``schedule.json``: ``{"seeds": {seed: one seed's schedule}}``
+(motion timing; one seed's is :meth:`~.planning.timing.Schedule.to_json`)."""
 STAT_KEYS = ("mean", "median", "p95", "min", "max", "std", "ci95_low", "ci95_high", "n")
 
 
@@ -89,10 +93,13 @@ def seed_gap(args: tuple[Scenario, int, str]) -> dict[str, Any]:
     g = open_loop_gap(scenario, seed)
     plan = g.run.plan
     fp = [t.footprint for t in plan.types]
-    return {"seed": seed, "report": _flat(g.report), "agents": g.agents,
-            "actions": g.actions, "footprints": fp,
-            "wait_map": wait_map(g.actions, fp, plan.layout.rows, plan.layout.cols),
-            "grid": np.asarray(plan.layout.grid).copy()}
+    out = {"seed": seed, "report": _flat(g.report), "agents": g.agents,
+           "actions": g.actions, "footprints": fp,
+           "wait_map": wait_map(g.actions, fp, plan.layout.rows, plan.layout.cols),
+           "grid": np.asarray(plan.layout.grid).copy()}
+    if g.schedule is not None:  # planner.timing: motion
+        out["schedule"] = g.schedule.to_json(plan.layout.cols, plan.source)
+    return out
 
 
 def _flat(rep: dict) -> dict:
@@ -211,6 +218,11 @@ def write_outputs(out_dir: str | Path, *, header: dict, results: list[dict],
             json.dumps(_finite(summary), indent=2, sort_keys=True) + "\n", encoding="utf-8"),
         "seeds.csv": lambda p: p.write_text(_csv(seeds), encoding="utf-8"),
     }
+    schedules = {str(r["seed"]): r["schedule"] for r in results if r.get("schedule")}
+    if schedules:
+        writers["schedule.json"] = lambda p: p.write_text(
+            json.dumps(_finite({"format": SCHEDULES_FORMAT, "timing": "motion",
+                                "seeds": schedules}), indent=1) + "\n", encoding="utf-8")
     if header.get("mode") == "open-loop":
         rows = agent_rows(results)
         writers["agents.csv"] = lambda p: p.write_text(_csv(rows), encoding="utf-8")

@@ -776,12 +776,16 @@ def _check_headings(world, agents: list, result, ck: _Checker) -> None:
 
 
 def plan_turn_conflicts(world, paths: dict, tick: int,
-                        headings: dict | None = None, max_conflicts: int = 100) -> list:
+                        headings: dict | None = None, max_conflicts: int = 100,
+                        loaded: dict | None = None) -> list:
     """Turn-in-place conflicts (:func:`~warerover_phys.planning.sweep.sweep_conflicts`:
     ``sweep``, ``turn_lock``, ``turn_wall``) of the timed ``paths`` (``agv -> TimedPath``)
     from ``tick`` on, for ``world``'s fleet and layout (empty when no AGV's turn holds
     anything). ``headings``: the heading of AGVs at ``tick`` (for paths that start then);
-    the others' headings are worked out from their paths and the reservation table."""
+    the others' headings are worked out from their paths and the reservation table.
+    ``loaded`` (``agv -> bool``, or one bool per tick from ``tick``): also the turns beside
+    AGVs that carry a shelf (``shelf_sweep``; planners do not reserve these yet, the
+    physics executor's dependency graph makes such a turn wait)."""
     from .planning.sweep import heading_after, sweep_conflicts, turn_fields
 
     fields = turn_fields(world.layout, [a.spec for a in world.agvs])
@@ -803,7 +807,10 @@ def plan_turn_conflicts(world, paths: dict, tick: int,
         {a: sw.cells for a, (sw, _) in fields.items() if sw is not None},
         start_tick=tick, headings=heads, max_conflicts=max_conflicts,
         locks={a: sw.locks for a, (sw, _) in fields.items() if sw is not None},
-        no_turn={a: nt for a, (_, nt) in fields.items()})
+        no_turn={a: nt for a, (_, nt) in fields.items()},
+        shelf_offsets=None if loaded is None else {
+            a: sw.shelf_cells for a, (sw, _) in fields.items() if sw is not None},
+        loaded=loaded)
 
 
 def _check_edges(world, agent, path, ck: _Checker) -> None:

@@ -526,8 +526,9 @@ class World:
 
 
 def can_carry(spec: AgvTypeSpec, shelf_size: int) -> bool:
-    """An AGV lifts a shelf from under it: the shelf must match its footprint and cargo class."""
-    return shelf_size == spec.footprint and shelf_size <= spec.carries
+    """An AGV lifts a shelf from under it: the shelf must match its footprint and cargo class
+    (:meth:`.AgvTypeSpec.can_carry`)."""
+    return spec.can_carry(shelf_size)
 
 
 def _stop_order(world: World, agv: Agv, shelf: int, stations: set[int]) -> list[int]:
