@@ -35,7 +35,19 @@ again). Without turn-aware movers nothing changes.
 Rotations (issue 15, ``planner.rotations``): a mover with ``rot`` (its quarter and half turn
 ticks) and ``rdist`` (ticks to its goal from every (anchor, heading),
 :func:`~warerover_phys.planning.rotation.rotation_dist`) moves only straight ahead; turns in
-place are steps of their own, as in the League of Robot Runners' PIBT entries:
+place are steps of their own, as in the League of Robot Runners' PIBT entries. Two modes
+(``footprint_step(rotation=...)``):
+
+``cascade`` (lifelong PIBT's): the step runs as for any agent, each rotation-aware agent's
+targets ranked by the ticks to its goal through them (turn included, so the cell ahead
+wins ties); afterwards an agent whose target is not ahead turns a quarter towards it and
+stays, and every agent that would enter the cells of an agent that stays stays too, until
+none does (the LoRR post-processing). Pushes, swaps and nudges work as before; an agent
+pushed sideways turns there and drives off next step. An agent that makes way for a
+head-on partner drives ahead first if it can, and ``undo`` keeps an agent from turning
+straight back to the heading it just left (two agents turning to and fro in step).
+
+``stay`` (LaCAM's configuration generator, which must realise its constraints exactly):
 
 - its options are ranked by ``rdist``: the cell ahead, or a turn towards a side or back
   neighbour (turn ticks + move + the distance from there), or waiting. A turn holds only
