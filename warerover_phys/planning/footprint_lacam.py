@@ -112,11 +112,11 @@ def footprint_lacam(movers: Sequence[Mover], starts: Sequence[Pose], cols: int,
                 parent.headings, parent.config, config, cols)
         return _High(config, parent, prio, order, heads)
 
-    if any(mv.dist[start[i][1]] >= UNREACHABLE or (
-            mv.tdist is not None and headings is not None
-            and (start[i][1], headings[i]) not in mv.tdist) or (
-            mv.rdist is not None and headings is not None and headings[i] < 4
-            and mv.rdist[start[i][1], headings[i]] >= UNREACHABLE_T)
+    if any(_rot_unreachable(mv, start[i][1], headings[i]) if (
+            mv.rdist is not None and headings is not None and headings[i] < 4) else (
+            mv.dist[start[i][1]] >= UNREACHABLE or (
+                mv.tdist is not None and headings is not None
+                and (start[i][1], headings[i]) not in mv.tdist))
            for i, mv in enumerate(movers) if i not in held_set):
         # An agent that cannot reach its goal: no configuration search can succeed.
         return None, {"iterations": 0, "explored": 0, "exhausted": True,
@@ -184,6 +184,17 @@ def _grow(node: _High, low: _Low, movers: Sequence[Mover], rng: np.random.Genera
     rng.shuffle(cands)
     for v in cands:
         node.tree.append(_Low(low.who + (i,), low.where + (v,)))
+
+
+def _rot_unreachable(mv: Mover, here: int, h: int) -> bool:
+    """Can a rotation-aware agent on ``here`` facing ``h`` not reach its goal? (From a
+    sink, such as a loaded AGV's own shelf home, it leaves through a neighbour: the
+    distance tables only count moves out of anchors it may drive through.)"""
+    rd = mv.rdist
+    assert rd is not None
+    if rd[here, h] < UNREACHABLE_T:
+        return False
+    return all(rd[v, d] >= UNREACHABLE_T for v in mv.neighbors[here] for d in range(4))
 
 
 def _ahead(here: int, v: int, h: int, mv: Mover) -> bool:  # noqa: ARG001
