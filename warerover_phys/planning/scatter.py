@@ -163,7 +163,7 @@ def _search(neighbors: Sequence[Sequence[int]], table: _Table, start: int, goal:
 
 
 def guide_paths(neighbors: Sequence[Sequence[int]], starts: Sequence[int],
-                goals: Sequence[int], dists: Sequence[np.ndarray], rng: np.random.Generator,
+                goals: Sequence[int], dists: Sequence[np.ndarray | list[int]], rng: np.random.Generator,
                 *, margin: int = 20, max_rounds: int = 2, deadline: float | None = None,
                 ) -> GuidePaths:
     """Guide paths for agents from ``starts`` to ``goals`` (node indices).
@@ -177,7 +177,7 @@ def guide_paths(neighbors: Sequence[Sequence[int]], starts: Sequence[int],
     t0 = time.perf_counter()
     num = len(starts)
     table = _Table(len(neighbors))
-    lists = [d.tolist() for d in dists]
+    lists = [d if isinstance(d, list) else d.tolist() for d in dists]
     paths: list[list[int] | None] = [None] * num
     best: list[list[int] | None] = [None] * num
     best_collisions: int | None = None
