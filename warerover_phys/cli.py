@@ -381,13 +381,33 @@ def check(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
                f"cells, {len(world.agvs)} AGVs")
 
 
+def _process_age_s() -> float:
+    """Seconds since this process started (Linux ``/proc``; 0 where it cannot be read)."""
+    import os
+
+    try:
+        with open("/proc/self/stat", encoding="ascii") as f:
+            ticks = int(f.read().rsplit(")", 1)[1].split()[19])  # field 22: starttime
+        with open("/proc/uptime", encoding="ascii") as f:
+            up = float(f.read().split()[0])
+        return max(0.0, up - ticks / os.sysconf("SC_CLK_TCK"))
+    except (OSError, ValueError, IndexError):
+        return 0.0
+
+
+SOLVE_RESERVE = 0.03
+"""Share of ``solve --time-limit`` kept for validating and writing the plan."""
+
+
 @app.command()
 def solve(map_file: Annotated[Path, typer.Argument(metavar="MAP.map", help="MovingAI map.")],
           scen_file: Annotated[Path, typer.Argument(metavar="SCEN.scen",
                                                     help="MovingAI scenario.")],
           agents: Annotated[int, typer.Option(help="Use the first N agents.")] = 100,
           planner: Annotated[str, typer.Option(help="lacam | pibt | astar | learned.")] = "lacam",
-          time_limit: Annotated[float, typer.Option(help="Seconds before giving up.")] = 60.0,
+          time_limit: Annotated[float, typer.Option(
+              help="Seconds for the whole command, counted from the process start "
+                   "(--refine uses all of it).")] = 60.0,
           seed: Annotated[int, typer.Option(help="Tie-breaking seed.")] = 0,
           json_out: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
           out: Annotated[Path | None, typer.Option(
@@ -412,12 +432,17 @@ def solve(map_file: Annotated[Path, typer.Argument(metavar="MAP.map", help="Movi
             raise WareroverError(f"--time-limit: must be positive and finite (got {time_limit})")
         grid = read_map(map_file)
         scen = read_scen(scen_file, agents, grid)
+        # The limit covers what the user waits for: start-up and reading so far, the
+        # validation and the plan file after solving (SOLVE_RESERVE of it).
+        budget = max(0.05 * time_limit,
+                     time_limit * (1 - SOLVE_RESERVE) - _process_age_s())
+
         def improved(seconds: float, soc: int) -> None:
             if not json_out:
                 typer.echo(f"refine: {seconds:7.2f} s  sum of costs {soc}", err=True)
 
         result = solve_instance(grid.obstacles, [a.start for a in scen], [a.goal for a in scen],
-                                planner=planner, time_limit_s=time_limit, seed=seed,
+                                planner=planner, time_limit_s=budget, seed=seed,
                                 guide=guide, refine=refine, on_improve=improved)
         conflicts = []
         if result.success:
