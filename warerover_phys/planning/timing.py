@@ -19,8 +19,10 @@ plan the way the physics executor drives it (:mod:`warerover_phys.executors.foll
   run is *split* there: the AGV stops at the cell before and starts a new run when they are.
   Where to split depends on the other AGVs' runs, so the earliest-time pass is repeated,
   each deciding the runs' lengths from the ready times of the pass before, until no move is
-  entered before it is ready (ready times only grow from pass to pass, so no split is kept
-  that the schedule does not need).
+  entered before it is ready (a handful of passes on the paper scenarios). Ready times
+  mostly grow from pass to pass, but not always (a run split earlier may pass a later cell
+  at speed, sooner than a robot that stopped there), so after ``max_passes`` passes the
+  search falls back to adding a split wherever a move is late, which only delays and ends.
 - **Turns** (differential drive): before a move in a direction other than the AGV's heading
   (AGVs start facing east, as the physics executor places them) it turns in place for
   :meth:`MotionModel.turn_s`. As in the executor the turn starts when the AGV arrives, during
@@ -252,9 +254,8 @@ def schedule(paths: Mapping[int, TimedPath], fleet: Sequence[AgvTypeSpec], *, co
     # Where a run must stop depends on when the other AGVs free its cells, which depends
     # on where their runs stop. Each pass decides every run's length from the ready times
     # the pass before found (a run stops before its first move that would be entered before
-    # it is ready) and computes the earliest times in dependency order. Ready times only
-    # grow from pass to pass (from none at all), so a pass in which no move is entered
-    # before it is ready is the schedule, with no split it does not need.
+    # it is ready) and computes the earliest times in dependency order; the first pass in
+    # which no move is entered before it is ready is the schedule.
     passes = 0
     predict: dict[tuple[int, int], float] = {}
     forced: set[tuple[int, int]] = set()
@@ -267,7 +268,7 @@ def schedule(paths: Mapping[int, TimedPath], fleet: Sequence[AgvTypeSpec], *, co
             break
         if passes < max_passes:
             predict = ready
-        else:  # not settled yet (never seen): split where late, which only adds splits
+        else:  # not settled: split wherever a move is late (only adds splits, so it ends)
             forced |= splits | set(late)
             predict = {}
     out: dict[int, tuple[TimedAction, ...]] = {}
