@@ -73,9 +73,10 @@ def test_problem_is_read_as_its_files_say(problem):
     assert not any(problem.grid.obstacles.ravel()[s] for s in problem.starts)
 
 
-@pytest.mark.parametrize("rotations", [True, False])
-def test_output_reads_back_with_identical_paths_and_recounted_tasks(problem, rotations):
-    result = run_lifelong(problem, 150, rotations=rotations, seed=3)
+@pytest.mark.parametrize("rotations,rule", [(True, "actions"), (True, "turn-first"),
+                                           (False, "actions")])
+def test_output_reads_back_with_identical_paths_and_recounted_tasks(problem, rotations, rule):
+    result = run_lifelong(problem, 150, rotations=rotations, seed=3, rule=rule)
     doc = json.loads(json.dumps(output_json(result)))
     assert doc["teamSize"] == 50 and doc["makespan"] == 150
     assert doc["actionModel"] == ("MAPF_T" if rotations else "MAPF")

@@ -34,6 +34,8 @@ def main() -> None:
     ap.add_argument("--ticks", type=int, default=500)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--rotations", choices=["on", "off", "both"], default="both")
+    ap.add_argument("--rule", choices=["actions", "turn-first"], default="actions",
+                    help="how PIBT meets the rotation model (see warerover lorr)")
     ap.add_argument("--json", type=Path, default=Path(__file__).parent / "out" /
                     "bench_lifelong.json")
     args = ap.parse_args()
@@ -42,7 +44,7 @@ def main() -> None:
         problem = dataclasses.replace(problem, starts=problem.starts[:args.agents])
     rows = []
     for rot in {"on": [True], "off": [False], "both": [False, True]}[args.rotations]:
-        result = run_lifelong(problem, args.ticks, rotations=rot, seed=args.seed,
+        result = run_lifelong(problem, args.ticks, rotations=rot, seed=args.seed, rule=args.rule,
                               progress=lambda t, n: print(f"  {t}/{n}", file=sys.stderr)
                               if t % 100 == 0 else None)
         s = result.summary()
@@ -50,7 +52,7 @@ def main() -> None:
         s["peak_rss_mb_so_far"] = rss
         rows.append(s)
         print(f"{args.problem.name}: {s['agents']} robots, {s['ticks']} timesteps, rotations "
-              f"{'on' if rot else 'off'}: {s['ms_per_tick_mean']:.2f} ms/timestep mean, "
+              f"{'on (' + args.rule + ')' if rot else 'off'}: {s['ms_per_tick_mean']:.2f} ms/timestep mean, "
               f"{s['ms_per_tick_p99']:.2f} p99, {s['ms_per_tick_max']:.2f} max; set-up "
               f"{s['setup_s']:.2f} s; {s['tasks_finished']} tasks; peak RSS {rss:.0f} MB")
     out = {"runs": rows, "python": platform.python_version(), "platform": platform.platform()}

@@ -1,47 +1,46 @@
-"""Benchmark one-shot MAPF on the MovingAI map warehouse-10-20-10-2-1, side by side with pymapf.
+"""Benchmark one-shot MAPF on MovingAI warehouse-10-20-10-2-1: ours beside the C++ lacam3.
 
-For every planner, scenario (``random-1..3``) and agent count N (the first N agents of the
-scenario), solves the instance, rebuilds every agent's per-tick states from the returned paths
-and checks them with the project's independent validator
-(:func:`warerover_phys.validate.validate_states`). A run counts as a success only if the
-planner reports a solution, the validator finds no conflict, and every path starts at its start
-and ends at its goal. Sum of costs, makespan and the lower bound (sum of single-agent
-shortest-path lengths, 4-connected grid) are recomputed here from the paths, so both sides are
-measured the same way.
+Two modes, each run by both sides as a user would run them (a subprocess each; the wall time
+is the whole process: start-up, reading, distance tables, solving, validating, writing):
 
-- Our side: ``warerover_phys.planning.oneshot.solve`` (``--planners``, default ``lacam pibt``),
-  called in-process; it honours ``--time-limit`` itself.
-- pymapf side: the PyPI package ``pymapf`` (not a project dependency; install it with
-  ``.venv/bin/pip install pymapf``), its ``LaCAM`` and ``PIBT`` solvers (``--pymapf-planners``).
-  Each run happens in a child process that is killed at ``--time-limit`` + ``--grace``
-  seconds. pymapf uses ``(row, col)`` cells like this project; the script checks that on a
-  small asymmetric grid before the benchmark. Left out with ``--no-pymapf`` or when pymapf is
-  not installed.
+- ``first`` (first solution): ours ``warerover solve --planner lacam`` (guide paths on;
+  ``--no-guide`` turns them off), lacam3 ``--no-star`` (LaCAM, stopping at its first solution);
+  both with ``--time-limit`` (default 60 s).
+- ``refined`` (anytime, ``--refine-time`` seconds, default 30): ours ``warerover solve
+  --refine``, lacam3 without ``--no-star`` (LaCAM* with its refiners until the limit).
 
-Data: ``tests/data/warehouse-10-20-10-2-1.map`` and ``...-random-{1,2,3}.scen`` (unmodified
-MovingAI benchmark files). A planner that runs out of time on N agents of a scenario is not
-run on the larger N of that scenario (status ``skipped``; ``--no-skip`` runs them anyway: the
-first N agents are a subset of the first N' > N). Prints one row per run, then per-N
-aggregates over the scenarios, and writes everything, with machine info, as JSON (default
-``tools/out/bench_mapf.json``).
+For every run the plan file is read back here (an independent reader of the ``t:(x,y),...``
+format both write), the sum of costs, makespan and lower bound (sum of single-agent BFS
+distances, 4-connected, via scipy) are recomputed from the paths, and the plan is checked
+with the project's validator (:func:`warerover_phys.validate.validate_states`) and for its
+endpoints. A run succeeds only if its solver reports a solution and the check passes.
 
-    .venv/bin/python tools/bench_mapf.py --quick            # N = 100 200 400, random-1 only
-    .venv/bin/python tools/bench_mapf.py                    # N = 100 ... 1000, random-1..3
-    .venv/bin/python tools/bench_mapf.py --agents 100 200 --scens 1 2 --planners lacam --no-pymapf
+lacam3: ``--lacam3 PATH`` or ``$WARERO_LACAM3`` names a binary; otherwise it is built from
+``../shared/reference/lacam3`` (beside the repository; ``--lacam3-src``) with cmake and g++
+into ``build/lacam3`` (reused when present). Without cmake or g++ (or the sources) the script
+says so plainly and runs our side alone. lacam3 takes whole seconds as its limit (rounded up).
+
+Prints one row per run, then per (N, mode) the ratios ours / lacam3 (SoC and wall time), with
+the load average, and writes everything as JSON (default ``tools/out/bench_mapf.json``).
+
+    .venv/bin/python tools/bench_mapf.py --quick            # N = 100 400 on random-1
+    .venv/bin/python tools/bench_mapf.py                    # N = 100 200 400 700 1000, random-1
+    .venv/bin/python tools/bench_mapf.py --agents 400 --modes refined --refine-time 30
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
-import multiprocessing as mp
+import math
 import os
 import platform
+import re
+import shutil
 import subprocess
 import sys
+import tempfile
 import time
-import traceback
 from pathlib import Path
 
 import numpy as np
@@ -56,13 +55,13 @@ DATA = ROOT / "tests" / "data"
 MAP_NAME = "warehouse-10-20-10-2-1"
 MAP_PATH = DATA / f"{MAP_NAME}.map"
 DEFAULT_AGENTS = [100, 200, 400, 700, 1000]
-DEFAULT_SCENS = [1, 2, 3]
-QUICK_AGENTS = [100, 200, 400]
-QUICK_SCENS = [1]
-PLANNERS = ["lacam", "pibt"]
+DEFAULT_SCENS = [1]
+QUICK_AGENTS = [100, 400]
+MODES = ["first", "refined"]
 MAX_CONFLICTS = 1000
 """Validator cap: a plan with this many conflicts is reported as ``1000+``."""
-PYMAPF_INSTALL = ".venv/bin/pip install pymapf"
+LACAM3_SRC = ROOT.parent / "shared" / "reference" / "lacam3"
+LACAM3_BUILD = ROOT / "build" / "lacam3"
 
 Cell = tuple[int, int]
 
@@ -158,187 +157,146 @@ def finish_run(run: dict, paths: list[list[Cell]] | None, starts: list[Cell], go
     return run
 
 
-# ----------------------------------------------------------------------------- our side
+# ----------------------------------------------------------------------------- plan files
 
 
-def our_solve_available() -> tuple[bool, str]:
-    """Whether ``oneshot.solve`` imports and solves a 3x3 swap; else the reason."""
-    try:
-        from warerover_phys.planning.oneshot import solve
-        free = np.zeros((3, 3), dtype=bool)
-        for planner in ("lacam", "pibt"):
-            res = solve(free, [(0, 0), (2, 2)], [(2, 2), (0, 0)], planner=planner,
-                        time_limit_s=5.0)
-            if not res.success:
-                return False, f"solve(planner={planner!r}) failed on a 3x3 swap"
-    except Exception as exc:
-        return False, f"{type(exc).__name__}: {exc}"
-    return True, ""
+_STEP = re.compile(r"^(\d+):(.*)$")
+_CELL = re.compile(r"\((-?\d+),(-?\d+)\)")
 
 
-def run_ours(planner: str, obstacles: np.ndarray, starts: list[Cell], goals: list[Cell],
-             time_limit: float, seed: int) -> tuple[dict, list[list[Cell]] | None]:
-    from warerover_phys.planning.oneshot import solve
+def read_plan_file(path: Path) -> tuple[dict[str, str], list[list[Cell]] | None]:
+    """(header ``key=value`` pairs, per-agent (row, col) paths) of a ``t:(x,y),...`` plan
+    (x = column); paths None when the file has no ``solution=`` section or no steps."""
+    header: dict[str, str] = {}
+    steps: list[list[Cell]] = []
+    in_solution = False
+    for line in path.read_text(encoding="utf-8").splitlines():
+        line = line.strip()
+        if not line:
+            continue
+        if not in_solution:
+            if line == "solution=":
+                in_solution = True
+            elif "=" in line:
+                key, _, value = line.partition("=")
+                header[key] = value
+            continue
+        m = _STEP.match(line)
+        if m is None:
+            break
+        if int(m.group(1)) != len(steps):
+            raise ValueError(f"{path}: timestep {m.group(1)} out of order")
+        steps.append([(int(y), int(x)) for x, y in _CELL.findall(m.group(2))])
+    if not steps:
+        return header, None
+    n = len(steps[0])
+    if any(len(q) != n for q in steps):
+        raise ValueError(f"{path}: timesteps with different agent counts")
+    return header, [[q[i] for q in steps] for i in range(n)]
+
+
+# ----------------------------------------------------------------------------- the two sides
+
+
+def our_command(n: int, scen: Path, mode: str, time_limit: float, seed: int, guide: bool,
+                out: Path) -> list[str]:
+    cmd = [sys.executable, "-m", "warerover_phys", "solve", str(MAP_PATH), str(scen),
+           "--agents", str(n), "--planner", "lacam", "--time-limit", f"{time_limit:g}",
+           "--seed", str(seed), "--json", "--out", str(out)]
+    if not guide:
+        cmd.append("--no-guide")
+    if mode == "refined":
+        cmd.append("--refine")
+    return cmd
+
+
+def lacam3_command(binary: Path, n: int, scen: Path, mode: str, time_limit: float, seed: int,
+                   out: Path) -> list[str]:
+    cmd = [str(binary), "-m", str(MAP_PATH), "-i", str(scen), "-N", str(n),
+           "-t", str(max(1, math.ceil(time_limit))), "-s", str(seed), "-v", "0",
+           "-o", str(out)]
+    if mode == "first":
+        cmd.append("--no-star")
+    return cmd
+
+
+def run_process(cmd: list[str], out: Path, timeout: float, env: dict | None = None,
+                ) -> tuple[dict, list[list[Cell]] | None]:
+    """Run ``cmd`` (it writes its plan to ``out``); the whole process is timed."""
     t0 = time.perf_counter()
     try:
-        res = solve(obstacles, starts, goals, planner=planner, time_limit_s=time_limit,
-                    seed=seed)
-    except Exception as exc:
-        wall = time.perf_counter() - t0
-        return {"solved": False, "status": f"error: {type(exc).__name__}: {exc}",
-                "wall_s": wall}, None
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
+    except subprocess.TimeoutExpired:
+        return {"solved": False, "status": f"timeout (killed at {timeout:g} s)",
+                "process_s": time.perf_counter() - t0}, None
     wall = time.perf_counter() - t0
-    info = {"solved": bool(res.success),
-            "status": "solved" if res.success else _fail_status(wall, time_limit),
-            "wall_s": wall, "solver_wall_s": res.wall_s, "reported_soc": res.sum_of_costs,
-            "reported_makespan": res.makespan, "reported_lower_bound": res.lower_bound,
-            "stats": _jsonable(res.stats)}
-    return info, (res.paths if res.success else None)
-
-
-def _fail_status(wall: float, time_limit: float) -> str:
-    """Status of a run whose planner returned no solution."""
-    return "fail (time limit)" if wall >= time_limit else "fail (gave up)"
-
-
-def _jsonable(obj):
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, str | int | float | bool) or obj is None:
-        return obj
-    return repr(obj)
-
-
-# ----------------------------------------------------------------------------- pymapf side
-
-
-def pymapf_status(wanted: list[str]) -> tuple[bool, str, str]:
-    """(usable, version, message) for the pymapf planners in ``wanted``."""
-    if importlib.util.find_spec("pymapf") is None:
-        return False, "", (f"pymapf is not installed; install it with `{PYMAPF_INSTALL}` "
-                           "(it is not a project dependency). pymapf side skipped.")
+    info: dict = {"process_s": wall, "returncode": proc.returncode}
     try:
-        import pymapf
-    except Exception as exc:
-        return False, "", f"pymapf does not import ({type(exc).__name__}: {exc}); skipped."
-    version = getattr(pymapf, "__version__", "?")
-    have = set(pymapf.available_solvers()) if hasattr(pymapf, "available_solvers") else set()
-    missing = [p for p in wanted if p not in have]
+        info["stdout_json"] = json.loads(proc.stdout)
+    except ValueError:
+        pass
+    if not out.exists():
+        tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
+        info.update(solved=False, status=f"no plan (exit {proc.returncode})", stderr_tail=tail)
+        return info, None
+    header, paths = read_plan_file(out)
+    info["header"] = header
+    solved = header.get("solved") == "1" and paths is not None
+    info.update(solved=solved, status="solved" if solved else "unsolved")
+    if "comp_time" in header:
+        info["solver_s"] = float(header["comp_time"]) / 1000.0
+    stderr = [ln for ln in proc.stderr.splitlines() if ln.startswith("refine:")]
+    if stderr:
+        info["improvements"] = len(stderr)
+    return info, paths
+
+
+def find_lacam3(given: str | None, src: Path) -> tuple[Path | None, str]:
+    """The lacam3 binary and how it was found, or (None, why not)."""
+    given = given or os.environ.get("WARERO_LACAM3")
+    if given:
+        p = Path(given)
+        if p.is_file() and os.access(p, os.X_OK):
+            return p, f"lacam3: {p} (given)"
+        return None, f"lacam3 SKIPPED: {p} is not an executable file"
+    binary = LACAM3_BUILD / "main"
+    if binary.is_file():
+        return binary, f"lacam3: {binary} (built before)"
+    missing = [tool for tool in ("cmake", "g++") if shutil.which(tool) is None]
     if missing:
-        return False, version, (f"pymapf {version} has no solver named {', '.join(missing)} "
-                                f"(it has: {', '.join(sorted(have)) or 'none'}); skipped.")
-    ok, msg = _check_pymapf_convention()
-    if not ok:
-        return False, version, f"pymapf {version}: {msg}; skipped."
-    return True, version, f"pymapf {version}: {msg}"
-
-
-def _check_pymapf_convention() -> tuple[bool, str]:
-    """Check on a 3x5 grid with a wall in the middle row that pymapf reads cells as
-    (row, col): the wall is blocked, paths start at the starts and never enter the wall."""
-    import pymapf
-    obstacles = np.zeros((3, 5), dtype=bool)
-    obstacles[1, 1:4] = True
-    grid = pymapf.GridMap(obstacles)
-    if (grid.height, grid.width) != (3, 5) or grid.is_free((1, 2)) or not grid.is_free((0, 4)):
-        return False, "GridMap does not index obstacles as [row][col]"
-    starts, goals = [(0, 0), (2, 4)], [(2, 4), (0, 0)]
-    for name in ("lacam", "pibt"):
-        problem = pymapf.MAPFProblem(grid, [pymapf.Agent(str(i), s, g) for i, (s, g)
-                                            in enumerate(zip(starts, goals, strict=True))])
-        sol = pymapf.solve(problem, name, time_limit=10.0)
-        if sol is None:
-            return False, f"{name} failed on the 3x5 convention check"
-        paths = [sol.paths[str(i)] for i in range(2)]
-        if [tuple(p[0]) for p in paths] != starts or [tuple(p[-1]) for p in paths] != goals:
-            return False, f"{name} paths do not start/end at the (row, col) starts/goals"
-        if any(obstacles[r, c] for p in paths for r, c in p):
-            return False, f"{name} paths cross the wall read as (row, col)"
-    return True, "cells are (row, col), checked on a 3x5 grid"
-
-
-def _pymapf_child(conn, planner: str, obstacles: np.ndarray, starts: list[Cell],
-                  goals: list[Cell], time_limit: float, seed: int) -> None:
-    """Child process: solve with pymapf, send (status, paths, wall_s, info) back."""
-    try:
-        import pymapf
-        grid = pymapf.GridMap(obstacles)
-        problem = pymapf.MAPFProblem(grid, [pymapf.Agent(str(i), s, g) for i, (s, g)
-                                            in enumerate(zip(starts, goals, strict=True))])
-        if planner == "lacam":
-            # The expansion cap is lifted so that only the time limit ends the search.
-            solver = pymapf.LaCAM(time_limit=time_limit, max_expansions=10**12, seed=seed)
-        else:
-            solver = pymapf.PIBT(time_limit=time_limit, seed=seed)
-        t0 = time.perf_counter()
-        sol = solver.solve(problem)
-        wall = time.perf_counter() - t0
-        if sol is None:
-            conn.send((_fail_status(wall, time_limit), None, wall, {}))
-        else:
-            paths = [list(sol.paths[str(i)]) for i in range(len(starts))]
-            conn.send(("solved", paths, wall, {"expansions": sol.expansions,
-                                               "pymapf_soc": sol.sum_of_costs,
-                                               "pymapf_makespan": sol.makespan}))
-    except Exception as exc:
-        conn.send((f"error: {type(exc).__name__}: {exc}", None, 0.0,
-                   {"traceback": traceback.format_exc()}))
-    finally:
-        conn.close()
-
-
-def run_pymapf(planner: str, obstacles: np.ndarray, starts: list[Cell], goals: list[Cell],
-               time_limit: float, grace: float, seed: int
-               ) -> tuple[dict, list[list[Cell]] | None]:
-    ctx = mp.get_context("fork" if sys.platform.startswith("linux") else "spawn")
-    parent, child = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_pymapf_child, daemon=True,
-                       args=(child, planner, obstacles, starts, goals, time_limit, seed))
-    t0 = time.perf_counter()
-    proc.start()
-    child.close()
-    hard = time_limit + grace
-    msg = None
-    try:
-        if parent.poll(hard):
-            msg = parent.recv()
-    except EOFError:
-        msg = None
-    elapsed = time.perf_counter() - t0
-    if proc.is_alive():
-        proc.join(timeout=2.0)
-    if proc.is_alive():
-        proc.kill()
-        proc.join()
-    parent.close()
-    if msg is None:
-        status = (f"timeout (killed at {hard:g} s)" if elapsed >= hard
-                  else f"child died (exit code {proc.exitcode})")
-        return {"solved": False, "status": status, "wall_s": elapsed}, None
-    status, paths, wall, info = msg
-    run = {"solved": status == "solved", "status": status, "wall_s": wall,
-           "process_s": elapsed, **_jsonable(info)}
-    return run, paths
+        return None, (f"lacam3 SKIPPED: {' and '.join(missing)} not found; both are needed to "
+                      f"build {src} (or give --lacam3 PATH / $WARERO_LACAM3)")
+    if not (src / "CMakeLists.txt").is_file():
+        return None, f"lacam3 SKIPPED: no sources at {src} (give --lacam3-src or --lacam3)"
+    print(f"building lacam3 from {src} into {LACAM3_BUILD} (cmake + g++) ...", flush=True)
+    for cmd in (["cmake", "-S", str(src), "-B", str(LACAM3_BUILD),
+                 "-DCMAKE_BUILD_TYPE=Release"],
+                ["make", "-C", str(LACAM3_BUILD), f"-j{os.cpu_count() or 1}"]):
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode != 0:
+            tail = " | ".join((proc.stderr or proc.stdout).strip().splitlines()[-3:])
+            return None, f"lacam3 SKIPPED: `{' '.join(cmd)}` failed: {tail}"
+    if not binary.is_file():
+        return None, f"lacam3 SKIPPED: the build left no {binary}"
+    return binary, f"lacam3: {binary} (built now)"
 
 
 # ----------------------------------------------------------------------------- report
 
-COLUMNS = [("impl", "impl", "{}"), ("planner", "planner", "{}"), ("scen", "scen", "{}"),
+COLUMNS = [("impl", "impl", "{}"), ("mode", "mode", "{}"), ("scen", "scen", "{}"),
            ("N", "agents", "{}"), ("ok", "ok", "{}"), ("status", "status", "{}"),
            ("SoC", "sum_of_costs", "{}"), ("LB", "lower_bound", "{}"),
            ("SoC/LB", "soc_ratio", "{:.3f}"), ("makespan", "makespan", "{}"),
-           ("wall s", "wall_s", "{:.2f}"), ("conflicts", "conflicts_str", "{}")]
+           ("process s", "process_s", "{:.2f}"), ("solver s", "solver_s", "{:.2f}"),
+           ("conflicts", "conflicts_str", "{}"), ("load", "load_1min", "{:.1f}")]
 
-SUMMARY_COLUMNS = [("impl", "impl", "{}"), ("planner", "planner", "{}"), ("N", "agents", "{}"),
-                   ("solved", "solved_str", "{}"), ("SoC/LB mean", "soc_ratio_mean", "{:.3f}"),
-                   ("SoC/LB max", "soc_ratio_max", "{:.3f}"),
-                   ("makespan mean", "makespan_mean", "{:.1f}"),
-                   ("wall s mean", "wall_s_mean", "{:.2f}"), ("wall s max", "wall_s_max",
-                                                             "{:.2f}")]
+COMPARE_COLUMNS = [("scen", "scen", "{}"), ("N", "agents", "{}"), ("mode", "mode", "{}"),
+                   ("ours SoC/LB", "ours_soc_ratio", "{:.3f}"),
+                   ("lacam3 SoC/LB", "lacam3_soc_ratio", "{:.3f}"),
+                   ("SoC ours/lacam3", "soc_ours_over_lacam3", "{:.3f}"),
+                   ("ours s", "ours_process_s", "{:.2f}"), ("lacam3 s", "lacam3_process_s",
+                                                            "{:.2f}"),
+                   ("wall ours/lacam3", "wall_ours_over_lacam3", "{:.2f}")]
 
 
 def _cell(row: dict, key: str, fmt: str) -> str:
@@ -368,44 +326,36 @@ def _display(run: dict) -> dict:
     return row
 
 
-def summarise(runs: list[dict]) -> list[dict]:
-    """Per (impl, planner, N): successes and means over the scenarios (ratios and makespans
-    over successful runs only; wall times over every run that was not skipped)."""
-    groups: dict[tuple[str, str, int], list[dict]] = {}
-    for r in runs:
-        groups.setdefault((r["impl"], r["planner"], r["agents"]), []).append(r)
+def compare(runs: list[dict]) -> list[dict]:
+    """Per (scenario, N, mode): ours beside lacam3, ratios over successful runs."""
     out = []
-    for (impl, planner, n), rs in groups.items():
-        done = [r for r in rs if r["status"] != "skipped"]
-        ok = [r for r in done if r.get("success")]
-        walls = [r["wall_s"] for r in done if r.get("wall_s") is not None]
-        ratios = [r["soc_ratio"] for r in ok]
-        out.append({
-            "impl": impl, "planner": planner, "agents": n, "scens": [r["scen"] for r in rs],
-            "runs": len(done), "skipped": len(rs) - len(done), "solved": len(ok),
-            "solved_str": f"{len(ok)}/{len(rs)}",
-            "soc_ratio_mean": float(np.mean(ratios)) if ratios else None,
-            "soc_ratio_max": float(np.max(ratios)) if ratios else None,
-            "sum_of_costs_mean": float(np.mean([r["sum_of_costs"] for r in ok])) if ok else None,
-            "makespan_mean": float(np.mean([r["makespan"] for r in ok])) if ok else None,
-            "wall_s_mean": float(np.mean(walls)) if walls else None,
-            "wall_s_max": float(np.max(walls)) if walls else None,
-        })
+    keys = dict.fromkeys((r["scen"], r["agents"], r["mode"]) for r in runs)
+    for k, n, mode in keys:
+        side = {r["impl"]: r for r in runs
+                if (r["scen"], r["agents"], r["mode"]) == (k, n, mode)}
+        ours, theirs = side.get("ours"), side.get("lacam3")
+        row = {"scen": f"random-{k}", "agents": n, "mode": mode}
+        for name, r in (("ours", ours), ("lacam3", theirs)):
+            if r is not None:
+                row[f"{name}_success"] = r.get("success")
+                row[f"{name}_sum_of_costs"] = r.get("sum_of_costs") if r.get("success") else None
+                row[f"{name}_soc_ratio"] = r.get("soc_ratio") if r.get("success") else None
+                row[f"{name}_process_s"] = r.get("process_s")
+        if ours and theirs and ours.get("success") and theirs.get("success"):
+            row["soc_ours_over_lacam3"] = ours["sum_of_costs"] / theirs["sum_of_costs"]
+            row["wall_ours_over_lacam3"] = ours["process_s"] / theirs["process_s"]
+        out.append(row)
     return out
 
 
 def machine_info() -> dict:
     info = {"platform": platform.platform(), "machine": platform.machine(),
-            "processor": platform.processor(), "python": platform.python_version(),
-            "cpu_count": os.cpu_count(), "numpy": np.__version__}
+            "python": platform.python_version(), "cpu_count": os.cpu_count(),
+            "numpy": np.__version__}
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
             if line.startswith("model name"):
                 info["cpu_model"] = line.split(":", 1)[1].strip()
-                break
-        for line in Path("/proc/meminfo").read_text().splitlines():
-            if line.startswith("MemTotal"):
-                info["mem_total_gib"] = round(int(line.split()[1]) / 2**20, 1)
                 break
     except OSError:
         pass
@@ -418,142 +368,132 @@ def machine_info() -> dict:
     return info
 
 
+def _jsonable(obj):
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, str | int | float | bool) or obj is None:
+        return obj
+    return repr(obj)
+
+
 # ----------------------------------------------------------------------------- main
 
 
-def main(argv: list[str] | None = None) -> None:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--agents", type=int, nargs="+", default=None,
                         help=f"agent counts (default: {' '.join(map(str, DEFAULT_AGENTS))}; "
                              f"--quick: {' '.join(map(str, QUICK_AGENTS))})")
-    parser.add_argument("--scens", type=int, nargs="+", default=None, choices=DEFAULT_SCENS,
-                        help="random scenario numbers (default: 1 2 3; --quick: 1)")
-    parser.add_argument("--planners", nargs="*", default=PLANNERS, choices=PLANNERS,
-                        help="our planners; give the flag with no names to skip our side "
-                             "(default: %(default)s)")
-    parser.add_argument("--pymapf-planners", nargs="*", default=PLANNERS, choices=PLANNERS,
-                        help="pymapf planners (default: %(default)s)")
-    parser.add_argument("--no-pymapf", action="store_true", help="leave pymapf out")
+    parser.add_argument("--scens", type=int, nargs="+", default=DEFAULT_SCENS,
+                        choices=[1, 2, 3], help="random scenario numbers (default: 1)")
+    parser.add_argument("--modes", nargs="+", default=MODES, choices=MODES,
+                        help="first solution and/or refined (default: both)")
     parser.add_argument("--time-limit", type=float, default=60.0,
-                        help="seconds per instance (default: %(default)s)")
-    parser.add_argument("--grace", type=float, default=15.0,
-                        help="pymapf's child process is killed at time limit + grace seconds "
+                        help="seconds for a first solution (default: %(default)s)")
+    parser.add_argument("--refine-time", type=float, default=30.0,
+                        help="seconds of the refined mode, both sides (default: %(default)s)")
+    parser.add_argument("--grace", type=float, default=30.0,
+                        help="a process is killed at its limit + grace seconds "
                              "(default: %(default)s)")
-    parser.add_argument("--seed", type=int, default=0, help="planner seed (default: 0)")
+    parser.add_argument("--seed", type=int, default=0, help="seed, both sides (default: 0)")
+    parser.add_argument("--no-guide", action="store_true",
+                        help="our side without guide paths")
+    parser.add_argument("--no-ours", action="store_true", help="leave our side out")
+    parser.add_argument("--no-lacam3", action="store_true", help="leave lacam3 out")
+    parser.add_argument("--lacam3", default=None,
+                        help="lacam3 binary (default: $WARERO_LACAM3, else build it)")
+    parser.add_argument("--lacam3-src", type=Path, default=LACAM3_SRC,
+                        help="lacam3 sources to build (default: ../shared/reference/lacam3)")
     parser.add_argument("--quick", action="store_true",
-                        help=f"N = {' '.join(map(str, QUICK_AGENTS))} on random-1 only "
-                             "(unless --agents/--scens are given)")
-    parser.add_argument("--no-skip", action="store_true",
-                        help="also run larger N on a scenario after a planner ran out of "
-                             "time on a smaller N there (default: skip them; the agents of N "
-                             "are a prefix of those of any larger N)")
+                        help=f"N = {' '.join(map(str, QUICK_AGENTS))} (unless --agents)")
     parser.add_argument("--json", type=Path, default=ROOT / "tools" / "out" / "bench_mapf.json",
                         help="where to write the figures (default: tools/out/bench_mapf.json)")
     args = parser.parse_args(argv)
     agents = sorted(set(args.agents or (QUICK_AGENTS if args.quick else DEFAULT_AGENTS)))
-    scens = args.scens or (QUICK_SCENS if args.quick else DEFAULT_SCENS)
 
     grid = read_map(MAP_PATH)
     obstacles = np.asarray(grid.obstacles, dtype=bool)
     print(f"map {MAP_PATH.relative_to(ROOT)}: {grid.rows} x {grid.cols}, "
-          f"{int((~obstacles).sum())} free cells; scens {scens}, N {agents}, "
-          f"time limit {args.time_limit:g} s", flush=True)
-
+          f"{int((~obstacles).sum())} free cells; scens {args.scens}, N {agents}, modes "
+          f"{args.modes} (first: limit {args.time_limit:g} s; refined: {args.refine_time:g} s)",
+          flush=True)
     notes: list[str] = []
-    ours = list(dict.fromkeys(args.planners))
-    if ours:
-        ok, why = our_solve_available()
-        if not ok:
-            msg = (f"OUR SIDE SKIPPED: warerover_phys.planning.oneshot.solve is not usable "
-                   f"({why})")
-            print(msg, flush=True)
-            notes.append(msg)
-            ours = []
+    lacam3 = None
+    if args.no_lacam3:
+        notes.append("lacam3 left out (--no-lacam3)")
     else:
-        notes.append("our side not requested (--planners with no names)")
-        print(notes[-1])
-
-    theirs = [] if args.no_pymapf else list(dict.fromkeys(args.pymapf_planners))
-    pymapf_info = {"requested": bool(theirs), "available": False, "version": None,
-                   "message": "left out (--no-pymapf)" if args.no_pymapf else ""}
-    if theirs:
-        usable, version, msg = pymapf_status(theirs)
-        pymapf_info.update(available=usable, version=version or None, message=msg)
-        print(("" if usable else "PYMAPF SKIPPED: ") + msg, flush=True)
-        if not usable:
+        lacam3, msg = find_lacam3(args.lacam3, args.lacam3_src)
+        print(msg, flush=True)
+        if lacam3 is None:
             notes.append(msg)
-            theirs = []
+    sides = ([] if args.no_ours else ["ours"]) + ([] if lacam3 is None else ["lacam3"])
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH")) if p)
 
-    plan = [("ours", p) for p in ours] + [("pymapf", p) for p in theirs]
     runs: list[dict] = []
-    for k in scens:
-        path = scen_path(k)
-        scen = read_scen(path, max(agents), grid)
-        all_starts = [a.start for a in scen]
-        all_goals = [a.goal for a in scen]
-        dists = distances_to_goals(obstacles, all_starts, all_goals)
-        if min(dists) < 0:
-            raise SystemExit(f"{path}: some goal is unreachable from its start")
-        failed: set[tuple[str, str]] = set()
-        for n in agents:
-            starts, goals = all_starts[:n], all_goals[:n]
-            lb = sum(dists[:n])
-            for impl, planner in plan:
-                run = {"impl": impl, "planner": planner, "scen": k, "agents": n,
-                       "lower_bound": lb, "time_limit_s": args.time_limit}
-                if (impl, planner) in failed and not args.no_skip:
-                    run.update(status="skipped", solved=False, success=False, wall_s=None,
-                               conflicts=None, sum_of_costs=None, makespan=None,
-                               soc_ratio=None,
-                               note="ran out of time on a smaller N of this scenario")
-                    runs.append(run)
-                    continue
-                print(f"  {impl} {planner} random-{k} N={n} ...", file=sys.stderr, flush=True)
-                if impl == "ours":
-                    info, paths = run_ours(planner, obstacles, starts, goals, args.time_limit,
-                                           args.seed)
-                    if info.get("reported_lower_bound") not in (None, lb):
-                        info["lb_mismatch"] = (f"solve() reported lower bound "
-                                               f"{info['reported_lower_bound']}, BFS gives {lb}")
-                else:
-                    info, paths = run_pymapf(planner, obstacles, starts, goals,
-                                             args.time_limit, args.grace, args.seed)
-                run.update(info)
-                finish_run(run, paths, starts, goals, obstacles)
-                if run["status"].startswith(("fail (time limit)", "timeout")):
-                    failed.add((impl, planner))
-                print(f"    -> {run['status']}, ok={run['success']}, wall {run['wall_s']:.2f} s"
-                      + (f", SoC/LB {run['soc_ratio']:.3f}" if run.get("soc_ratio") else "")
-                      + (f", conflicts {run['conflicts']}" if run.get("conflicts") else ""),
-                      file=sys.stderr, flush=True)
-                runs.append(run)
+    with tempfile.TemporaryDirectory(prefix="bench_mapf_") as tmp:
+        for k in args.scens:
+            scen = scen_path(k)
+            agents_all = read_scen(scen, max(agents), grid)
+            all_starts = [a.start for a in agents_all]
+            all_goals = [a.goal for a in agents_all]
+            dists = distances_to_goals(obstacles, all_starts, all_goals)
+            for n in agents:
+                starts, goals = all_starts[:n], all_goals[:n]
+                lb = sum(dists[:n])
+                for mode in args.modes:
+                    limit = args.time_limit if mode == "first" else args.refine_time
+                    for impl in sides:
+                        out = Path(tmp) / f"{impl}-{k}-{n}-{mode}.txt"
+                        if impl == "ours":
+                            cmd = our_command(n, scen, mode, limit, args.seed,
+                                              not args.no_guide, out)
+                        else:
+                            cmd = lacam3_command(lacam3, n, scen, mode, limit, args.seed, out)
+                        print(f"  {impl} {mode} random-{k} N={n} ...", file=sys.stderr,
+                              flush=True)
+                        load = os.getloadavg()[0]
+                        info, paths = run_process(cmd, out, limit + args.grace, env)
+                        run = {"impl": impl, "mode": mode, "scen": k, "agents": n,
+                               "lower_bound": lb, "time_limit_s": limit, "command": cmd,
+                               "load_1min": load, **info}
+                        finish_run(run, paths, starts, goals, obstacles)
+                        print(f"    -> {run['status']}, ok={run['success']}, "
+                              f"process {run['process_s']:.2f} s"
+                              + (f", SoC/LB {run['soc_ratio']:.3f}" if run.get("soc_ratio")
+                                 else ""), file=sys.stderr, flush=True)
+                        runs.append(run)
 
+    comparison = compare(runs)
     if runs:
-        print_table(f"per run ({MAP_NAME}, time limit {args.time_limit:g} s)",
+        print_table(f"per run ({MAP_NAME}; process s = whole process, as a user waits)",
                     [_display(r) for r in runs], COLUMNS)
-        summary = summarise(runs)
-        print_table("per N over the scenarios (SoC/LB and makespan over solved runs)",
-                    summary, SUMMARY_COLUMNS)
+        print_table("ours / lacam3 (SoC of valid plans; whole-process wall times)",
+                    comparison, COMPARE_COLUMNS)
     else:
-        summary = []
         print("\nnothing was run")
     for note in notes:
         print(f"note: {note}")
-
+    print(f"load average now: {' '.join(f'{x:.2f}' for x in os.getloadavg())} "
+          f"({os.cpu_count()} CPUs)")
     args.json.parent.mkdir(parents=True, exist_ok=True)
-    out = {"machine": machine_info(),
-           "config": {"map": str(MAP_PATH.relative_to(ROOT)),
-                      "scens": [str(scen_path(k).relative_to(ROOT)) for k in scens],
-                      "agents": agents, "time_limit_s": args.time_limit,
-                      "pymapf_grace_s": args.grace, "seed": args.seed,
-                      "our_planners": ours, "pymapf_planners": theirs,
-                      "skip_larger_after_timeout": not args.no_skip,
-                      "pymapf_lacam_max_expansions": 10**12,
-                      "validator_max_conflicts": MAX_CONFLICTS},
-           "pymapf": pymapf_info, "notes": notes, "summary": summary, "runs": runs}
-    args.json.write_text(json.dumps(_jsonable(out), indent=2) + "\n", encoding="utf-8")
+    out_json = {"machine": machine_info(),
+                "config": {"map": str(MAP_PATH.relative_to(ROOT)),
+                           "scens": [str(scen_path(k).relative_to(ROOT)) for k in args.scens],
+                           "agents": agents, "modes": args.modes,
+                           "time_limit_s": args.time_limit, "refine_time_s": args.refine_time,
+                           "seed": args.seed, "guide": not args.no_guide,
+                           "lacam3": None if lacam3 is None else str(lacam3),
+                           "validator_max_conflicts": MAX_CONFLICTS},
+                "notes": notes, "comparison": comparison, "runs": runs}
+    args.json.write_text(json.dumps(_jsonable(out_json), indent=2) + "\n", encoding="utf-8")
     print(f"\nwrote {args.json}")
+    return 0 if all(r.get("success") for r in runs) else 1
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -371,7 +371,7 @@ def check(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
     starts: dict[str, list] = {}
     for agv in world.agvs:
         starts.setdefault(agv.type_name, []).append(world.cell(agv.node))
-    problems = check_fleet_sweeps(sc.fleet.types, lay.cell_m) or static_sweep_hits(
+    problems = check_fleet_sweeps(sc.fleet.types, lay.cell_m, lay) or static_sweep_hits(
         lay, sc.fleet.types, starts)
     if problems:
         _fail(ScenarioError("turning sweeps cannot be reserved: " + "; ".join(problems),
@@ -392,6 +392,12 @@ def solve(map_file: Annotated[Path, typer.Argument(metavar="MAP.map", help="Movi
           json_out: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
           out: Annotated[Path | None, typer.Option(
               help="Write the plan (t:(x,y),... per line; x = column, y = row).")] = None,
+          guide: Annotated[bool, typer.Option(
+              "--guide/--no-guide", help="lacam / pibt: follow guide paths that spread the "
+                                         "agents (lower-cost first solutions).")] = True,
+          refine: Annotated[bool, typer.Option(
+              "--refine", help="After the first solution, lower its sum of costs by "
+                               "large-neighbourhood search until the time limit.")] = False,
           ) -> None:
     """Solve a one-shot MovingAI instance, validate the plan and print its figures."""
     from .movingai import read_map, read_scen
@@ -406,8 +412,13 @@ def solve(map_file: Annotated[Path, typer.Argument(metavar="MAP.map", help="Movi
             raise WareroverError(f"--time-limit: must be positive and finite (got {time_limit})")
         grid = read_map(map_file)
         scen = read_scen(scen_file, agents, grid)
+        def improved(seconds: float, soc: int) -> None:
+            if not json_out:
+                typer.echo(f"refine: {seconds:7.2f} s  sum of costs {soc}", err=True)
+
         result = solve_instance(grid.obstacles, [a.start for a in scen], [a.goal for a in scen],
-                                planner=planner, time_limit_s=time_limit, seed=seed)
+                                planner=planner, time_limit_s=time_limit, seed=seed,
+                                guide=guide, refine=refine, on_improve=improved)
         conflicts = []
         if result.success:
             cols = grid.cols
@@ -430,6 +441,11 @@ def solve(map_file: Annotated[Path, typer.Argument(metavar="MAP.map", help="Movi
                "lower_bound": result.lower_bound,
                "soc_over_lb": round(result.soc_ratio, 4) if result.success else None,
                "wall_s": round(result.wall_s, 4), "conflicts": len(conflicts)}
+    if refine:
+        ref = result.stats.get("refine", {})
+        figures.update(first_sum_of_costs=ref.get("first_soc"),
+                       refine_iterations=ref.get("iterations"),
+                       refine_improvements=ref.get("improvements"))
     if json_out:
         typer.echo(json.dumps(figures, indent=2))
     else:

@@ -419,6 +419,12 @@ class PlannerSpec(_Model):
     """CBS / LaCAM: a wall-clock safety stop per planning call (seconds). The work budgets
     above decide results; when this stop ends a search first it is counted in
     ``planner_budget_hits`` and logged, as the result then depends on machine speed."""
+    rotations: bool = False
+    """Rotation-aware planning (issue 15): differential-drive AGVs are planned over states
+    (cell, heading), move only along their heading and turn in place by quarter turns that
+    take the ticks the physics executor needs (``planning.rotation.turn_ticks``: ceil of
+    ``quarters x (pi / 2) / max_turn_rate_radps / tick_s``); omnidirectional AGVs are
+    unchanged. False (default): turns are free, as in one-cell-per-tick MAPF."""
 
 
 class DelaySpec(_Model):
@@ -637,6 +643,18 @@ class Scenario(_Model):
                 raise fail(f"one cell move would take {moves:.3g} ticks (at most "
                            f"{MAX_TICKS_PER_MOVE}: raise the speed or tick_s)",
                            f"fleet.types.{name}.max_speed_mps", spec.max_speed_mps)
+        if self.planner.rotations:
+            for name, spec in self.fleet.types.items():
+                r = math.hypot(*spec.body_m) / 2
+                if spec.drive == "diff" and r > spec.footprint * self.layout.cell_m / 2 + 1e-9:
+                    raise fail(f"planner.rotations: a {spec.body_m[0]} x {spec.body_m[1]} m "
+                               f"body turning in place sweeps a disc of radius {r:.3f} m, "
+                               f"beyond its {spec.footprint}x{spec.footprint} footprint on "
+                               f"{self.layout.cell_m} m cells; rotation-aware planning "
+                               "cannot reserve such turns (use a body whose half-diagonal "
+                               f"is at most {spec.footprint * self.layout.cell_m / 2} m, "
+                               "drive: omni, or planner.rotations: false)",
+                               f"fleet.types.{name}.body_m", list(spec.body_m))
         orders = _orders_bound(self.orders, self.max_ticks)
         if orders > MAX_ORDERS:
             raise fail(f"the order stream could generate {orders:,} orders (at most "

@@ -379,11 +379,14 @@ class _PuzzleFloor:
 
 
 def _detour(pos: np.ndarray, row: int, cyc: Cycle, floor: _PuzzleFloor, sizes: list[int],
-            cols: int, source: str | None, given_t: int,
+            cols: int, source: str | None, given_t: int, *,
+            blocked: frozenset[int] = frozenset(), fixed: frozenset[int] = frozenset(),
             ) -> tuple[list[tuple[int, int]], tuple[int, ...]]:
     """Single-cell moves ``(agent, flat cell)``, one at a time, that take the rotation's
     agents from their cells at ``row - 1`` to their cells at ``row`` while everyone else
-    stands (stages: :data:`DETOUR_STAGES`), and the agents that move."""
+    stands (stages: :data:`DETOUR_STAGES`), and the agents that move. ``blocked``: more
+    flat cells the detour may not use; ``fixed``: agents that may not step aside (the
+    open-loop gap's recorded plans: AGVs mid-move or at work)."""
     before, after = pos[row - 1], pos[row]
     flat_b = before[:, 0] * cols + before[:, 1]
     flat_a = after[:, 0] * cols + after[:, 1]
@@ -396,10 +399,11 @@ def _detour(pos: np.ndarray, row: int, cyc: Cycle, floor: _PuzzleFloor, sizes: l
         if helper_radius >= 0:
             near = _region(floor, ring_cells, helper_radius)
             helpers = [int(i) for i in np.flatnonzero(k == 1)
-                       if int(i) not in cyc.agents and int(flat_b[i]) in near]
+                       if int(i) not in cyc.agents and int(i) not in fixed
+                       and int(flat_b[i]) in near]
             helpers = helpers[:DETOUR_HELPERS]
         agents = ring + helpers
-        free = region - _footprints(before, k, cols, exclude=set(agents))
+        free = region - _footprints(before, k, cols, exclude=set(agents)) - blocked
         starts = [int(flat_b[i]) for i in agents]
         goals = [int(flat_a[i]) for i in ring] + starts[len(ring):]
         found = _solve_puzzle(floor, free, starts, goals)

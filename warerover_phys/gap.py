@@ -5,7 +5,15 @@ the grid executor: scheduler + planner) is executed *unchanged* on physics: ever
 sequence of moves, waits and dwells (pick, hand-over, place, parking) over the whole
 episode, with no scheduler, no planner and no replanning, through the action dependency
 graph; a dwell takes at least its planned time (:mod:`.gap_plan`, :mod:`.gap_open`). Both
-sides then run the same plan, so the ratio is the physics gap alone. Figures (seconds of
+sides then run the same plan, so the ratio is the physics gap alone. A *rotation* of the
+grid run (AGVs turning round a cycle in one tick, which the dependency graph cannot order)
+is replaced by a local detour first (:func:`.gap_plan.repair_rotations`); the planned
+figures stay the grid run's, the repaired plan's are beside them (``repaired_*``,
+``cycle_repairs*``) and the ticks it added are the cause ``rotation_repair``. The grid
+run's failures (``faults``) are replayed on physics: the same AGV goes down at the same tick
+for the same number of ticks (it brakes and starts nothing), whatever it is doing then;
+that time is the cause ``failures``. Corridors are not opened on the physics side (the
+plan is fixed: nobody can be replanned around them). Figures (seconds of
 simulated time; ratios are executed / planned):
 
 - ``makespan_ratio`` (last AGV's finish), ``sum_of_costs_ratio`` (sum of the AGVs' finish
@@ -82,11 +90,12 @@ def open_loop_gap(scenario: Scenario, seed: int | None = None,
     """Record the ideal run of ``scenario`` on the grid and execute its plan unchanged on
     the scenario's physics executor (its ``executor`` section: dt, delays, parameters)."""
     from .gap_open import execute_timed, open_loop_report
-    from .gap_plan import check_executable, record_grid_run
+    from .gap_plan import check_executable, record_grid_run, repair_rotations
 
     base = scenario.with_seed(seed) if seed is not None else scenario
     plan = record_grid_run(
         base, None if progress is None else lambda t, d, n: progress("grid", t, 0))
+    plan = repair_rotations(plan)
     check_executable(plan)
     spec = base.with_executor("physics").executor
     run = execute_timed(plan, spec, seed=base.seed, progress=None if progress is None else
@@ -132,7 +141,7 @@ def plan_gap(floor, plan_file, *, fleet=None, fmt: str | None = None, xy: bool =
     from .gap_open import execute_timed, open_loop_report
     from .gap_plan import plan_from_file
 
-    plan, repairs = plan_from_file(str(floor), str(plan_file), None if fleet is None
+    plan, _ = plan_from_file(str(floor), str(plan_file), None if fleet is None
                                    else str(fleet), fmt=fmt, xy=xy, strict=strict,
                                    tick_s=tick_s)
     spec = ExecutorSpec(name="physics", dt_s=dt_s, delays=parse_delays(delays),
@@ -142,9 +151,7 @@ def plan_gap(floor, plan_file, *, fleet=None, fmt: str | None = None, xy: bool =
     report, agents, actions = open_loop_report(run)
     report, agents, actions, sched = _timed(report, agents, actions, plan, timing, spec)
     report = {"mode": "open-loop", "scenario": Path(str(floor)).stem, "seed": seed,
-              "plan": str(plan_file), **report,
-              "cycle_repairs": len(repairs),
-              "cycle_repairs_detail": [r.as_dict() for r in repairs]}
+              "plan": str(plan_file), **report}
     return OpenLoopGap(report=report, agents=agents, actions=actions, run=run, schedule=sched)
 
 

@@ -124,6 +124,7 @@ def _one(sc, mode: str, out: Path | None, json_out: bool, agvs: list[int] | None
         else:
             g = open_loop_gap(sc, progress=update)
             report, result = g.report, _result(g, sc.seed)
+    _print_repairs(report)
     default = Path("runs") / f"{sc.name}-seed{sc.seed}-gap"
     written = _write_one(out or default, report, result, agvs, pictures)
     if json_out:
@@ -137,6 +138,17 @@ def _one(sc, mode: str, out: Path | None, json_out: bool, agvs: list[int] | None
         _open_table(console, f"open-loop gap: {sc.name}  seed {sc.seed}  "
                              f"{sc.scheduler.name} + {sc.planner.name}", report)
     console.print(f"wrote {written}", markup=False)
+
+
+def _print_repairs(report: dict) -> None:
+    """One line on stderr per rotation repaired (see :func:`.gap_plan.repair_rotations`)."""
+    for r in report.get("cycle_repairs_detail", []):
+        err_console.print(f"repaired a rotation at timestep {r['timestep']} (agents "
+                          f"{r['agents']}, {r['moves']} detour moves)", highlight=False)
+    if report.get("cycle_repairs"):
+        err_console.print(f"planned figures are the plan as given; the repair added "
+                          f"{report['cycle_repair_added_ticks']} planned ticks over the fleet "
+                          "(repaired_* figures, lost_rotation_repair_s)", highlight=False)
 
 
 def _result(g, seed: int) -> dict:
@@ -210,6 +222,7 @@ PART_LABELS = {
     "dependency": "waiting on a dependency", "accel_decel": "acceleration / deceleration",
     "turning": "turning", "control": "control latency (decide, settle)",
     "injected": "injected delays", "failures": "failures / corridors",
+    "rotation_repair": "rotation repair (planned ticks added)",
     "freeze_recovery": "recovery from freezes", "dwell_overrun": "dwell overrun",
     "faster_than_plan": "faster than the plan (gain)",
     "plan_waits_skipped": "plan waits skipped (gain)"}
@@ -390,9 +403,7 @@ def _plan_gap(floor: Path, plan: Path, fmt: str | None, yx: bool, fleet: Path | 
     with bar:
         g = plan_gap(floor, plan, fleet=fleet, fmt=fmt, xy=not yx, delays=delays,
                      tick_s=tick_s, dt_s=dt_s, seed=seed, timing=timing, progress=update)
-    for r in g.report.get("cycle_repairs_detail", []):
-        err_console.print(f"repaired a rotation at timestep {r['timestep']} (agents "
-                          f"{r['agents']})", highlight=False)
+    _print_repairs(g.report)
     written = _write_one(out or Path("runs") / f"gap-{plan.stem}", g.report,
                          _result(g, seed), agvs, pictures)
     if json_out:

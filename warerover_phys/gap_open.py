@@ -26,10 +26,17 @@ by crediting the planned durations against the labelled time:
   ``failures``), and planned waits that nothing used are ``plan_waits_skipped`` (<= 0: the
   dependency graph skips waits the plan did not need);
 - ``freeze_recovery``: 0 (a fixed plan on the dependency graph cannot freeze; kept so the
-  columns are the same as the closed loop's).
+  columns are the same as the closed loop's);
+- ``rotation_repair`` (per AGV, not per action): ticks the rotation repair
+  (:func:`.gap_plan.repair_rotations`) added to the AGV's planned finish. Executed are the
+  repaired plan's actions, compared with the repaired plan; the planned side of the figures
+  (finish, makespan, sum of costs, orders) stays the plan as given, so this part is what
+  the repair put between the two (the ``repaired_*`` figures are beside). Ticks the repair
+  inserted that the dependency graph does not need come back as ``plan_waits_skipped``.
 
 The parts of an action add up to its lost time exactly (integer physics steps), and the
-sum over an AGV's actions telescopes to its lost time (plus a trailing dwell, held exactly).
+sum over an AGV's actions telescopes to its lost time (plus a trailing dwell, held exactly,
+and ``rotation_repair``).
 Per AGV the dependency waits are also given per blocker (executed seconds, before crediting).
 """
 
@@ -60,7 +67,8 @@ from .gap_plan import PlannedAction, TimedPlan
 __all__ = ["PARTS", "OpenLoopRun", "execute_timed", "compare", "open_loop_report"]
 
 PARTS = ("dependency", "accel_decel", "turning", "control", "injected", "failures",
-         "freeze_recovery", "dwell_overrun", "faster_than_plan", "plan_waits_skipped")
+         "rotation_repair", "freeze_recovery", "dwell_overrun", "faster_than_plan",
+         "plan_waits_skipped")
 """The parts of lost time (seconds), in report order; the last two are <= 0."""
 _CREDIT = ((DEPENDENCY, "dependency"), (TURN_L, "turning"), (CONTROL, "control"),
            (INJECTED, "injected"), (FAILED, "failures"))
@@ -108,12 +116,16 @@ def execute_timed(plan: TimedPlan, executor_spec, *, seed: int = 0,
     executed = {i: [paths[i].states[0]] for i in range(n)}
     behind = [0] * n
     events: list[dict] = []
+    down = _down_by_tick(plan)
     wall0 = time.perf_counter()
     tick = 0
     done = False
     while tick < limit:
         loaded, carried, task = tracker.cargo(tick)
-        view = TickView(tick=tick, plans=plans, behind=tuple(behind), failed=frozenset(),
+        failed = down.get(tick, frozenset())
+        if failed:
+            task = tuple(7 if i in failed else s for i, s in enumerate(task))  # FAILED
+        view = TickView(tick=tick, plans=plans, behind=tuple(behind), failed=failed,
                         loaded=loaded, carried=carried, task_state=task, dwells=dwells)
         report = ex.step(view)
         for i, s in report.states.items():
@@ -135,6 +147,16 @@ def execute_timed(plan: TimedPlan, executor_spec, *, seed: int = 0,
     return OpenLoopRun(plan=plan, executed=executed, ticks=tick, completed=done,
                        summary=ex.summary(), log=log, trajectory=ex.trajectory(),
                        wall_s=wall, events=events)
+
+
+def _down_by_tick(plan: TimedPlan) -> dict[int, frozenset[int]]:
+    """AGVs down at each tick: the plan's failures (those of its grid run) replayed at the
+    same ticks for the same number of ticks, whatever the AGV is doing then."""
+    out: dict[int, set[int]] = {}
+    for f in plan.failures:
+        for t in range(f.tick, f.tick + f.ticks):
+            out.setdefault(t, set()).add(f.agv)
+    return {t: frozenset(s) for t, s in out.items()}
 
 
 class _Progress:
@@ -247,10 +269,13 @@ def compare(run: OpenLoopRun) -> tuple[list[dict], list[dict], dict[int, list[tu
                 **{f"lost_{k}_s": v * dt for k, v in ap.items()}})
             prev_exec = fin
         trailing = plan.trailing_dwell(i)
-        planned = plan.planned_finish(i)
+        planned = plan.given_planned_finish(i)
+        # ticks a rotation repair added to the plan (0 for a plan as given)
+        parts["rotation_repair"] = (plan.planned_finish(i) - planned) * spt
         if complete:
             executed_s = prev_exec * dt + trailing * tick_s
-            lost_steps = prev_exec - (acts[-1].finish if acts else 0) * spt
+            lost_steps = prev_exec - (acts[-1].finish if acts else 0) * spt \
+                + parts["rotation_repair"]
             lost_s = lost_steps * dt
         else:
             executed_s = math.nan
@@ -260,6 +285,7 @@ def compare(run: OpenLoopRun) -> tuple[list[dict], list[dict], dict[int, list[tu
             "agv": i, "footprint": t.footprint, "max_speed_mps": t.max_speed_mps,
             "actions": len(acts), "completed": complete,
             "planned_finish_s": planned * tick_s, "executed_finish_s": executed_s,
+            "repaired_planned_finish_s": plan.planned_finish(i) * tick_s,
             "lost_s": lost_s,
             **{f"lost_{k}_s": v * dt for k, v in parts.items()},
             "dependency_wait_s": sum(s for _, s in blockers[i]),
@@ -296,6 +322,9 @@ def open_loop_report(run: OpenLoopRun) -> tuple[dict, list[dict], list[dict]]:
         "makespan_physics_ticks": int(math.ceil(e_ms / tick_s - 1e-9)) if e_ms == e_ms else None,
     }
     out.update(_order_figures(run, agents, actions))
+    out.update(_repair_figures(plan, agents))
+    out["failures"] = len(plan.failures)
+    out["failure_down_ticks"] = sum(f.ticks for f in plan.failures)
     lost = [a["lost_s"] for a in agents]
     out["lost_s_fleet_total"], out["lost_s_per_agv_mean"] = _stat(lost)
     out["lost_s_per_agv_max"] = max((v for v in lost if v == v), default=0.0)
@@ -317,6 +346,25 @@ def open_loop_report(run: OpenLoopRun) -> tuple[dict, list[dict], list[dict]]:
                       "ticks_run": run.ticks, "open_loop_wall_s": run.wall_s}
     out["grid"] = plan.grid_metrics
     return out, agents, actions
+
+
+def _repair_figures(plan: TimedPlan, agents: list[dict]) -> dict:
+    """The rotation repairs of the plan (:func:`.gap_plan.repair_rotations`): how many,
+    which AGVs, ticks added, and the repaired plan's makespan and sum of costs beside the
+    plan as given (the planned figures stay those of the plan as given)."""
+    rf = [a["repaired_planned_finish_s"] for a in agents]
+    added = [round((a["repaired_planned_finish_s"] - a["planned_finish_s"]) / plan.tick_s)
+             for a in agents]
+    return {"cycle_repairs": len(plan.repairs),
+            "cycle_repair_moves": sum(r.moves for r in plan.repairs),
+            "cycle_repair_agvs": len({i for r in plan.repairs for i in r.agents}),
+            "cycle_repair_added_ticks": int(sum(added)),
+            "repaired_makespan_s": max(rf, default=0.0),
+            "repaired_sum_of_costs_s": sum(rf),
+            "cycle_repairs_detail": [r.as_dict() for r in plan.repairs],
+            "cycle_repair_added_ticks_by_agv": {str(a["agv"]): t
+                                                for a, t in zip(agents, added, strict=True)
+                                                if t}}
 
 
 def _order_figures(run: OpenLoopRun, agents: list[dict], actions: list[dict]) -> dict:
@@ -346,9 +394,10 @@ def _order_figures(run: OpenLoopRun, agents: list[dict], actions: list[dict]) ->
             continue
         end, e = max(cands)
         e += (o["completed_tick"] - end) * tick_s
-        planned.append(o["completed_tick"] * tick_s)
+        given = o.get("given_completed_tick", o["completed_tick"])  # before a repair
+        planned.append(given * tick_s)
         executed.append(e)
-        lat_p.append(o["completed_tick"] * tick_s - o["arrival_tick"] * tick_s)
+        lat_p.append(given * tick_s - o["arrival_tick"] * tick_s)
         lat_e.append(e - o["arrival_tick"] * tick_s)
     if not planned:
         return {}

@@ -38,8 +38,8 @@ if TYPE_CHECKING:
     from .config import AgvTypeSpec, Scenario
     from .layout import Layout
 
-__all__ = ["Dwell", "TimedPlan", "PlannedAction", "record_grid_run", "plan_from_file",
-           "check_executable", "DWELL_KINDS"]
+__all__ = ["Dwell", "Failure", "TimedPlan", "PlannedAction", "record_grid_run", "plan_from_file",
+           "check_executable", "repair_rotations", "DWELL_KINDS"]
 
 DWELL_KINDS = ("pick", "handover", "place", "park")
 _WORK = {2: "pick", 4: "handover", 6: "place"}  # world.AgvState values
@@ -55,6 +55,16 @@ class Dwell:
     ticks: int
     kind: str
     node: int
+
+
+@dataclass(frozen=True)
+class Failure:
+    """AGV ``agv`` is down for ``ticks`` ticks from ``tick`` (a failure of the grid run,
+    replayed at the same tick in the open loop)."""
+
+    agv: int
+    tick: int
+    ticks: int
 
 
 @dataclass(frozen=True)
@@ -101,6 +111,13 @@ class TimedPlan:
     (the completion is the end of a hand-over dwell of that AGV)."""
     grid_metrics: dict[str, Any] | None = None
     """The grid run's own metrics (closed loop), if the plan is one."""
+    given_finish: tuple[int, ...] | None = None
+    """Every AGV's planned finish tick in the plan *as given*, when this plan is its
+    rotation repair (:func:`repair_rotations`, :func:`plan_from_file`); None: as given."""
+    repairs: tuple = ()
+    """The rotations repaired (:class:`warerover_phys.execute.Repair`), in order."""
+    failures: tuple[Failure, ...] = ()
+    """The grid run's failures (``faults``), by tick of the run as given."""
 
     @property
     def num_agents(self) -> int:
@@ -137,6 +154,12 @@ class TimedPlan:
         acts = self.actions(i)
         end = acts[-1].finish if acts else 0
         return end + self.trailing_dwell(i)
+
+    def given_planned_finish(self, i: int) -> int:
+        """:meth:`planned_finish` of AGV ``i`` in the plan as given (before any rotation
+        repair): the planned side of the gap."""
+        return self.given_finish[i] if self.given_finish is not None \
+            else self.planned_finish(i)
 
 
 # ----------------------------------------------------------------------------- grid run
@@ -195,12 +218,28 @@ def record_grid_run(scenario: Scenario, progress=None) -> TimedPlan:
             orders.append({"order": ev["order"], "agv": ev["agv"], "arrival_tick": o.tick,
                            "completed_tick": ev["tick"]})
     types = [a.spec for a in w.agvs]
+    failures = _failures(w.events, len(states))
     return TimedPlan(
         layout=w.layout, types=types, tick_s=scenario.tick_s, paths=paths, dwells=dwells,
         source=f"grid run of {scenario.name} seed {scenario.seed} ({scenario.scheduler.name}"
                f" + {scenario.planner.name}, closed loop)",
         task_state=tick_arr, loaded=np.asarray(loaded, dtype=bool),
-        carried=np.asarray(carried, dtype=np.int64), orders=orders, grid_metrics=metrics)
+        carried=np.asarray(carried, dtype=np.int64), orders=orders, grid_metrics=metrics,
+        failures=failures)
+
+
+def _failures(events: list[dict], end: int) -> tuple[Failure, ...]:
+    """The failures of a run's event log: from ``agv_failed`` to ``agv_repaired`` (or the
+    end of the record, tick ``end``, for one never repaired)."""
+    out, down = [], {}
+    for ev in events:
+        if ev["event"] == "agv_failed":
+            down[ev["agv"]] = ev["tick"]
+        elif ev["event"] == "agv_repaired" and ev["agv"] in down:
+            t = down.pop(ev["agv"])
+            out.append(Failure(ev["agv"], t, ev["tick"] - t))
+    out += [Failure(a, t, max(0, end - t)) for a, t in down.items()]
+    return tuple(sorted(out, key=lambda f: (f.tick, f.agv)))
 
 
 def _dwells(i: int, seq: list, task: np.ndarray, home: int) -> tuple[Dwell, ...]:
@@ -235,7 +274,7 @@ def check_executable(plan: TimedPlan) -> None:
     ``plan`` has a cycle: a *rotation* of the grid run (AGVs that each enter the cell the
     next one leaves in the same tick, which the grid executor allows) has no execution
     order, so the plan cannot run open loop on physics. The message names the AGVs and
-    cells; such a seed is left out of an open-loop distribution (listed as failed)."""
+    cells. :func:`repair_rotations` removes them first; this is its guard."""
     from .errors import WareroverError
     from .executors.adg import ADGCycleError, build
 
@@ -248,6 +287,175 @@ def check_executable(plan: TimedPlan) -> None:
             f"cell the next one leaves, cells {[list(c) for c in err.cells]}): the action "
             "dependency graph cannot order it, so it cannot be executed open loop "
             "(--mode closed compares this seed)") from None
+
+
+# ----------------------------------------------------------------------------- rotations
+
+def repair_rotations(plan: TimedPlan, *, strict: bool = False,
+                     max_rounds: int | None = None) -> TimedPlan:
+    """``plan`` with every *rotation* (AGVs that each enter the cell the next one leaves in
+    the same tick: the grid allows it, the dependency graph has no order for it) replaced
+    by the local detour of :func:`warerover_phys.execute.repair_cycles`: single-cell moves,
+    one AGV at a time, that take the rotation's AGVs to the cells the rotation gives them
+    (1x1 neighbours may step aside and back; AGVs mid-move or at work stay put and their
+    cells are avoided). The ``L`` detour moves are inserted as ``L`` ticks before the
+    rotation's tick, in which every other AGV stands: an AGV standing then waits ``L`` ticks
+    more there, one mid-move finishes its move first and then waits. Dwells, task states,
+    cargo and order completions after the insertion move with their AGV. A plan without
+    rotations comes back as it is (the same object).
+
+    The result keeps the plan as given as the planned side: ``given_finish`` (each AGV's
+    planned finish tick before the repair) and ``repairs`` (one
+    :class:`~warerover_phys.execute.Repair` per rotation: tick as given, AGVs of the detour,
+    cells, moves = ticks inserted). The repaired plan is checked with the independent
+    validator. ``strict``: raise instead of repairing. Raises
+    :class:`~warerover_phys.errors.WareroverError` (naming the AGVs and cells) if a
+    rotation has no local detour."""
+    from .errors import WareroverError
+    from .execute import PlanError, Repair, _detour, _PuzzleFloor
+
+    cols = plan.layout.cols
+    n = plan.num_agents
+    states = {i: list(plan.paths[i].states) for i in range(n)}
+    first = _rotations(states, n, cols, 0)
+    if not first:
+        return plan
+    if strict:
+        c = first[0]
+        raise WareroverError(f"{plan.source}: AGVs {list(c.agents)} move round a cycle "
+                             f"through cells {[list(x) for x in c.cells]} at tick "
+                             f"{c.timestep - 1} (a rotation)")
+    sizes = [t.footprint for t in plan.types]
+    floor = _PuzzleFloor(plan.layout)
+    dwells = {i: list(plan.dwells.get(i, ())) for i in range(n)}
+    arrays = [a for a in (plan.task_state, plan.loaded, plan.carried) if a is not None]
+    arrays = [np.asarray(a).copy() for a in arrays]
+    orders = [dict(o) | {"given_completed_tick": o["completed_tick"]} for o in plan.orders]
+    given_t = list(range(max(len(s) for s in states.values()) + 1))  # new tick -> as given
+    repairs: list[Repair] = []
+    limit = max_rounds if max_rounds is not None else 10 * max(1, n)
+    cycles = first
+    while cycles:
+        if len(repairs) >= limit:
+            raise WareroverError(f"{plan.source}: rotations remain after {limit} repairs")
+        cyc = cycles[0]
+        row = cyc.timestep
+        for i in range(n):  # pad every path to the rotation's tick
+            if len(states[i]) < row + 1:
+                states[i] += [states[i][-1]] * (row + 1 - len(states[i]))
+        before = [states[i][row - 1] for i in range(n)]
+        moving = {i for i in range(n) if before[i][0] != before[i][1]}
+        working = {d.agv for i in range(n) for d in dwells[i]
+                   if d.tick <= row - 1 < d.tick + d.ticks}
+        blocked = {v for i in moving for v in _cells(before[i][1], sizes[i], cols)}
+        pos = np.asarray([[divmod(s[0], cols) for s in before],
+                          [divmod(states[i][row][0], cols) for i in range(n)]])
+        given_tick = given_t[min(row, len(given_t) - 1)]
+        try:
+            moves, agents = _detour(pos, 1, cyc, floor, sizes, cols, plan.source, given_tick,
+                                    blocked=frozenset(blocked),
+                                    fixed=frozenset(moving | working))
+        except PlanError as err:
+            raise WareroverError(f"{plan.source}: {err}") from None
+        length = len(moves)
+        detour = {a: [] for a in agents}
+        cur = {a: before[a][0] for a in agents}
+        for a, cell in moves:
+            cur[a] = cell
+            for b in agents:
+                detour[b].append((cur[b], cur[b]))
+        stops = {}  # AGV -> index after which the detour ticks are inserted
+        for i in range(n):
+            if i in detour:
+                stops[i] = row - 1
+                states[i][row:row] = detour[i]
+                continue
+            p = next((t for t in range(row - 1, len(states[i]))
+                      if states[i][t][0] == states[i][t][1]), len(states[i]) - 1)
+            if p >= len(states[i]) - 1:
+                continue  # nothing left to do after it: nothing to shift
+            stops[i] = p
+            states[i][p + 1:p + 1] = [states[i][p]] * length
+        for i, p in stops.items():
+            dwells[i] = [d if d.tick + d.ticks <= p else
+                         Dwell(d.agv, d.tick + length, d.ticks, d.kind, d.node)
+                         for d in dwells[i]]
+        arrays = [_insert_rows(a, length, stops) for a in arrays]
+        for o in orders:
+            p = stops.get(o["agv"])
+            if p is not None and o["completed_tick"] > p:
+                o["completed_tick"] += length
+        given_t[row:row] = [given_tick] * length
+        repairs.append(Repair(given_tick, tuple(agents), cyc.cells, length))
+        cycles = _rotations(states, n, cols, max(0, row - 1))
+    paths = {i: TimedPath(i, 0, tuple(states[i])) for i in range(n)}
+    it = iter(arrays)
+    out = TimedPlan(
+        layout=plan.layout, types=plan.types, tick_s=plan.tick_s, paths=paths,
+        dwells={i: tuple(ds) for i, ds in dwells.items()}, source=plan.source,
+        task_state=next(it) if plan.task_state is not None else None,
+        loaded=next(it) if plan.loaded is not None else None,
+        carried=next(it) if plan.carried is not None else None,
+        orders=orders, grid_metrics=plan.grid_metrics, failures=plan.failures,
+        given_finish=tuple(plan.planned_finish(i) for i in range(n)),
+        repairs=tuple(repairs))
+    _check_repaired(plan, out)
+    return out
+
+
+def _cells(anchor: int, k: int, cols: int) -> tuple[int, ...]:
+    from .planning.paths import footprint_nodes
+
+    return footprint_nodes(anchor, k, cols)
+
+
+def _rotations(states: dict[int, list], n: int, cols: int, start: int) -> list:
+    """The rotations (:class:`warerover_phys.execute.Cycle`) of per-AGV state lists from
+    row ``start`` on (anchors: the cell each AGV stands on or leaves)."""
+    from .execute import _cycles_dense
+
+    horizon = max(len(s) for s in states.values())
+    pos = np.empty((horizon, n, 2), dtype=np.int64)
+    for i in range(n):
+        a = np.asarray([s[0] for s in states[i]] + [states[i][-1][0]] *
+                       (horizon - len(states[i])), dtype=np.int64)
+        pos[:, i, 0], pos[:, i, 1] = a // cols, a % cols
+    return _cycles_dense(pos, cols, start=start)
+
+
+def _insert_rows(a: np.ndarray, length: int, stops: dict[int, int]) -> np.ndarray:
+    """``a`` (T, N), per-tick values of each AGV, with ``length`` copies of row ``p`` of
+    column ``i`` inserted after it for every ``i: p`` of ``stops``; the other columns (and
+    columns whose stop is past the end) go on with their last value."""
+    T = a.shape[0]
+    out = np.concatenate([a, np.repeat(a[-1:], length, axis=0)])
+    for i, p in stops.items():
+        if p >= T - 1:
+            continue
+        out[p + 1:p + 1 + length, i] = a[p, i]
+        out[p + 1 + length:, i] = a[p + 1:, i]
+    return out
+
+
+def _check_repaired(given: TimedPlan, repaired: TimedPlan) -> None:
+    """The independent validator on the repaired plan (a bug, if it finds a conflict the
+    plan as given did not have)."""
+    from .errors import WareroverError
+    from .validate import validate_states
+
+    obstacles = given.layout.obstacles
+    sizes = {i: t.footprint for i, t in enumerate(given.types)}
+    speeds = {i: t.ticks_per_move(given.layout.cell_m, given.tick_s)
+              for i, t in enumerate(given.types)}
+
+    def check(p: TimedPlan) -> list:
+        return validate_states({i: list(x.states) for i, x in p.paths.items()}, obstacles,
+                               sizes=sizes, ticks_per_move=speeds)
+
+    found = check(repaired)
+    if found and not check(given):
+        raise WareroverError(f"{given.source}: the rotation repair made a plan with "
+                             f"conflicts (a bug): {found[:3]}")
 
 
 # ----------------------------------------------------------------------------- imported plan
@@ -269,6 +477,12 @@ def plan_from_file(floor: str, plan_file: str, fleet: str | None = None, *,
                                       source=str(plan_file))
     if repairs:
         validate_plan(the_plan, layout, sizes, source=str(plan_file))
+    given = plan_to_paths(read_plan(plan_file, fmt, xy=xy), layout.cols) if repairs else None
     paths = plan_to_paths(the_plan, layout.cols)
-    return TimedPlan(layout=layout, types=list(types), tick_s=tick_s, paths=paths,
-                     dwells={}, source=f"plan file {plan_file}"), repairs
+    out = TimedPlan(layout=layout, types=list(types), tick_s=tick_s, paths=paths,
+                    dwells={}, source=f"plan file {plan_file}", repairs=tuple(repairs))
+    if given is not None:  # the planned side stays the plan as given
+        as_given = TimedPlan(layout=layout, types=list(types), tick_s=tick_s, paths=given,
+                             dwells={}, source="")
+        out.given_finish = tuple(as_given.planned_finish(i) for i in range(len(given)))
+    return out, repairs

@@ -37,6 +37,7 @@ COLOURS = {
     "obstacle": "#404040",
     "dependency": "#d62728", "accel_decel": "#ff7f0e", "turning": "#9467bd",
     "control": "#8c564b", "injected": "#e377c2", "failures": "#7f7f7f",
+    "rotation_repair": "#393b79",
     "freeze_recovery": "#bcbd22", "dwell_overrun": "#17becf", "faster_than_plan": "#2ca02c",
     "plan_waits_skipped": "#98df8a",
 }

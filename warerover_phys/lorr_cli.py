@@ -24,6 +24,10 @@ def lorr(problem: Annotated[Path, typer.Argument(
          rotations: Annotated[bool, typer.Option(
              "--rotations/--no-rotations",
              help="The league's rotation model (forward, turn, wait) or free moves.")] = True,
+         rotation_rule: Annotated[str, typer.Option(
+             help="With rotations: 'actions' (PIBT ranks forward / turn / wait by the "
+                  "cost-to-go of the cell and heading each leads to) or 'turn-first' (PIBT on "
+                  "cells, then robots whose cell is not ahead turn instead).")] = "actions",
          seed: Annotated[int, typer.Option(help="Seed of PIBT's tie-breaking.")] = 0,
          out: Annotated[Path | None, typer.Option(
              help="Output folder: output.json (Robot Runners output) and metrics.json.")
@@ -37,7 +41,7 @@ def lorr(problem: Annotated[Path, typer.Argument(
     from .console import err_console, fail_os
     from .console import fail as _fail
     from .errors import WareroverError
-    from .lorr import output_json, read_problem, run_lifelong
+    from .lorr import RULES, output_json, read_problem, run_lifelong
 
     try:
         if not 1 <= ticks <= 10_000_000:
@@ -50,6 +54,9 @@ def lorr(problem: Annotated[Path, typer.Argument(
             raise WareroverError(f"--executor: lorr runs on the grid executor only (got "
                                  f"{executor!r}); to see a run on bodies, execute its output "
                                  "with `warerover execute MAP --plan output.json`")
+        if rotation_rule not in RULES:
+            raise WareroverError(f"--rotation-rule: expected one of {', '.join(RULES)} (got "
+                                 f"{rotation_rule!r})")
         prob = read_problem(problem)
         show = not quiet and not json_out and err_console.is_terminal
         if show:
@@ -60,9 +67,11 @@ def lorr(problem: Annotated[Path, typer.Argument(
                           transient=True) as bar:
                 task = bar.add_task("lorr", total=ticks)
                 result = run_lifelong(prob, ticks, rotations=rotations, seed=seed,
+                                      rule=rotation_rule,
                                       progress=lambda t, n: bar.update(task, completed=t))
         else:
-            result = run_lifelong(prob, ticks, rotations=rotations, seed=seed)
+            result = run_lifelong(prob, ticks, rotations=rotations, seed=seed,
+                                  rule=rotation_rule)
         figures = result.summary()
         rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
         figures["peak_rss_mb"] = rss / 1024 if sys.platform != "darwin" else rss / 2**20

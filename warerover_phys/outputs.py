@@ -3,7 +3,10 @@ executor) ``trajectories.npz`` in one folder.
 
 ``paths.json`` holds ``agvs`` (id -> type, footprint, ticks per move), ``planned`` (every
 committed path: AGV, start tick, per-tick ``[[row, col], [row, col]]`` from/to anchors) and
-``actual`` (per AGV, the executed ``[[row, col], [row, col]]`` per tick from tick 0).
+``actual`` (per AGV, the executed ``[[row, col], [row, col]]`` per tick from tick 0). With
+``planner.rotations`` a planned path also has ``headings`` (direction index per state: 0
+east, 1 south, 2 west, 3 north) and ``headings`` maps each rotation-aware AGV to its
+executed heading per tick.
 The files are written as one set (:func:`warerover_phys.atomic.write_set`): into a new
 folder beside the output folder, with a ``manifest.json`` (run id, every file's size and
 SHA-256), which then takes the output folder's place in one step. An interrupted run leaves
@@ -41,11 +44,14 @@ def write_outputs(result: EpisodeResult, out_dir: str | Path, *,
                              "ticks_per_move": a.ticks_per_move}
                  for a in result.world.agvs},
         "planned": [{"agv": p["agv"], "tick": p["tick"],
-                     "states": [[cell(a), cell(b)] for a, b in p["states"]]}
+                     "states": [[cell(a), cell(b)] for a, b in p["states"]],
+                     **({"headings": p["headings"]} if "headings" in p else {})}
                     for p in result.planned],
         "actual": {str(aid): [[cell(a), cell(b)] for a, b in states]
                    for aid, states in result.actual.items()},
     }
+    if getattr(result, "headings", None):
+        paths["headings"] = {str(aid): hs for aid, hs in result.headings.items()}
     finite = {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
               for k, v in result.metrics.items()}          # JSON has no inf / nan
     metrics = json.dumps(finite, indent=2, sort_keys=True) + "\n"

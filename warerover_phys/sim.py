@@ -18,6 +18,7 @@ events the fault model draws and the loop applies.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -33,7 +34,8 @@ from .planning import make_planner
 from .planning.astar import nearest_free_anchor
 from .planning.base import AgentRequest, PlanRequest, PlanResult
 from .planning.paths import TimedPath, footprint_nodes, occupancy
-from .planning.sweep import EAST, BodyShape, TurnMasks, turn_fields
+from .planning.rotation import agent_turn_ticks
+from .planning.sweep import DIR_OF, EAST, BodyShape, TurnMasks, turn_fields
 from .planning.turns import request_turn_fields
 from .registry import check_plugins
 from .schedulers import make_scheduler
@@ -61,6 +63,9 @@ class EpisodeResult:
     world: World = field(repr=False)
     trajectory: dict | None = field(default=None, repr=False)
     """Executed poses at a fixed rate (physics executor; see ``PhysicsExecutor.trajectory``)."""
+    headings: dict[int, list[int]] | None = None
+    """``planner.rotations``: the heading (direction index) of each rotation-aware AGV per
+    tick, from tick 0, as the loop tracked it; None otherwise."""
 
 
 class Simulation:
@@ -99,6 +104,19 @@ class Simulation:
             w.layout, BodyShape.of(w.agvs[aid].spec))) for aid in self._turns}
         self._heading = {aid: EAST for aid in self._turns}
         """The direction each of those AGVs faces (its last move's; east when placed)."""
+        self._rot: dict[int, tuple[int, int]] = {}
+        """``planner.rotations``: per differential-drive AGV its (quarter, half) turn ticks
+        (:func:`~warerover_phys.planning.rotation.agent_turn_ticks`); its heading is then
+        tracked in ``_heading`` too (a planned turn changes it without a move)."""
+        if scenario.planner.rotations:
+            for a in w.agvs:
+                tt = agent_turn_ticks(a.spec, scenario.tick_s)
+                if tt is not None:
+                    self._rot[a.id] = tt
+                    self._heading.setdefault(a.id, EAST)
+        self.headings: dict[int, list[int]] = {
+            aid: [DIR_OF[self._heading[aid]]] for aid in sorted(self._rot)}
+        """Executed heading per tick of every rotation-aware AGV (direction indices)."""
         if self._turns:
             w.reservations.configure_turns({a: sw for a, (sw, _) in self._turns.items()
                                             if sw is not None}, w.layout.rows)
@@ -141,7 +159,7 @@ class Simulation:
         self._apply_report(report)
         self.last_report = report
         w.tick += 1
-        self._follow_up(report.blocked)
+        self._follow_up(report.blocked, report.poses)
         self._replan_now(report.replan)
         self._recover(report.freezes)
         if w.corridors and report.intrusion_unit == "cells":
@@ -172,7 +190,8 @@ class Simulation:
             trajectory["corridors_json"] = np.array(json.dumps(self.world.corridor_log))
             trajectory.update(corridor_arrays(self.world))
         return EpisodeResult(metrics=metrics, events=self.world.events, planned=self.planned,
-                             actual=self.actual, world=self.world, trajectory=trajectory)
+                             actual=self.actual, world=self.world, trajectory=trajectory,
+                             headings=self.headings if self._rot else None)
 
     # ------------------------------------------------------------------------- helpers
 
@@ -214,8 +233,11 @@ class Simulation:
             agv = w.agvs[aid]
             agv.delay = agv.blocked_ticks = agv.plan_failures = 0
             if len(path.states) > 1 or not self._lifelong:
-                self.planned.append({"agv": aid, "tick": path.start_tick,
-                                     "states": [list(s) for s in path.states]})
+                entry = {"agv": aid, "tick": path.start_tick,
+                         "states": [list(s) for s in path.states]}
+                if path.headings is not None:
+                    entry["headings"] = list(path.headings)
+                self.planned.append(entry)
         for aid in result.failed:
             agv = w.agvs[aid]
             agv.plan_failures += 1
@@ -281,17 +303,21 @@ class Simulation:
         """The AgentRequest fields of a turn-aware AGV (none for the others): its heading,
         what its turns hold, where it may not turn, and how it leaves its goal."""
         turn = self._turns.get(agv.id)
+        rot = self._rot.get(agv.id)
         if turn is None:
-            return {}
+            return {} if rot is None else {"heading": self._heading[agv.id], "turn_ticks": rot}
         w = self.world
         shelf = agv.trip.shelf if agv.trip is not None else None
         after = None
         if goal == w.goal_of(agv):
             after = {AgvState.TO_SHELF: (True, shelf), AgvState.TO_STATION: (True, shelf),
                      AgvState.RETURNING: (False, None)}.get(agv.state)
-        return request_turn_fields(w.graphs, self._masks[agv.id], turn[0],
-                                   self._heading[agv.id], agv.k, agv.loaded,
-                                   shelf if agv.loaded else None, goal, after)
+        out = request_turn_fields(w.graphs, self._masks[agv.id], turn[0],
+                                  self._heading[agv.id], agv.k, agv.loaded,
+                                  shelf if agv.loaded else None, goal, after)
+        if rot is not None:
+            out["turn_ticks"] = rot
+        return out
 
     def _replan_requests(self) -> list[AgentRequest]:
         """The AGVs that need a new path (see :meth:`_plan`)."""
@@ -415,12 +441,14 @@ class Simulation:
             agv.blocked_ticks = max(agv.blocked_ticks, self.scenario.planner.replan_blocked_ticks)
             agv.retry_at = min(agv.retry_at, self.world.tick)
 
-    def _follow_up(self, blocked: list[int]) -> None:
+    def _follow_up(self, blocked: list[int], poses=None) -> None:
         w = self.world
         blocked_set = set(blocked)
         cols = w.layout.cols
         for agv in w.agvs:
-            if agv.id in self._heading:
+            if agv.id in self._rot:
+                self._track_heading(agv, poses)
+            elif agv.id in self._heading:
                 (pa, pb), (a, b) = self.actual[agv.id][-1], agv.pos
                 src, dst = (a, b) if a != b else (pa, a) if pa == pb else (a, a)
                 if src != dst:
@@ -430,6 +458,37 @@ class Simulation:
                         self._heading[agv.id] = (r1 - r0, c1 - c0)
             self.actual[agv.id].append(agv.pos)
             agv.blocked_ticks = agv.blocked_ticks + 1 if agv.id in blocked_set else 0
+
+
+    def _track_heading(self, agv: Agv, poses) -> None:
+        """The heading of a rotation-aware AGV after the tick: on physics its body's, to
+        the nearest quarter; on the grid its plan's at the state it has reached (a
+        planned turn changes it in place), else its last move's direction."""
+        w = self.world
+        aid = agv.id
+        if poses is not None:
+            h = int(round(float(poses[aid][2]) / (math.pi / 2))) % 4
+        else:
+            path = w.reservations.paths.get(aid)
+            idx = w.tick - agv.delay
+            h = None
+            if path is not None and path.headings is not None and \
+                    path.state_at(idx) == agv.pos:
+                h = path.heading_at(idx)
+            if h is None:
+                (pa, pb), (a, b) = self.actual[aid][-1], agv.pos
+                src, dst = (a, b) if a != b else (pa, a) if pa == pb else (a, a)
+                h = DIR_OF[self._heading[aid]]
+                if src != dst:
+                    r0, c0 = divmod(src, w.layout.cols)
+                    r1, c1 = divmod(dst, w.layout.cols)
+                    if abs(r1 - r0) + abs(c1 - c0) == 1:
+                        h = DIR_OF[(r1 - r0, c1 - c0)]
+        self._heading[aid] = _DIRS[h]
+        self.headings[aid].append(h)
+
+
+_DIRS = ((0, 1), (1, 0), (0, -1), (-1, 0))
 
 
 def failure_cause(world: World, freezes: list[dict]) -> dict:

@@ -13,7 +13,11 @@ code, and either returns a :class:`ConformanceReport` (the checks it passed) or 
   start at the request's tick where each AGV stands, use edges of its motion graph (its
   footprint and speed), and conflict neither with the committed reservations nor with each
   other (:func:`warerover_phys.validate.validate_states`); goals reached in easy cases; the
-  request's agents and graphs untouched; the same result for the same seed.
+  request's agents and graphs untouched; the same result for the same seed. With
+  ``rotations=True`` the same cases are planned rotation-aware (``planner.rotations``:
+  every AGV has ``turn_ticks`` and a heading), and every returned path must also carry one
+  heading per state, start facing the AGV's heading, and move only straight ahead with turns
+  that take their ticks (:func:`warerover_phys.validate.validate_headings`).
 - :func:`check_executor`: ``bind``, ``step``, ``remaining``, ``stop_short``, ``summary``,
   ``trajectory``; a :class:`~warerover_phys.executors.base.StepReport` every tick with a
   valid state for every AGV; fixed conflict-free plans followed to their ends in bounded
@@ -477,9 +481,11 @@ STEP_TICKS = 60
 """Ticks a ``replans_all`` planner gets, one call per tick, to bring the easy cases home."""
 
 
-def check_planner(target: Any, spec: Any = None, *, seed: int = 0) -> ConformanceReport:
+def check_planner(target: Any, spec: Any = None, *, seed: int = 0,
+                  rotations: bool = False) -> ConformanceReport:
     """Run a planner through fixed cases; raise :class:`ConformanceError` on the first
-    problem, else return the passed checks.
+    problem, else return the passed checks. ``rotations``: plan the cases rotation-aware
+    (see the module doc).
 
     >>> check_planner("pibt").passed[:3]
     ['members', 'name', 'replans_all']
@@ -498,10 +504,11 @@ def check_planner(target: Any, spec: Any = None, *, seed: int = 0) -> Conformanc
         if planner.replans_all and not case.all_agents:
             continue
         ck.case = case.name
-        _run_plan_case(planner, case, seed, ck)
+        _run_plan_case(planner, case, seed, ck, rotations)
     ck.case = PLAN_CASES[0].name
     fresh = _new(factory, ck)
-    runs = [_run_plan_case(p, PLAN_CASES[0], seed, ck) for p in (fresh, fresh, planner)]
+    runs = [_run_plan_case(p, PLAN_CASES[0], seed, ck, rotations)
+            for p in (fresh, fresh, planner)]
     if runs.count(runs[0]) != len(runs):
         first, again = runs[0], next(r for r in runs if r != runs[0])
         ck.fail("determinism", f"the same requests (seed {seed}) got different answers from "
@@ -531,11 +538,13 @@ def _short(value: Any, limit: int = 200) -> str:
     return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
-def _run_plan_case(planner, case: _PlanCase, seed: int, ck: _Checker) -> list:
+def _run_plan_case(planner, case: _PlanCase, seed: int, ck: _Checker,
+                   rotations: bool = False) -> list:
     """Plan ``case`` (tick by tick for ``replans_all`` planners, committing the returned
     paths as the loop does) and check every call; return a trace of the results."""
     from .planning.base import AgentRequest
-    from .planning.sweep import heading_after, turn_fields
+    from .planning.rotation import agent_turn_ticks
+    from .planning.sweep import EAST, heading_after, turn_fields
 
     world = _mixed_world(seed)
     res = world.reservations
@@ -562,6 +571,11 @@ def _run_plan_case(planner, case: _PlanCase, seed: int, ck: _Checker) -> list:
                                          world.layout.cols,
                                          res.heading_at_start(agv.id)),
                 "sweep": turn[0], "no_turn": turn[1]}
+            if rotations and turn is None:
+                tt = agent_turn_ticks(agv.spec, world.scenario.tick_s)
+                if tt is not None:
+                    h = res.paths[agv.id].heading_at(t)
+                    extra = {"heading": _DIRS[h] if h is not None else EAST, "turn_ticks": tt}
             agents.append(AgentRequest(agv=agv.id, start=pos[1], goal=goals[agv.id], k=agv.k,
                                        ticks_per_move=agv.ticks_per_move,
                                        priority=(t + (n - agv.id) / (n + 1),), **extra))
@@ -577,6 +591,9 @@ def _run_plan_case(planner, case: _PlanCase, seed: int, ck: _Checker) -> list:
     if case.easy:
         _check_goals(world, goals, planner.replans_all, ck)
     return trace
+
+
+_DIRS = ((0, 1), (1, 0), (0, -1), (-1, 0))
 
 
 def _plan_once(planner, world, agents: list, tick: int, rng, ck: _Checker):
@@ -701,6 +718,7 @@ def _check_paths(world, agents: list, result, tick: int, ck: _Checker) -> None:
                     "request.graphs.get(agent.k, agent.loaded, agent.shelf)")
         ck.fail("conflict-free", *what)
     ck.ok("conflict-free")
+    _check_headings(world, agents, result, ck)
     turns = plan_turn_conflicts(world, paths, tick, {a.agv: a.heading for a in agents})
     if turns:
         c = turns[0]
@@ -721,13 +739,53 @@ def _check_paths(world, agents: list, result, tick: int, ck: _Checker) -> None:
     ck.ok("turn sweeps")
 
 
+def _check_headings(world, agents: list, result, ck: _Checker) -> None:
+    """Rotation-aware agents (``turn_ticks`` set): their paths carry one heading per
+    state, start facing the agent's heading, move only straight ahead and turn no faster
+    than ``turn_ticks`` allow."""
+    from .planning.sweep import DIR_OF
+    from .validate import validate_headings
+
+    rot = [a for a in agents if getattr(a, "turn_ticks", None) is not None
+           and a.agv in result.paths]
+    if not rot:
+        return
+    for a in rot:
+        path = result.paths[a.agv]
+        heads = path.headings
+        if heads is None or len(heads) != len(path.states):
+            ck.fail("headings", f"AGV {a.agv} is rotation-aware (agent.turn_ticks = "
+                    f"{a.turn_ticks}) but its path has headings {_short(heads)} for "
+                    f"{len(path.states)} states", "give TimedPath(..., headings=(h0, h1, "
+                    "...)) one direction index (0 east, 1 south, 2 west, 3 north) per state")
+        if a.heading is not None and heads[0] != DIR_OF[a.heading]:
+            ck.fail("headings", f"AGV {a.agv}'s path starts facing {heads[0]}, but the "
+                    f"agent faces {DIR_OF[a.heading]} (agent.heading = {a.heading})",
+                    "start every path with the heading the agent has now")
+        found = validate_headings({a.agv: path.states}, {a.agv: heads}, world.layout.cols,
+                                  turn_ticks={a.agv: a.turn_ticks},
+                                  start_tick=path.start_tick)
+        if found:
+            ck.fail("headings", f"AGV {a.agv}'s path breaks the rotation rules ({found[0]}: "
+                    f"{found[0].kind})", "move only along the heading (the direction of "
+                    "headings[i] before the move); turn in place a quarter at a time, "
+                    "standing turn_ticks[0] ticks per quarter (turn_ticks[1] for a half "
+                    "turn), the new heading on the turn's last state; see "
+                    "warerover_phys.planning.rotation")
+    ck.ok("headings")
+
+
 def plan_turn_conflicts(world, paths: dict, tick: int,
-                        headings: dict | None = None, max_conflicts: int = 100) -> list:
+                        headings: dict | None = None, max_conflicts: int = 100,
+                        loaded: dict | None = None) -> list:
     """Turn-in-place conflicts (:func:`~warerover_phys.planning.sweep.sweep_conflicts`:
     ``sweep``, ``turn_lock``, ``turn_wall``) of the timed ``paths`` (``agv -> TimedPath``)
     from ``tick`` on, for ``world``'s fleet and layout (empty when no AGV's turn holds
     anything). ``headings``: the heading of AGVs at ``tick`` (for paths that start then);
-    the others' headings are worked out from their paths and the reservation table."""
+    the others' headings are worked out from their paths and the reservation table.
+    ``loaded`` (``agv -> bool``, or one bool per tick from ``tick``): also the turns beside
+    AGVs that carry a shelf (``shelf_sweep``; planners do not reserve these yet, the
+    physics executor's dependency graph makes such a turn wait)."""
     from .planning.sweep import heading_after, sweep_conflicts, turn_fields
 
     fields = turn_fields(world.layout, [a.spec for a in world.agvs])
@@ -749,7 +807,10 @@ def plan_turn_conflicts(world, paths: dict, tick: int,
         {a: sw.cells for a, (sw, _) in fields.items() if sw is not None},
         start_tick=tick, headings=heads, max_conflicts=max_conflicts,
         locks={a: sw.locks for a, (sw, _) in fields.items() if sw is not None},
-        no_turn={a: nt for a, (_, nt) in fields.items()})
+        no_turn={a: nt for a, (_, nt) in fields.items()},
+        shelf_offsets=None if loaded is None else {
+            a: sw.shelf_cells for a, (sw, _) in fields.items() if sw is not None},
+        loaded=loaded)
 
 
 def _check_edges(world, agent, path, ck: _Checker) -> None:

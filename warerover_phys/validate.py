@@ -9,6 +9,12 @@ scratch and reports
 - ``vertex``: two AGVs' occupied cells overlap at a tick (footprints included);
 - ``swap``: two AGVs pass through each other between two ticks.
 
+:func:`validate_headings` checks the headings of rotation-aware plans (``planner.rotations``):
+``heading`` (not one of the four directions, or a heading list that does not match the
+states), ``against_heading`` (a move whose direction is not the heading the AGV faces when
+it starts, or that changes the heading while under way) and ``turn`` (a heading that changes
+while moving, by more than a half turn, or sooner than the turn's ticks allow).
+
 A state per tick is ``(a, b)`` of flat anchor indices (``row * cols + col``): standing at
 ``a`` if equal, else moving from ``a`` to ``b`` and covering both footprints. After its last
 state an AGV stays where it is.
@@ -28,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Conflict", "DwellViolation", "validate_states", "dwell_intervals",
+__all__ = ["Conflict", "DwellViolation", "validate_states", "validate_headings", "dwell_intervals",
            "validate_dwells", "DWELL_POS_TOL_M", "DWELL_HEADING_TOL_RAD"]
 
 DWELL_POS_TOL_M = 0.05
@@ -321,3 +327,70 @@ def validate_dwells(events: Sequence[Mapping], cols: int, *,
         if len(out) >= max_violations:
             return out[:max_violations]
     return out[:max_violations]
+
+
+def validate_headings(trajectories: Mapping[int, Sequence[tuple[int, int]]],
+                      headings: Mapping[int, Sequence[int]], cols: int, *,
+                      turn_ticks: Mapping[int, tuple[int, int]], start_tick: int = 0,
+                      max_conflicts: int = 100) -> list[Conflict]:
+    """Check rotation-aware plans: per AGV of ``headings`` (direction index per state: 0
+    east, 1 south, 2 west, 3 north; AGVs without headings are not checked) against its
+    states (``(a, b)`` flat anchors per tick, as for :func:`validate_states`) and its
+    ``turn_ticks`` ``(quarter, half)``. Returns at most ``max_conflicts`` conflicts:
+
+    - ``heading``: a heading outside 0..3, or not one per state;
+    - ``against_heading``: a move whose direction differs from the heading of the state it
+      starts from or of any state it covers (an AGV moves only straight ahead);
+    - ``turn``: a heading that changes by a half turn or less between two states standing
+      on the same anchor sooner than ``quarter`` (or ``half``) ticks after the AGV came to
+      stand there with its previous heading: the ``q`` states before the change must all
+      stand on that anchor with the previous heading (a turn at the very start of the
+      states may have begun before them, so only the states given are checked); or a
+      heading that changes while moving.
+
+    Moves that are not to a 4-neighbour are :func:`validate_states`'s to report; they are
+    skipped here."""
+    out: list[Conflict] = []
+    for agv in sorted(headings):
+        states, heads = trajectories.get(agv), headings[agv]
+        if states is None:
+            continue
+        if len(heads) != len(states) or any(h not in (0, 1, 2, 3) for h in heads):
+            out.append(Conflict("heading", start_tick, (agv,)))
+            continue
+        q1, q2 = turn_ticks.get(agv, (1, 2))
+
+        def direction(u: int, v: int) -> int | None:
+            ru, cu = divmod(u, cols)
+            rv, cv = divmod(v, cols)
+            return {(0, 1): 0, (1, 0): 1, (0, -1): 2, (-1, 0): 3}.get((rv - ru, cv - cu))
+
+        for i in range(1, len(states)):
+            (pa, pb), (a, b) = states[i - 1], states[i]
+            h0, h1 = heads[i - 1], heads[i]
+            t = start_tick + i
+            if a != b:  # moving a -> b at state i
+                d = direction(a, b)
+                if d is None:
+                    continue
+                if h1 != d or ((pa, pb) == (a, a) and h0 != d):
+                    out.append(Conflict("against_heading", t, (agv,), divmod(b, cols)))
+                elif (pa, pb) == (a, b) and h0 != h1:
+                    out.append(Conflict("turn", t, (agv,), divmod(b, cols)))
+            elif pa != pb:  # arriving at b
+                d = direction(pa, pb)
+                if d is not None and h1 != d:
+                    out.append(Conflict("turn", t, (agv,), divmod(b, cols)))
+            elif pa != a:  # a one-tick move pa -> a
+                d = direction(pa, a)
+                if d is not None and (h0 != d or h1 != d):
+                    out.append(Conflict("against_heading", t, (agv,), divmod(a, cols)))
+            elif h0 != h1:  # a turn in place ends here
+                n = min((h1 - h0) % 4, (h0 - h1) % 4)
+                q = q1 if n == 1 else q2
+                first = max(0, i - q)
+                if any(states[j] != (a, a) or heads[j] != h0 for j in range(first, i)):
+                    out.append(Conflict("turn", t, (agv,), divmod(a, cols)))
+            if len(out) >= max_conflicts:
+                return out[:max_conflicts]
+    return out[:max_conflicts]

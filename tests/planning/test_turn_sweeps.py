@@ -240,13 +240,17 @@ OPEN = ["S....R",
         "......",
         "......",
         "......"]
+BARE = {"size": [5, 9], "stations": [[0, 5]],  # only a 2x2 shelf: 1x1 AGVs carry none
+        "shelf_blocks": [{"origin": [0, 0], "size": 2}]}
 
 
 def _two_turning(body: float) -> tuple[World, PhysicsExecutor]:
     w = World.build(scenario_from_dict({
-        "layout": {"grid": OPEN},
-        "fleet": {"types": {"t": {"body_m": [body, body], "max_turn_rate_radps": 1.0}},
-                  "agvs": [{"type": "t", "count": 2, "starts": [[3, 2], [3, 3]]}]},
+        "layout": BARE,
+        "fleet": {"types": {"t": {"body_m": [body, body], "max_turn_rate_radps": 1.0},
+                            "big": {"footprint": 2, "body_m": [1.4, 1.4]}},
+                  "agvs": [{"type": "t", "count": 2, "starts": [[3, 2], [3, 3]]},
+                           {"type": "big", "count": 1, "starts": [[3, 7]]}]},
         "executor": {"name": "physics"}}))
     ex = PhysicsExecutor(w.scenario.executor)
     from warerover_phys.sim import executor_setup
@@ -295,3 +299,140 @@ def test_check_command_rejects_a_sweep_into_the_static_world(tmp_path):
     text = " ".join(bad.output.split())
     assert "fleet.types.agv" in text and "0.566 m" in text and "1.0 m cells" in text
     assert "Traceback" not in bad.output
+
+
+# ----------------------------------------------------------------------------- carried shelves
+
+def test_sweeps_hold_cells_where_a_carried_shelf_could_be_hit():
+    """A 0.8 m body's disc (0.566 m) misses an aligned neighbour's 0.8 m body but reaches
+    1.6 cm into the 0.9 m shelf it may carry (kept parallel to the grid): with shelves the
+    turn holds the four edge neighbours; the default 0.7 m bodies still hold nothing."""
+    d8 = BodyShape(1, 0.8, 0.8, True, shelf_m=0.9)
+    assert sweep_offsets(d8, (d8,), 1.0) == ((-1, 0), (0, -1), (0, 1), (1, 0))
+    d7 = BodyShape(1, 0.7, 0.7, True, shelf_m=0.9)
+    assert sweep_offsets(d7, (d7,), 1.0) == () == turn_locks(d7, (d7,), 1.0)
+    big = BodyShape(2, 1.4, 1.4, True, shelf_m=1.8)  # the paper's 2x2 AGVs
+    assert sweep_offsets(big, (big, d7), 1.0) == ()
+    from warerover_phys.executors.bodies import SHELF_SIDE
+    from warerover_phys.planning.sweep import SHELF_BOX
+    assert SHELF_BOX == SHELF_SIDE  # one shelf size for planners and physics
+
+
+@settings(max_examples=60, deadline=None)
+@given(bodies, bodies, st.sampled_from([0.0, 0.9]))
+def test_every_reachable_carried_shelf_holds_a_swept_cell(a, b, frac):
+    """Soundness with shelves: for any placement of a loaded neighbour (its shelf's box,
+    axis-aligned, standing or driving one cell straight) outside the turner's cells, if the
+    box overlaps the turner's disc then it holds one of the swept cells."""
+    if not a.turns:
+        return
+    b = BodyShape(b.k, b.length_m, b.width_m, b.turns, shelf_m=frac * b.k)
+    fleet = tuple({a, b})
+    cells = set(sweep_offsets(a, fleet, 1.0))
+    k = a.k
+    cx = cy = k / 2
+    own = {(i, j) for i in range(k) for j in range(k)}
+    hs = b.shelf_m / 2
+    if hs == 0:
+        return
+    for ar in range(-4, k + 4):
+        for ac in range(-4, k + 4):
+            for dr, dc in ((0, 0), (0, 1), (1, 0), (0, -1), (-1, 0)):
+                held = {(ar + i + x, ac + j + y) for x, y in ((0, 0), (dr, dc))
+                        for i in range(b.k) for j in range(b.k)}
+                if held & own:
+                    continue
+                qx, qy = ac + b.k / 2, ar + b.k / 2
+                x0, x1 = min(qx, qx + dc) - hs, max(qx, qx + dc) + hs
+                y0, y1 = min(qy, qy + dr) - hs, max(qy, qy + dr) + hs
+                if disc_overlaps_rect(cx, cy, a.radius_m, x0, y0, x1, y1):
+                    assert cells & held, (a, b, ar, ac, dr, dc)
+
+
+def test_turn_beside_a_loaded_neighbour_waits_for_it():
+    """Fails on main before the carried-shelf sweeps: an 0.8 m body turning in place
+    beside a neighbour that carries a 0.9 m shelf reached 1.6 cm into the shelf
+    (``min_clearance_m`` -0.0157). Now the turn holds the neighbour's cell against loaded
+    AGVs: the validator flags the plan that turns beside it, and the dependency graph lets
+    the AGV turn only once the neighbour has driven off."""
+    w = World.build(scenario_from_dict({
+        "layout": {"grid": OPEN},
+        "fleet": {"types": {"t": {"body_m": [0.8, 0.8], "max_turn_rate_radps": 1.0},
+                            "slow": {"body_m": [0.8, 0.8], "max_speed_mps": 0.25}},
+                  "agvs": [{"type": "t", "count": 2, "starts": [[3, 2], [3, 3]]},
+                           {"type": "slow", "count": 1, "starts": [[3, 4]]}]},
+        "executor": {"name": "physics"}}))
+    from warerover_phys.sim import executor_setup
+    from warerover_phys.testing import plan_turn_conflicts
+    from warerover_phys.world import Trip
+    loaded = w.agvs[1]
+    loaded.loaded, loaded.trip = True, Trip(0, 1, 0, (), ())
+    ex = PhysicsExecutor(w.scenario.executor)
+    ex.bind(executor_setup(w))
+    n = w.node
+    # AGV 0 faces east and goes north at tick 0 (a turn); AGV 1, loaded, stands beside it
+    # until the slow AGV 2 has cleared (3, 4) (4 ticks), then follows it east.
+    paths = {0: TimedPath(0, 0, tuple((n(c), n(c)) for c in [(3, 2), (2, 2), (1, 2)])),
+             1: TimedPath(1, 0, ((n((3, 3)), n((3, 3))),) * 5 + ((n((3, 4)), n((3, 4))),)),
+             2: TimedPath(2, 0, ((n((3, 4)), n((3, 4))),) + ((n((3, 4)), n((3, 5))),) * 3
+                          + ((n((3, 5)), n((3, 5))),))}
+    for p in paths.values():
+        w.reservations.commit(p, 1)
+    assert plan_turn_conflicts(w, paths, 0) == []  # no body is reached
+    found = plan_turn_conflicts(w, paths, 0, loaded={0: False, 1: True, 2: False})
+    assert [(c.kind, c.agvs, c.cell) for c in found][:1] == [("shelf_sweep", (0, 1), (3, 3))]
+    assert plan_turn_conflicts(w, paths, 0, loaded={0: False, 1: False, 2: False}) == []
+    assert _run(w, ex, 14) == 0
+    assert all(ex.adg.done(a) for a in (0, 1, 2))
+    clear = ex.acc.summary()["min_clearance_m"]
+    assert clear is not None and clear > 0.01, clear
+
+
+def test_agv_sweeps_hold_shelf_cells_apart():
+    """On a floor with shelves the 0.8 m body's edge neighbours are shelf cells (held only
+    against loaded AGVs), not cells; 0.7 m bodies hold nothing; no shelves, no shelf cells."""
+    from warerover_phys.config import AgvTypeSpec
+    from warerover_phys.planning.sweep import agv_sweeps
+    w = World.build(scenario_from_dict({"layout": {"grid": OPEN}, "fleet": {
+        "types": {"t": {"body_m": [0.8, 0.8]}},
+        "agvs": [{"type": "t", "count": 1, "starts": [[3, 2]]}]}}))
+    d8, d7 = AgvTypeSpec(body_m=(0.8, 0.8)), AgvTypeSpec(body_m=(0.7, 0.7))
+    edge = ((-1, 0), (0, -1), (0, 1), (1, 0))
+    assert agv_sweeps([d8], 1.0, w.layout) == {0: Sweep((), ((-1, 0), (0, -1), (0, 0),
+                                                              (0, 1), (1, 0)), edge)}
+    assert agv_sweeps([d8], 1.0)[0].shelf_cells == ()
+    assert agv_sweeps([d7, d7], 1.0, w.layout) == {}
+
+
+def test_adg_shelf_cells_hold_back_only_loaded_agvs():
+    """AGV 0 turns (east -> north) beside AGV 1 standing east of it: with the neighbour
+    unloaded it may go; loaded (or never told), it waits for the neighbour to leave; and a
+    loaded AGV planned into a shelf cell after the turn waits for it, an unloaded one not."""
+    sw = Sweep((), (), ((-1, 0), (0, -1), (0, 1), (1, 0)))
+    cols = 4
+
+    def graph():
+        g = ActionGraph(cols, {0: 1, 1: 1}, sweeps={0: sw}, rows=3)
+        g.set_plan(0, TimedPath(0, 0, ((5, 5), (1, 1))))
+        g.set_plan(1, TimedPath(1, 0, ((6, 6), (6, 6), (7, 7))))
+        return g
+
+    g = graph()
+    assert not g.ready(0)  # loads unknown: loaded
+    g.set_loaded([False, False])
+    assert g.ready(0) and g.ready(1)
+    g.set_loaded([False, True])
+    assert not g.ready(0) and g.ready(1)
+    assert g.waiting_for() == {0: {1}}
+    g.start(1)
+    g.finish(1)
+    assert g.ready(0)
+    # AGV 1 comes to (1, 2) after the turn: loaded it waits for the turn, unloaded not.
+    g = ActionGraph(cols, {0: 1, 1: 1}, sweeps={0: sw}, rows=3)
+    g.set_plan(0, TimedPath(0, 0, ((5, 5), (1, 1))))
+    g.set_plan(1, TimedPath(1, 0, ((7, 7), (7, 7), (6, 6))))
+    g.set_loaded([False, True])
+    g.check_acyclic()
+    assert g.ready(0) and not g.ready(1)
+    g.set_loaded([False, False])
+    assert g.ready(1)

@@ -28,6 +28,15 @@ that keeps the swept cells free of other AGVs at the turn's tick and the next on
 :func:`warerover_phys.planning.sweep.sweep_conflicts` checks) gets only edges that go
 strictly forward in planned time from them, so they add no cycle.
 
+Carried shelves. The cells a turn's disc reaches only through the shelf a neighbour may
+carry (:attr:`~warerover_phys.planning.sweep.Sweep.shelf_cells`) get *shelf* sweep visits:
+they order the turn only against AGVs that carry a shelf. The executor tells the graph
+who carries one (:meth:`ActionGraph.set_loaded`; an AGV it was never told about counts as
+loaded). A visit ahead of another in a queue does not hold it back when one of the two is
+a shelf sweep visit and the other's AGV carries no shelf now (or both are shelf sweep
+visits): an unloaded AGV drives past a turn's shelf cells, and a turn goes ahead beside an
+unloaded AGV. Loads change only while an AGV dwells, never during a move.
+
 Communication latency (``latency_s``, ``executor.comm_latency_s``): an AGV hears that
 another AGV's action finished ``latency_s`` after it did (:attr:`ActionGraph.now` is the
 executor's clock). Until then a cell that action left counts as not yet free for the AGV's
@@ -123,6 +132,8 @@ class _Visit:
     """The AGV is committed to drive through this cell (see :meth:`ActionGraph.claim`)."""
     sweep: bool = False
     """A turn's swept cell: entered and left by the same action."""
+    shelf: bool = False
+    """A turn's *shelf* sweep visit: holds back only AGVs that carry a shelf."""
 
 
 @dataclass(slots=True, eq=False)
@@ -218,7 +229,10 @@ class ActionGraph:
         self.cols = cols
         self.rows = rows
         self._sizes = dict(sizes)
-        self._sweeps = {a: o for a, o in (sweeps or {}).items() if o.cells or o.locks}
+        self._sweeps = {a: o for a, o in (sweeps or {}).items()
+                        if o.cells or o.locks or o.shelf_cells}
+        self._unloaded: set[int] = set()
+        """AGVs that carry no shelf now (:meth:`set_loaded`)."""
         self._heading0 = heading
         self._agents: dict[int, _Agent] = {}
         self._queues: dict[int, list[_Visit]] = {}
@@ -309,14 +323,17 @@ class ActionGraph:
             fs, fd = footprint_nodes(src, k, cols), footprint_nodes(dst, k, cols)
             direction = _direction(src, dst, cols, agv)
             swept: tuple[int, ...] = ()
+            shelf: tuple[int, ...] = ()
             if offsets and direction != heading:
                 swept = tuple(c for c in self._sweep_cells(src, offsets)
+                              if c not in fs and c not in fd)
+                shelf = tuple(c for c in self._shelf_cells(src, offsets)
                               if c not in fs and c not in fd)
             heading = direction
             action = Action(agv=agv, seq=rec.next_seq, src=src, dst=dst, tick=tick,
                             ticks=ticks, enters=tuple(c for c in fd if c not in fs),
                             leaves=tuple(c for c in fs if c not in fd),
-                            direction=direction, sweeps=swept)
+                            direction=direction, sweeps=swept + shelf)
             rec.next_seq += 1
             leave_visits = [open_visits.pop(c) for c in action.leaves]
             for v in leave_visits:
@@ -326,11 +343,12 @@ class ActionGraph:
                 v = self._new_visit(c, agv, action, tick + 1, entered=False)
                 open_visits[c] = v
                 enter_visits.append(v)
-            for c in swept:
+            for c in swept + shelf:
                 # The turn happens at the move's start tick; the same action leaves it.
                 v = self._new_visit(c, agv, action, tick, entered=False)
                 v.leave = action
                 v.sweep = True
+                v.shelf = c in shelf
                 enter_visits.append(v)
                 leave_visits.append(v)
             rec.pending.append(_Step(action, enter_visits, leave_visits))
@@ -347,6 +365,41 @@ class ActionGraph:
         return tuple((r + dr) * cols + c + dc for dr, dc in sweep.cells if inside(dr, dc)) \
             + tuple(-1 - ((r + dr) * cols + c + dc) for dr, dc in sweep.locks
                     if inside(dr, dc))
+
+    def _shelf_cells(self, anchor: int, sweep: Sweep) -> tuple[int, ...]:
+        """Cells of a turn at ``anchor`` held only against AGVs that carry a shelf."""
+        cols, rows = self.cols, self.rows
+        r, c = divmod(anchor, cols)
+        return tuple((r + dr) * cols + c + dc for dr, dc in sweep.shelf_cells
+                     if 0 <= c + dc < cols and r + dr >= 0 and (rows is None or r + dr < rows))
+
+    def set_loaded(self, loaded) -> None:
+        """Who carries a shelf now (``loaded[agv]`` bool, for every AGV id ``< len``):
+        shelf sweep visits hold back only those (see the module doc). AGVs whose load
+        changed wake up."""
+        now = {a for a, x in enumerate(loaded) if not x}
+        if now != self._unloaded:
+            self._unloaded = now
+            for cell in list(self._waiters):
+                self._touch(cell)
+
+    def _passes(self, w: _Visit, v: _Visit) -> bool:
+        """Visit ``w`` ahead of ``v`` in a queue does not hold ``v`` back."""
+        if w.shelf:
+            return v.shelf or v.agv in self._unloaded
+        return v.shelf and w.agv in self._unloaded
+
+    def _first(self, v: _Visit) -> bool:
+        """``v`` is at the head of its queue, but for visits it passes."""
+        q = self._queues[v.cell]
+        if q[0] is v:
+            return True
+        for w in q:
+            if w is v:
+                return True
+            if not self._passes(w, v):
+                return False
+        return True
 
     def set_heading(self, agv: int, direction: tuple[int, int]) -> None:
         """The AGV (standing) now faces ``direction`` (the executor turned it): its next
@@ -386,7 +439,7 @@ class ActionGraph:
         if rec.running is not None or not rec.pending:
             return False
         for v in rec.pending[0].enter_visits:
-            if self._queues[v.cell][0] is not v:
+            if not self._first(v):
                 self._waiters.setdefault(v.cell, []).append(agv)
                 return True
         return False
@@ -474,8 +527,7 @@ class ActionGraph:
         if rec.running is not None or not rec.pending:
             return False
         step = rec.pending[0]
-        return all(self._queues[v.cell][0] is v for v in step.enter_visits) and \
-            self._heard(agv, step)
+        return all(self._first(v) for v in step.enter_visits) and self._heard(agv, step)
 
     def _heard(self, agv: int, step: _Step) -> bool:
         """Whether the AGV has heard that the cells ``step`` enters were left by the AGVs
@@ -496,8 +548,7 @@ class ActionGraph:
         if rec.running is not None or not rec.pending or not self._heard_at:
             return False
         step = rec.pending[0]
-        return all(self._queues[v.cell][0] is v for v in step.enter_visits) and \
-            not self._heard(agv, step)
+        return all(self._first(v) for v in step.enter_visits) and not self._heard(agv, step)
 
     def released(self, agv: int, limit: int | None = None) -> list[Action]:
         """The leading upcoming actions that are each ready once the AGV's own earlier actions
@@ -509,7 +560,7 @@ class ActionGraph:
                 for w in self._queues[v.cell]:
                     if w is v:
                         break
-                    if w.agv != agv:
+                    if w.agv != agv and not self._passes(w, v):
                         return out
             if not self._heard(agv, step):
                 return out
@@ -590,13 +641,13 @@ class ActionGraph:
             blocked = False
             for v in rec.pending[0].enter_visits:
                 q = self._queues[v.cell]
-                if q[0] is v:
+                if self._first(v):
                     continue
                 blocked = True
                 for w in q:
                     if w is v:
                         break
-                    if w.agv != agv:
+                    if w.agv != agv and not self._passes(w, v):
                         ahead.add(w.agv)
             if blocked:
                 out[agv] = ahead
@@ -628,6 +679,18 @@ class ActionGraph:
                         stack.append(iter(graph.get(nxt, ())))
         return sorted(cycles)
 
+    def _edges(self, q: list[_Visit]) -> Iterator[tuple[_Visit, _Visit]]:
+        """Type-2 edges of one queue: ``(prev, nxt)`` for each visit and every earlier one
+        that holds it back (:meth:`_passes`); only the nearest such plain visit (plain
+        visits hold each other back in queue order)."""
+        for i, nxt in enumerate(q):
+            for w in reversed(q[:i]):
+                if self._passes(w, nxt):
+                    continue
+                yield w, nxt
+                if not w.shelf:
+                    break
+
     def check_acyclic(self) -> None:
         """Check the remaining dependency graph (type-1 edges between an AGV's unfinished
         actions, type-2 edges ``leave(previous visit) -> enter(next visit)`` per cell) with
@@ -645,8 +708,8 @@ class ActionGraph:
             for a, b in zip(chain, chain[1:], strict=False):
                 preds[b].append((a, None))
                 succs[a].append(b)
-        for cell, q in self._queues.items():
-            for prev, nxt in zip(q, q[1:], strict=False):
+        for cell, full in self._queues.items():
+            for prev, nxt in self._edges(full):
                 if prev.leave is None:
                     raise ADGCycleError(
                         f"AGV {nxt.agv} must enter cell {divmod(cell, cols)} after AGV "

@@ -97,7 +97,8 @@ class PhysicsExecutor:
             if getattr(spec, "no_slip", False) else None,
             decide_every=max(1, round(DECIDE_S / self.dt)))
         self.adg = ActionGraph(layout.cols, {a.id: a.k for a in agvs},
-                               sweeps=agv_sweeps([a.spec for a in agvs], layout.cell_m),
+                               sweeps=agv_sweeps([a.spec for a in agvs], layout.cell_m,
+                                                 layout),
                                rows=layout.rows,
                                latency_s=getattr(spec, "comm_latency_s", 0.0))
         self.acc = Accounting(self.state, self.space, self.fleet, self.io, self.adg, layout,
@@ -146,6 +147,7 @@ class PhysicsExecutor:
         acc.begin_tick(view)
         self._tick = view.tick
         self._apply_payload(view.loaded)
+        self.adg.set_loaded([c is not None for c in view.carried])
         if self._shelf_contacts:
             self.fleet.carry_shelves(self.space, self.acc.shelf_m[:, 0], self.io.read()[1])
         follow.sync_plans(view)

@@ -37,7 +37,7 @@ def space_time_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequ
     of the static shortest path (plus a margin): in the closed loop a search that needs far
     more is usually blocked by AGVs that will move later, and retrying is cheaper.
     """
-    if turn_aware(agent):
+    if turn_aware(agent) or agent.turn_ticks is not None:
         return turning_astar(graph, res, agent, t0, max_expansions=max_expansions,
                              budget_per_move=budget_per_move)
     cols, k, m, me = graph.cols, agent.k, agent.ticks_per_move, agent.agv

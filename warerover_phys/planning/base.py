@@ -50,6 +50,11 @@ class AgentRequest:
     """Anchors where it must not turn in place (its swept disc reaches an obstacle or the
     map edge: :func:`~warerover_phys.planning.sweep.no_turn_anchors`; while loaded, also
     another shelf: :class:`~warerover_phys.planning.sweep.TurnMasks`)."""
+    turn_ticks: tuple[int, int] | None = None
+    """Rotation-aware planning (``planner.rotations``, differential-drive AGVs): ticks of a
+    quarter and of a half turn in place (:func:`~warerover_phys.planning.rotation.
+    agent_turn_ticks`); the AGV then moves only along ``heading`` and the returned path
+    carries headings. None: turns are free."""
     goal_dead: frozenset[int] | None = None
     """Headings (direction indices, :data:`~warerover_phys.planning.sweep.DIR_OF`) it must
     not arrive at its goal in: after its work there (loaded or not) it could never turn to

@@ -165,7 +165,7 @@ def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentReq
     the other planned AGVs: it only breaks ties between equally short paths. Returns (the
     shortest path that satisfies every constraint, or None; expansions).
     """
-    if turn_aware(agent):
+    if turn_aware(agent) or agent.turn_ticks is not None:
         return turning_astar(graph, res, agent, t0, constraints if constraints is not None
                              else Constraints(), avoid, max_expansions, cbs=True)
     cols, k, m, me = graph.cols, agent.k, agent.ticks_per_move, agent.agv

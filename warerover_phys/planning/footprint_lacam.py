@@ -9,6 +9,13 @@ heads for node ``v`` next"); the footprint-aware PIBT step generates each succes
 configuration under them. With every agent at rest constrained the step either builds that
 exact configuration or rejects it, so the search stays complete: it finds a solution if one
 exists and otherwise reports the space exhausted.
+
+Rotations (``planner.rotations``): a rotation-aware agent's heading is part of the search
+node (a configuration reached again facing other ways is a new node), and its low-level
+constraints are "drive ahead", "stay" and "turn a quarter either way" (the turns are forced
+targets ``-1 - heading`` of :func:`~warerover_phys.planning.footprint_pibt.footprint_step`),
+so the search stays complete over (pose, heading) configurations. ``stats["headings"]``
+then holds each returned configuration's headings.
 """
 
 from __future__ import annotations
@@ -22,6 +29,7 @@ import numpy as np
 
 from .footprint_pibt import Mover, Pose, footprint_step, next_headings
 from .graph import UNREACHABLE
+from .rotation import UNREACHABLE_T
 
 __all__ = ["footprint_lacam", "footprint_priorities", "update_footprint_priorities"]
 
@@ -89,25 +97,29 @@ def footprint_lacam(movers: Sequence[Mover], starts: Sequence[Pose], cols: int,
     held_set = set(held)
     stay = {i: start[i][1] for i in held_set}
 
-    def make(config: Config, parent: _High | None, prio: list[float]) -> _High:
+    rotating = headings is not None and any(mv.rot is not None for mv in movers)
+
+    def make(config: Config, parent: _High | None, prio: list[float],
+             heads: tuple[int, ...] | None = None) -> _High:
         order = sorted((i for i in range(len(config)) if i not in held_set and config[i][2] == 0),
                        key=lambda i: -prio[i])
-        heads = None
-        if headings is not None:
+        if headings is not None and heads is None:
             heads = tuple(headings) if parent is None else next_headings(
                 parent.headings, parent.config, config, cols)
         return _High(config, parent, prio, order, heads)
 
     if any(mv.dist[start[i][1]] >= UNREACHABLE or (
             mv.tdist is not None and headings is not None
-            and (start[i][1], headings[i]) not in mv.tdist)
+            and (start[i][1], headings[i]) not in mv.tdist) or (
+            mv.rdist is not None and headings is not None and headings[i] < 4
+            and mv.rdist[start[i][1], headings[i]] >= UNREACHABLE_T)
            for i, mv in enumerate(movers) if i not in held_set):
         # An agent that cannot reach its goal: no configuration search can succeed.
         return None, {"iterations": 0, "explored": 0, "exhausted": True,
                       "stopped": "unreachable"}
     root = make(start, None, prio if prio is not None else footprint_priorities(movers, start))
     stack = [root]
-    explored = {start: root}
+    explored: dict = {(start, root.headings) if rotating else start: root}
     iterations = 0
     while stack:
         iterations += 1
@@ -119,7 +131,11 @@ def footprint_lacam(movers: Sequence[Mover], starts: Sequence[Pose], cols: int,
                           "exhausted": False, "stopped": "time"}
         node = stack[-1]
         if node.config == goal:
-            return _unwind(node), {"iterations": iterations, "explored": len(explored)}
+            configs, heads = _unwind(node)
+            stats = {"iterations": iterations, "explored": len(explored)}
+            if rotating:
+                stats["headings"] = heads
+            return configs, stats
         if not node.tree:
             stack.pop()
             continue
@@ -129,16 +145,20 @@ def footprint_lacam(movers: Sequence[Mover], starts: Sequence[Pose], cols: int,
         salt = int(rng.integers(4096))
         forced = dict(stay)
         forced.update(zip(low.who, low.where, strict=True))
+        out_heads: list[int] = []
         nxt = footprint_step(movers, node.config, node.prio, ties[salt:], cols, forced,
-                             headings=node.headings)
+                             headings=node.headings,
+                             out_headings=out_heads if rotating else None)
         if nxt is None:
             continue
-        key = tuple(nxt)
+        config = tuple(nxt)
+        key = (config, tuple(out_heads)) if rotating else config
         known = explored.get(key)
         if known is not None:
             stack.append(known)
             continue
-        new = make(key, node, update_footprint_priorities(node.prio, movers, key))
+        new = make(config, node, update_footprint_priorities(node.prio, movers, config),
+                   tuple(out_heads) if rotating else None)
         stack.append(new)
         explored[key] = new
     return None, {"iterations": iterations, "explored": len(explored), "exhausted": True}
@@ -150,17 +170,36 @@ def _grow(node: _High, low: _Low, movers: Sequence[Mover], rng: np.random.Genera
     i = node.order[low.depth]
     mv = movers[i]
     here = node.config[i][1]
-    cands = [v for v in mv.neighbors[here] if mv.dist[v] < UNREACHABLE] + [here]
+    if mv.rot is not None and node.headings is not None and node.headings[i] < 4:
+        h = node.headings[i]
+        cands = [v for v in mv.neighbors[here] if mv.rdist[v, h] < UNREACHABLE_T
+                 and _ahead(here, v, h, mv)] + [here, -1 - (h + 1) % 4, -1 - (h + 3) % 4]
+    else:
+        cands = [v for v in mv.neighbors[here] if mv.dist[v] < UNREACHABLE] + [here]
     rng.shuffle(cands)
     for v in cands:
         node.tree.append(_Low(low.who + (i,), low.where + (v,)))
 
 
-def _unwind(node: _High) -> list[Config]:
+def _ahead(here: int, v: int, h: int, mv: Mover) -> bool:  # noqa: ARG001
+    """Is neighbour ``v`` (of ``mv``'s graph) straight ahead of an agent on ``here``
+    facing ``h``? (Vertical neighbours are a row apart, horizontal ones adjacent.)"""
+    d = v - here
+    if d == 1:
+        return h == 0
+    if d == -1:
+        return h == 2
+    return h == (1 if d > 0 else 3)
+
+
+def _unwind(node: _High) -> tuple[list[Config], list[tuple[int, ...] | None]]:
     configs: list[Config] = []
+    heads: list[tuple[int, ...] | None] = []
     walk: _High | None = node
     while walk is not None:
         configs.append(walk.config)
+        heads.append(walk.headings)
         walk = walk.parent
     configs.reverse()
-    return configs
+    heads.reverse()
+    return configs, heads

@@ -32,6 +32,27 @@ claimed for the next tick, and with none of its turn locks taken by another turn
 same step. No move enters a dead end (a no-turn anchor faced so that it can never turn
 again). Without turn-aware movers nothing changes.
 
+Rotations (issue 15, ``planner.rotations``): a mover with ``rot`` (its quarter and half turn
+ticks) and ``rdist`` (ticks to its goal from every (anchor, heading),
+:func:`~warerover_phys.planning.rotation.rotation_dist`) moves only straight ahead; turns in
+place are steps of their own, as in the League of Robot Runners' PIBT entries:
+
+- its options are ranked by ``rdist``: the cell ahead, or a turn towards a side or back
+  neighbour (turn ticks + move + the distance from there), or waiting. A turn holds only
+  its own cells, so for PIBT it *is* staying: an agent whose best option is a turn (or
+  that cannot go ahead) takes its own cells, and priority inheritance treats it as an
+  agent that stays (it cannot be pushed off sideways);
+- after the step every such agent that stays turns one quarter: towards its best option's
+  direction, or, if a higher-priority agent tried and failed to push it away, towards the
+  free neighbour it should escape to next (away from that agent), so that next step it can
+  make room by driving ahead (without this two agents meeting head-on in a corridor would
+  wait for each other for ever);
+- a quarter turn of more than one tick is a pose ``(a, a, r)`` (standing on ``a``, ``r``
+  ticks of the turn to go), forced like the rest of a slow move; the headings returned
+  (``out_headings``) are those each agent has once its pose is done;
+- a forced target (LaCAM's constraints) may be a turn: ``-1 - heading`` for "stay and turn
+  a quarter to ``heading``"; a forced node never turns.
+
 The step is used by the lifelong PIBT planner and, with forced moves as its constraints, as
 the configuration generator of :mod:`footprint_lacam`.
 """
@@ -46,10 +67,11 @@ import numpy as np
 
 from .base import State, footprint_nodes
 from .graph import UNREACHABLE
+from .rotation import UNREACHABLE_T, quarters, turn_towards
 from .sweep import lock_keys, move_dir, sweep_cells
 
 __all__ = ["Mover", "Pose", "pose_cells", "successor", "arrive", "pose_states",
-           "footprint_step", "next_headings"]
+           "footprint_step", "next_headings", "pose_path"]
 
 Pose = tuple[int, int, int]
 """``(a, b, r)``: at rest on ``b`` if ``r == 0``, else moving ``a -> b``, ``r`` ticks to go."""
@@ -83,6 +105,11 @@ class Mover:
     tdist: Mapping[tuple[int, int], int] | None = None
     """Moves to its goal from each state ``(anchor, heading index)`` that can reach it
     (turn-aware movers with no-turn anchors; None: use ``dist``)."""
+    rot: tuple[int, int] | None = None
+    """Rotation-aware mover: ticks of a quarter and a half turn in place (None: turns are
+    free)."""
+    rdist: np.ndarray | None = None
+    """Rotation-aware mover: ticks to its goal from ``[anchor, heading]``."""
 
     @property
     def turns(self) -> bool:
@@ -124,6 +151,31 @@ def next_headings(headings: Sequence[int], before: Sequence[Pose], after: Sequen
                  for h, p, q in zip(headings, before, after, strict=True))
 
 
+def pose_path(poses: Sequence[Pose], heads: Sequence[int], first: int,
+              ) -> tuple[tuple[State, ...], tuple[int, ...]]:
+    """:func:`pose_states` with the heading of every state, for a rotation-aware agent:
+    ``heads[j]`` is its heading once ``poses[j]`` is done, ``first`` the heading it has in
+    the first state. A turn pose ``(a, a, r > 0)`` keeps the heading it had before the
+    turn; the turn's last state shows the new one. Trailing repeats (same state and
+    heading) are dropped."""
+    states: list[State] = []
+    hs: list[int] = []
+    prev = first
+    for (a, b, r), h in zip(poses, heads, strict=True):
+        sh = prev if a == b and r > 0 else h
+        states.append((a, b))
+        hs.append(sh)
+        prev = sh
+    tail = arrive(poses[-1])
+    for j, st in enumerate(tail):
+        states.append(st)
+        hs.append(heads[-1] if j == len(tail) - 1 else prev)
+    end = len(states)
+    while end > 1 and states[end - 1] == states[end - 2] and hs[end - 1] == hs[end - 2]:
+        end -= 1
+    return tuple(states[:end]), tuple(hs[:end])
+
+
 def pose_states(poses: Sequence[Pose]) -> tuple[State, ...]:
     """Per-tick states of a sequence of poses, finishing any move still under way, without
     trailing repeats (after its last state an AGV stays where it is)."""
@@ -138,7 +190,8 @@ class _Step:
     """The working state of one step (see the module doc)."""
 
     def __init__(self, movers: Sequence[Mover], poses: Sequence[Pose], cols: int,
-                 tie: np.ndarray, budget: int, headings: Sequence[int] | None = None) -> None:
+                 tie: np.ndarray, budget: int, headings: Sequence[int] | None = None,
+                 rotation: str = "stay") -> None:
         self.movers, self.poses, self.cols, self.tie = movers, poses, cols, tie
         self.headings = headings
         self.turning = headings is not None and any(mv.turns for mv in movers)
@@ -159,6 +212,18 @@ class _Step:
         self.chain = 0
         """Log length when the current top-level push began."""
         self.budget = budget
+        self.cascade = rotation == "cascade"
+        self.rotating = headings is not None and any(mv.rot is not None for mv in movers) \
+            and not self.cascade
+        """Rotation-aware movers, a turn counting as staying (see the module doc)."""
+        if self.cascade and headings is None:
+            self.cascade = False
+        self.forced_turn: dict[int, int] = {}
+        """Rotation-aware agents forced to stay and turn: agent -> heading after it."""
+        self.escape: dict[int, int] = {}
+        """Rotation-aware agents a higher-priority agent failed to push away: the
+        direction to turn to, to make room next step."""
+        self.pushers: list[int] = []
 
     # ------------------------------------------------------------------ bookkeeping
 
@@ -296,6 +361,14 @@ class _Step:
         """Targets of an agent at rest, best first (its own node last among equals)."""
         mv, here = self.movers[i], self.poses[i][1]
         d, tie = mv.dist, self.tie
+        if mv.rot is not None and self.cascade:
+            return self._cascade_candidates(i, avoid)
+        if mv.rot is not None and self.rotating:
+            near = list(dict.fromkeys(t for _, t, _ in self.rot_options(i)))
+            if avoid:
+                near = [v for v in near
+                        if avoid.isdisjoint(footprint_nodes(v, mv.k, self.cols))]
+            return near
         if mv.tdist is not None and self.headings is not None:
             return self._turn_candidates(i, avoid)
         near = [v for v in mv.neighbors[here] if d[v] < UNREACHABLE] + [here]
@@ -303,6 +376,87 @@ class _Step:
             near = [v for v in near
                     if avoid.isdisjoint(footprint_nodes(v, mv.k, self.cols))]
         return sorted(near, key=lambda v: d[v] + tie[v])
+
+    def rot_options(self, i: int) -> list[tuple[float, int, int]]:
+        """A rotation-aware agent's options at rest, best first: ``(ticks to its goal,
+        target node, direction)``: the cell ahead (target that cell), a turn towards
+        another neighbour (target its own node, direction the neighbour's) or waiting
+        (its own node, direction -1)."""
+        mv, here = self.movers[i], self.poses[i][1]
+        assert mv.rot is not None and mv.rdist is not None and self.headings is not None
+        rd, tie, cols = mv.rdist, self.tie, self.cols
+        h = self.headings[i]
+        q1, q2 = mv.rot
+        opts: list[tuple[float, int, int]] = []
+        for v in mv.neighbors[here]:
+            d = move_dir(here, v, cols)
+            r = int(rd[v, d])
+            if r >= UNREACHABLE_T:
+                continue
+            if d == h or h > 3:
+                opts.append((mv.m + r + tie[v], v, d))
+            else:
+                q = q1 if quarters(h, d) == 1 else q2
+                opts.append((q + mv.m + r + tie[v], here, d))
+        wait = int(rd[here, h]) if h < 4 else int(rd[here].min())
+        opts.append((1 + min(wait, UNREACHABLE_T) + tie[here], here, -1))
+        opts.sort()
+        return opts
+
+    def _ahead_of(self, i: int) -> int | None:
+        """The neighbour straight ahead of a rotation-aware agent at rest (None if none)."""
+        mv, here = self.movers[i], self.poses[i][1]
+        h = self.headings[i] if self.headings is not None else 4
+        if h > 3:
+            return None
+        v = here + (1, self.cols, -1, -self.cols)[h]
+        return v if v in mv.neighbors[here] else None
+
+    def _cascade_candidates(self, i: int, avoid: frozenset[int]) -> list[int]:
+        """Targets of a rotation-aware agent in ``cascade`` mode: every neighbour and its
+        own node, ranked by the ticks to its goal through them (the turn towards a
+        neighbour included)."""
+        mv, here = self.movers[i], self.poses[i][1]
+        assert mv.rot is not None and mv.rdist is not None and self.headings is not None
+        rd, tie, cols, h = mv.rdist, self.tie, self.cols, self.headings[i]
+        q1, q2 = mv.rot
+        score = {here: 1 + int(rd[here, h] if h < 4 else rd[here].min()) + tie[here]}
+        for v in mv.neighbors[here]:
+            d = move_dir(here, v, cols)
+            r = int(rd[v, d])
+            if r >= UNREACHABLE_T:
+                continue
+            n = 0 if h > 3 else quarters(h, d)
+            score[v] = (0, q1, q2)[n] + mv.m + r + tie[v]
+        near = sorted(score, key=score.__getitem__)
+        if avoid:
+            near = [v for v in near if avoid.isdisjoint(footprint_nodes(v, mv.k, cols))]
+        return near
+
+    def note_escape(self, i: int, against: int | None = None) -> None:
+        """Agent ``i`` (rotation-aware, at rest) could not be pushed away by ``against``
+        (default: the agent pushing it now), or must make way for it: remember the
+        neighbour it should turn to, to make room next step (off that agent's cells,
+        unclaimed, not ahead (that failed); fewest agents on it now, fewest quarter turns,
+        nearest to its goal)."""
+        mv, here = self.movers[i], self.poses[i][1]
+        assert mv.rdist is not None and self.headings is not None
+        p = against if against is not None else (self.pushers[-1] if self.pushers else None)
+        bad = frozenset() if p is None else self.cur_set[p].union(self.nxt_cells[p])
+        best = None
+        for v in mv.neighbors[here]:
+            d = move_dir(here, v, self.cols)
+            r = int(mv.rdist[v, d])
+            cells = footprint_nodes(v, mv.k, self.cols)
+            if r >= UNREACHABLE_T or d == self.headings[i] or not bad.isdisjoint(cells) or \
+                    any(self.occ_next.get(c, i) != i for c in cells):
+                continue
+            busy = sum(1 for c in cells if self.occ_now.get(c, i) != i)
+            key = (busy, quarters(self.headings[i], d), r + self.tie[v])
+            if best is None or key < best[0]:
+                best = (key, d)
+        if best is not None:
+            self.escape[i] = best[1]
 
     def _turn_candidates(self, i: int, avoid: frozenset[int]) -> list[int]:
         """:meth:`candidates` by the moves left from the state (anchor, heading) each
@@ -337,10 +491,14 @@ class _Step:
         self.budget -= len(ahead)
         mark = len(self.log)
         self.decide(i, pose, cells, turn)
-        for x in ahead:
-            if self.nxt[x] is None and not self.push(x):
-                self.rollback(mark)
-                return False
+        self.pushers.append(i)
+        try:
+            for x in ahead:
+                if self.nxt[x] is None and not self.push(x):
+                    self.rollback(mark)
+                    return False
+        finally:
+            self.pushers.pop()
         return True
 
     def push(self, i: int, avoid: frozenset[int] = frozenset()) -> bool:
@@ -350,9 +508,19 @@ class _Step:
         here = self.poses[i][1]
         partner = -1
         if not avoid and cands[0] != here:
-            partner = self.head_on(i, cands[0])
+            # A rotation-aware agent never makes way for a head-on partner: it pushes, and
+            # the partner, unable to leave ahead, turns to escape (note_escape).
+            partner = -1 if self.rotating and self.movers[i].rot is not None else \
+                self.head_on(i, cands[0])
             if partner >= 0:
                 cands.reverse()  # make way, then pull the partner along behind
+                if self.cascade and self.movers[i].rot is not None:
+                    # ... by driving ahead if it can (a side step would be a turn, and
+                    # turning to the worst side every step spins it round)
+                    ahead = self._ahead_of(i)
+                    if ahead in cands:
+                        cands.remove(ahead)
+                        cands.insert(0, ahead)
             else:
                 self.nudge(i, cands[0])
         for idx, target in enumerate(cands):
@@ -363,6 +531,8 @@ class _Step:
                 return True
         if not avoid:
             self.stuck.add(i)
+            if self.rotating and self.movers[i].rot is not None:
+                self.note_escape(i)
         return False
 
     # ------------------------------------------------------------------ swap
@@ -395,6 +565,10 @@ class _Step:
         for u in mj.neighbors[here]:
             if mj.dist[u] >= UNREACHABLE or mi.dist[u] < ref:
                 continue
+            if self.rotating and mj.rot is not None and \
+                    mj.rdist[u, move_dir(here, u, self.cols)] >= UNREACHABLE_T:
+                continue  # (a side step of a rotation-aware agent turns first: it
+                # escapes there next step, see note_escape)
             if self.turning and mj.turns:
                 assert self.headings is not None
                 d = move_dir(here, u, self.cols)
@@ -452,6 +626,9 @@ class _Step:
         self.keep.update(self.log[mark:])
 
     def force(self, i: int, target: int) -> bool:
+        if target < 0:  # stay and turn a quarter (rotation-aware agents)
+            self.forced_turn[i] = -1 - target
+            target = self.poses[i][1]
         pose = successor(self.poses[i], target, self.movers[i].m)
         cells = pose_cells(pose, self.movers[i].k, self.cols)
         if not self.fits(i, cells):
@@ -466,7 +643,8 @@ class _Step:
 def footprint_step(movers: Sequence[Mover], poses: Sequence[Pose], prio: Sequence[float],
                    tie: np.ndarray, cols: int, forced: Mapping[int, int] | None = None,
                    budget: int | None = None, headings: Sequence[int] | None = None,
-                   ) -> list[Pose] | None:
+                   out_headings: list[int] | None = None, rotation: str = "stay",
+                   undo: Mapping[int, int] | None = None) -> list[Pose] | None:
     """Next pose of every agent, or None if the ``forced`` targets (agent -> node; the
     agent's own node to stay) contradict each other or cannot be made room for.
 
@@ -475,11 +653,19 @@ def footprint_step(movers: Sequence[Mover], poses: Sequence[Pose], prio: Sequenc
     number of pushes (default ``50 * len(poses) + 100``); when it runs out, agents only
     take targets nobody stands on. ``headings``: per agent the direction index it faces
     (:func:`~warerover_phys.planning.sweep.move_dir`; 4: unknown), needed for turn-aware
-    movers (see the module doc).
+    movers (see the module doc). ``out_headings`` (an empty list; with ``headings``) gets
+    each agent's heading once its next pose is done (turns of rotation-aware agents
+    included). ``rotation``: how rotation-aware movers take part (``stay``: a turn is a
+    way of staying, the default; ``cascade``: they are ranked like any agent, with turn
+    costs, then every one whose target is not ahead turns towards it instead and the
+    agents that would enter its cells stay too; see the module doc). ``undo`` (cascade
+    mode): per agent the heading it turned away from in the step before; it does not turn
+    straight back to it (it waits instead), which stops two agents from turning to and
+    fro in step with each other.
     """
     n = len(poses)
     step = _Step(movers, poses, cols, tie, 50 * n + 100 if budget is None else budget,
-                 headings)
+                 headings, rotation)
     fixed = {i: p[1] for i, p in enumerate(poses) if p[2] > 0}
     fixed.update(forced or {})
     for i in sorted(fixed):
@@ -502,4 +688,87 @@ def footprint_step(movers: Sequence[Mover], poses: Sequence[Pose], prio: Sequenc
     finally:
         sys.setrecursionlimit(limit)
     out = [p for p in step.nxt if p is not None]
-    return out if len(out) == n else None
+    if len(out) != n:
+        return None
+    if out_headings is not None and headings is not None:
+        out_headings[:] = next_headings(headings, poses, out, cols)
+        if step.rotating:
+            _rotate(step, out, out_headings, fixed)
+        elif step.cascade and not _cascade(step, out, out_headings, fixed, undo or {}):
+            return None
+    return out
+
+
+def _cascade(step: _Step, out: list[Pose], heads: list[int], fixed: Mapping[int, int],
+             undo: Mapping[int, int]) -> bool:
+    """``cascade`` mode: a rotation-aware agent whose target is not ahead turns a quarter
+    towards it and stays; then every agent that would enter cells of an agent that stays
+    stays too, until none does. False if a forced move would have to stay."""
+    assert step.headings is not None
+    cols = step.cols
+    for i, mv in enumerate(step.movers):
+        p = step.poses[i]
+        if mv.rot is None or p[2] != 0 or out[i][1] == p[1]:
+            continue
+        h = step.headings[i]
+        d = move_dir(p[1], out[i][1], cols)
+        if h > 3 or d == h:
+            continue
+        if i in fixed:
+            return False
+        new = turn_towards(h, d)
+        if undo.get(i) == new:
+            new = h  # no turning straight back: wait
+        heads[i] = new
+        q = mv.rot[0] if new != h else 1
+        out[i] = (p[1], p[1], q - 1) if q > 1 else (p[1], p[1], 0)
+    while True:
+        owner: dict[int, int] = {}
+        clash = None
+        for i, pose in enumerate(out):
+            for c in pose_cells(pose, step.movers[i].k, cols):
+                j = owner.get(c)
+                if j is not None:
+                    clash = (j, i)
+                    break
+                owner[c] = i
+            if clash is not None:
+                break
+        if clash is None:
+            return True
+        for x in clash:  # the one that moves into the other's cells stays
+            p = step.poses[x]
+            if p[2] == 0 and out[x][1] != p[1]:
+                if x in fixed:
+                    return False
+                out[x] = (p[1], p[1], 0)
+                heads[x] = step.headings[x]
+                break
+        else:
+            return False
+
+
+def _rotate(step: _Step, out: list[Pose], heads: list[int], fixed: Mapping[int, int]) -> None:
+    """Turn the rotation-aware agents that stay (see the module doc), in place."""
+    for i, mv in enumerate(step.movers):
+        if mv.rot is None or step.poses[i][2] != 0 or out[i][1] != step.poses[i][1]:
+            continue
+        h = heads[i]
+        if i in step.forced_turn:
+            new = step.forced_turn[i]
+        elif i in fixed or h > 3:
+            continue
+        else:
+            d = step.escape.get(i)
+            if d is None:
+                best = step.rot_options(i)[0]
+                d = best[2] if best[1] == step.poses[i][1] else -1
+            if d < 0 or d == h:
+                continue
+            new = turn_towards(h, d)
+        if new == h:
+            continue
+        heads[i] = new
+        q = mv.rot[0] if quarters(h, new) == 1 else mv.rot[1]
+        here = step.poses[i][1]
+        out[i] = (here, here, q - 1) if q > 1 else (here, here, 0)

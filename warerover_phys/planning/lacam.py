@@ -45,13 +45,21 @@ class _High:
 
 
 def lacam(graph: MotionGraph, starts: Sequence[Cell], goals: Sequence[Cell], deadline: float,
-          seed: int = 0) -> tuple[list[list[Cell]] | None, dict]:
+          seed: int = 0, guide: bool = False) -> tuple[list[list[Cell]] | None, dict]:
     """Solve; returns (paths or None, stats). None with ``stats["exhausted"]`` True means
-    there is no solution; otherwise the deadline passed."""
+    there is no solution; otherwise the deadline passed. ``guide``: PIBT follows guide paths
+    (:mod:`~warerover_phys.planning.scatter`, computed in at most half the time left)."""
     s = [graph.node(c) for c in starts]
     g = [graph.node(c) for c in goals]
     dists = [graph.dist_to(c) for c in goals]
-    configs, stats = lacam_nodes(graph, s, g, dists, deadline, np.random.default_rng(seed))
+    nxt, guide_stats = None, None
+    if guide:
+        from .scatter import guide_for
+        nxt, guide_stats = guide_for(graph, s, g, dists, seed, deadline)
+    configs, stats = lacam_nodes(graph, s, g, dists, deadline, np.random.default_rng(seed),
+                                 guide=nxt)
+    if guide_stats is not None:
+        stats["guide"] = guide_stats
     return (None if configs is None else _to_paths(graph, configs)), stats
 
 
@@ -60,6 +68,7 @@ def lacam_nodes(graph: MotionGraph, starts: Sequence[int], goals: Sequence[int],
                 tables: Sequence[Sequence[tuple[int, ...]]] | None = None,
                 held: Sequence[int] = (), prio: list[float] | None = None,
                 max_iterations: int | None = None,
+                guide: Sequence[dict[int, int]] | None = None,
                 ) -> tuple[list[list[int]] | None, dict]:
     """LaCAM over node indices: the configurations from ``starts`` to ``goals``.
 
@@ -68,7 +77,8 @@ def lacam_nodes(graph: MotionGraph, starts: Sequence[int], goals: Sequence[int],
     ``time.monotonic()`` value kept as a safety stop (``"time"``).
 
     ``tables`` gives each agent its own neighbour lists; agents in ``held`` never move (their
-    goal must be their start).
+    goal must be their start). ``guide``: per agent, the cell PIBT tries first from each
+    cell (:func:`~warerover_phys.planning.pibt.pibt_step`).
     """
     ties = rng.random(graph.num_nodes + 4099) * 0.5
     s, g = tuple(starts), tuple(goals)
@@ -123,7 +133,7 @@ def lacam_nodes(graph: MotionGraph, starts: Sequence[int], goals: Sequence[int],
         salt = int(rng.integers(4096))
         nxt = pibt_step(graph, node.config, dists, node.prio, ties[salt:], goals=g,
                         forced=held_moves + tuple(zip(low.who, low.where, strict=True)),
-                        tables=tables)
+                        tables=tables, guide=guide)
         if nxt is None:
             continue
         key = tuple(nxt)

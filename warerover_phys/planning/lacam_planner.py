@@ -38,11 +38,11 @@ import numpy as np
 from ..layout import CellType
 from .base import AgentRequest, PlanRequest, PlanResult, TimedPath, footprint_nodes
 from .footprint_lacam import footprint_lacam
-from .footprint_pibt import footprint_step, pose_states
+from .footprint_pibt import footprint_step
 from .graph import UNREACHABLE, MotionGraph
 from .lacam import lacam_nodes
 from .pibt import pibt_step
-from .pibt_planner import current_pose, headings_for, movers_for, uniform_fleet
+from .pibt_planner import commit_poses, current_pose, headings_for, movers_for, uniform_fleet
 from .reservation import ReservationTable
 
 __all__ = ["LaCAMPlanner", "effective_goals", "on_plan", "solve_footprints"]
@@ -133,21 +133,25 @@ def solve_footprints(request: PlanRequest, agents: list[AgentRequest], deadline:
     held = [i for i, a in enumerate(agents) if a.hold and poses[i][2] == 0]
     prio = [float(a.priority[0]) if a.priority else 0.0 for a in agents]
     rng = request.rng if request.rng is not None else np.random.default_rng(0)
-    headings = headings_for(agents)
+    headings = headings_for(agents, res, tick)
     configs, stats = footprint_lacam(movers, poses, res.cols, deadline, rng, held=held,
                                      prio=prio, max_iterations=max_iterations,
                                      headings=headings)
     _report_stop(stats, deadline - time.monotonic())
+    heads = stats.get("headings")
     if configs is None:
         result.budget_hits += not stats.get("exhausted", False)
+        out_heads: list[int] = []
         nxt = footprint_step(movers, poses, prio, rng.random(len(movers[0].dist)) * 0.5,
                              res.cols, forced={i: poses[i][1] for i in held},
-                             headings=headings)
+                             headings=headings, out_headings=out_heads)
         configs = [tuple(poses), tuple(nxt if nxt is not None else poses)]
+        if headings is not None:
+            heads = [headings, tuple(out_heads) if nxt is not None else headings]
+    if heads is None and headings is not None:
+        heads = [headings] * len(configs)  # no rotation-aware AGV: headings unused
+    commit_poses(result, res, agents, configs, heads, tick)
     for i, a in enumerate(agents):
-        path = TimedPath(a.agv, tick, pose_states([c[i] for c in configs]))
-        res.commit(path, a.k, a.heading)
-        result.paths[a.agv] = path
         if goals[i] != a.goal:
             result.detours.append(a.agv)
     return result

@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -66,9 +67,21 @@ ONESHOT_PLANNERS = ("lacam", "pibt", "astar", "learned")
 
 
 def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner: str = "lacam",
-          time_limit_s: float = 60.0, seed: int = 0) -> OneShotResult:
+          time_limit_s: float = 60.0, seed: int = 0, guide: bool = True,
+          refine: bool = False, refine_iterations: int | None = None,
+          on_improve: Callable[[float, int], None] | None = None) -> OneShotResult:
     """Solve a one-shot instance with the named planner; paths are not validated here
-    (use :func:`warerover_phys.validate.validate_states`)."""
+    (use :func:`warerover_phys.validate.validate_states`).
+
+    ``guide`` (``lacam`` and ``pibt``): PIBT follows guide paths that spread the agents over
+    the map (:mod:`~warerover_phys.planning.scatter`), for first solutions of far lower cost.
+
+    ``refine``: after the first solution, lower its sum of costs by large-neighbourhood
+    search (:mod:`~warerover_phys.planning.refine`) until ``REFINE_SHARE`` of the time limit
+    has passed since the call (or after ``refine_iterations`` neighbourhoods); the plan stays
+    valid throughout. ``on_improve(seconds, soc)`` is called after each improvement;
+    ``stats["refine"]`` holds the first solution's SoC and the SoC after each improvement.
+    """
     graph = grid_graph(obstacles)
     lb = 0
     for s, g in zip(starts, goals, strict=True):
@@ -77,13 +90,14 @@ def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner:
             raise PlanningError(f"goal {g} cannot be reached from start {s}")
         lb += d
     t0 = time.perf_counter()
-    deadline = time.monotonic() + time_limit_s
+    start_mono = time.monotonic()
+    deadline = start_mono + time_limit_s
     if planner == "pibt":
         from .pibt import pibt_oneshot
-        paths, stats = pibt_oneshot(graph, starts, goals, deadline, seed)
+        paths, stats = pibt_oneshot(graph, starts, goals, deadline, seed, guide=guide)
     elif planner == "lacam":
         from .lacam import lacam
-        paths, stats = lacam(graph, starts, goals, deadline, seed)
+        paths, stats = lacam(graph, starts, goals, deadline, seed, guide=guide)
     elif planner == "astar":
         paths, stats = _prioritized(graph, starts, goals, deadline)
     elif planner == "learned":
@@ -95,8 +109,36 @@ def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner:
     wall = time.perf_counter() - t0
     if paths is None:
         return OneShotResult(False, [], 0, 0, lb, wall, planner, stats)
+    if refine:
+        paths = _refine(graph, paths, goals, start_mono + REFINE_SHARE * time_limit_s, seed,
+                        refine_iterations, on_improve, stats)
+        wall = time.perf_counter() - t0
     soc, makespan = _costs(paths, goals)
     return OneShotResult(True, paths, soc, makespan, lb, wall, planner, stats)
+
+
+REFINE_SHARE = 0.98
+"""Refinement stops at this share of the time limit (after the call started), leaving the
+rest for building the result; the CLI's validation comes on top."""
+
+
+def _refine(graph: MotionGraph, paths: list[list[Cell]], goals: list[Cell], deadline: float,
+            seed: int, iterations: int | None, on_improve, stats: dict) -> list[list[Cell]]:
+    from .refine import refine
+
+    cols = graph.cols
+    nodes = [[r * cols + c for r, c in p] for p in paths]
+    goal_nodes = [graph.node(g) for g in goals]
+    dists = [graph.dist_to(g) for g in goals]
+    first = _costs(paths, goals)[0]
+    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(2)[1])
+    res = refine(graph.neighbors, nodes, goal_nodes, dists, deadline, rng,
+                 max_iterations=iterations, on_improve=on_improve)
+    stats["refine"] = {"first_soc": first, "soc": res.sum_of_costs,
+                       "history": [(round(t, 4), c) for t, c in res.history], **res.stats}
+    horizon = max((len(p) for p in res.paths), default=1)
+    return [[divmod(v, cols) for v in p] + [divmod(p[-1], cols)] * (horizon - len(p))
+            for p in res.paths]
 
 
 def _prioritized(graph: MotionGraph, starts: list[Cell], goals: list[Cell], deadline: float,

@@ -38,6 +38,17 @@ class TimedPath:
     agv: int
     start_tick: int
     states: tuple[State, ...]
+    headings: tuple[int, ...] | None = None
+    """Rotation-aware plans (``planner.rotations``): the heading of every state (direction
+    index 0 east, 1 south, 2 west, 3 north; :mod:`~warerover_phys.planning.rotation`);
+    None where the plan does not say (turns are then free)."""
+
+    def heading_at(self, tick: int) -> int | None:
+        """The planned heading at ``tick`` (held after the last state), or None."""
+        if self.headings is None:
+            return None
+        i = min(max(tick - self.start_tick, 0), len(self.headings) - 1)
+        return self.headings[i]
 
     @property
     def end_tick(self) -> int:

@@ -41,6 +41,7 @@ def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndar
               prio: Sequence[float], tie: np.ndarray,
               forced: Sequence[tuple[int, int]] = (), goals: Sequence[int] | None = None,
               swap: bool = True, tables: Sequence[Sequence[tuple[int, ...]]] | None = None,
+              guide: Sequence[dict[int, int]] | None = None,
               ) -> list[int] | None:
     """Next configuration from ``config`` (one node per agent), or None if ``forced``
     moves (agent, node) contradict each other.
@@ -50,7 +51,9 @@ def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndar
     pass each other in a corridor swap places by backing one of them into a branch
     ("swap" of Okumura, AAMAS 2024), which plain PIBT cannot do. ``tables`` gives each agent
     its own neighbour lists (e.g. loaded AGVs keep to the aisles); an agent never steps onto
-    a cell from which its goal is unreachable.
+    a cell from which its goal is unreachable. ``guide`` (one-shot instances,
+    :mod:`~warerover_phys.planning.scatter`): ``guide[i][v]`` is the cell agent i tries first
+    when it stands on ``v`` (the next cell of its guide path); its other cells keep their order.
     """
     n = len(config)
     neighbors = graph.neighbors
@@ -131,6 +134,11 @@ def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndar
         near = tables[i][here] if tables is not None else neighbors[here]
         cands = sorted([v for v in near if d[v] < UNREACHABLE] + [here],
                        key=lambda v: d[v] + tie[v])
+        if guide is not None:
+            first = guide[i].get(here)
+            if first is not None and first != cands[0] and first in cands:
+                cands.remove(first)
+                cands.insert(0, first)
         partner = -1
         if swap and goal_of is not None:
             partner = swap_partner(i, cands[0])
@@ -170,24 +178,30 @@ def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndar
 
 def pibt_oneshot(graph: MotionGraph, starts: Sequence[Cell], goals: Sequence[Cell],
                  deadline: float, seed: int = 0, max_steps: int | None = None,
-                 ) -> tuple[list[list[Cell]] | None, dict]:
-    """Plain PIBT until every agent stands on its goal (PIBT alone may livelock)."""
+                 guide: bool = False) -> tuple[list[list[Cell]] | None, dict]:
+    """Plain PIBT until every agent stands on its goal (PIBT alone may livelock).
+    ``guide``: follow guide paths (:mod:`~warerover_phys.planning.scatter`)."""
     rng = np.random.default_rng(seed)
     s = [graph.node(c) for c in starts]
     g = [graph.node(c) for c in goals]
     dists = [graph.dist_to(c) for c in goals]
+    nxt_of, guide_stats = None, None
+    if guide:
+        from .scatter import guide_for
+        nxt_of, guide_stats = guide_for(graph, s, g, dists, seed, deadline)
+    extra = {} if guide_stats is None else {"guide": guide_stats}
     prio = initial_priorities(dists, s)
     configs = [s]
     max_steps = max_steps or 20 * (graph.rows + graph.cols) + 1000
     while configs[-1] != g:
         if len(configs) > max_steps or time.monotonic() > deadline:
-            return None, {"steps": len(configs) - 1}
+            return None, {"steps": len(configs) - 1, **extra}
         nxt = pibt_step(graph, configs[-1], dists, prio, rng.random(graph.num_nodes) * 0.5,
-                        goals=g)
+                        goals=g, guide=nxt_of)
         assert nxt is not None
         configs.append(nxt)
         prio = update_priorities(prio, nxt, g)
-    return _to_paths(graph, configs), {"steps": len(configs) - 1}
+    return _to_paths(graph, configs), {"steps": len(configs) - 1, **extra}
 
 
 def _to_paths(graph: MotionGraph, configs: list[list[int]]) -> list[list[Cell]]:

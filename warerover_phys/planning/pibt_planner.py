@@ -16,6 +16,11 @@ turns in place must be reserved, :func:`~warerover_phys.planning.sweep.turn_awar
 footprint-aware step then tracks headings, turn locks, swept cells and no-turn anchors, and
 ranks moves by heading-aware distances (:meth:`~warerover_phys.planning.graph.MotionGraph.
 turn_dist`).
+
+Rotation-aware AGVs (``planner.rotations``, :mod:`~warerover_phys.planning.rotation`) take the
+footprint-aware step too: each moves only straight ahead or turns a quarter in place (see
+:mod:`footprint_pibt`), and its path carries headings. A turn of several ticks is committed
+whole and read back from the path like a slow move.
 """
 
 from __future__ import annotations
@@ -25,18 +30,21 @@ from collections.abc import Sequence
 import numpy as np
 
 from .base import AgentRequest, PlanRequest, PlanResult, TimedPath
-from .footprint_pibt import Mover, Pose, footprint_step, pose_states, successor
+from .footprint_pibt import Mover, Pose, footprint_step, pose_path, pose_states, successor
 from .pibt import pibt_step
 from .reservation import ReservationTable
+from .rotation import graph_rotation_dist
 from .sweep import turn_aware
 from .turns import heading_index
 
-__all__ = ["PIBTPlanner", "uniform_fleet", "movers_for", "current_pose", "headings_for"]
+__all__ = ["PIBTPlanner", "uniform_fleet", "movers_for", "current_pose", "headings_for",
+           "commit_poses"]
 
 
 def uniform_fleet(agents: Sequence[AgentRequest]) -> bool:
     """Only 1x1 AGVs that move one cell per tick, none turn-aware (the fast path)?"""
-    return all(a.k == 1 and a.ticks_per_move == 1 and not turn_aware(a) for a in agents)
+    return all(a.k == 1 and a.ticks_per_move == 1 and not turn_aware(a)
+               and a.turn_ticks is None for a in agents)
 
 
 def movers_for(request: PlanRequest, agents: Sequence[AgentRequest],
@@ -46,7 +54,12 @@ def movers_for(request: PlanRequest, agents: Sequence[AgentRequest],
     out = []
     for a, goal in zip(agents, goals, strict=True):
         graph = request.graphs.get(a.k, a.loaded, a.shelf)
-        if turn_aware(a):
+        if a.turn_ticks is not None:
+            out.append(Mover(a.k, a.ticks_per_move, graph.neighbors,
+                             graph.dist_to(graph.cell(goal)), goal, rot=a.turn_ticks,
+                             rdist=graph_rotation_dist(graph, goal, a.ticks_per_move,
+                                                       *a.turn_ticks)))
+        elif turn_aware(a):
             sw = a.sweep
             out.append(Mover(a.k, a.ticks_per_move, graph.neighbors,
                              graph.dist_to(graph.cell(goal)), goal,
@@ -63,11 +76,63 @@ def movers_for(request: PlanRequest, agents: Sequence[AgentRequest],
     return out
 
 
-def headings_for(agents: Sequence[AgentRequest]) -> tuple[int, ...] | None:
-    """Direction indices the agents face, if any is turn-aware (else None)."""
-    if not any(turn_aware(a) for a in agents):
+def headings_for(agents: Sequence[AgentRequest], res: ReservationTable | None = None,
+                 tick: int = 0) -> tuple[int, ...] | None:
+    """Direction indices the agents face, if any is turn-aware or rotation-aware (else
+    None). With ``res``, a rotation-aware AGV in the middle of a turn (its committed path
+    turns it later without moving: :func:`current_pose`) counts with the heading the turn
+    ends in."""
+    if not any(turn_aware(a) or a.turn_ticks is not None for a in agents):
         return None
-    return tuple(heading_index(a.heading) for a in agents)
+    out = []
+    for a in agents:
+        h = heading_index(a.heading)
+        if res is not None and a.turn_ticks is not None:
+            end = _turn_end(res, a, tick)
+            if end is not None:
+                h = end[1]
+        out.append(h)
+    return tuple(out)
+
+
+def _last_turns(res: ReservationTable, agents: Sequence[AgentRequest],
+                tick: int) -> dict[int, int]:
+    """Per rotation-aware agent (index) that turned in the tick before ``tick``, the
+    heading it turned away from (read from its committed path)."""
+    out = {}
+    for i, a in enumerate(agents):
+        path = res.paths.get(a.agv)
+        if a.turn_ticks is None or path is None or path.headings is None:
+            continue
+        before, now = path.heading_at(tick - 1), path.heading_at(tick)
+        if path.start_tick <= tick - 1 and before != now and \
+                path.state_at(tick - 1) == path.state_at(tick):
+            out[i] = before
+    return out
+
+
+def _turn_end(res: ReservationTable, agent: AgentRequest, tick: int) -> tuple[int, int] | None:
+    """A rotation-aware AGV in the middle of a committed turn of more than one tick:
+    (ticks left, heading after it), else None."""
+    path = res.paths.get(agent.agv)
+    if path is None or path.headings is None or agent.turn_ticks is None \
+            or max(agent.turn_ticks) <= 1:
+        return None
+    i = tick - path.start_tick
+    if not 0 <= i < len(path.states) - 1:
+        return None
+    here = (agent.start, agent.start)
+    h = path.headings[i]
+    if path.states[i] != here or path.heading_at(tick) != heading_index(agent.heading):
+        return None
+    for j in range(i + 1, min(len(path.states), i + max(agent.turn_ticks) + 1)):
+        if path.states[j] != here:
+            return None
+        if path.headings[j] != h:
+            # the turn started before this tick if it needs more ticks than are left
+            need = agent.turn_ticks[0 if (path.headings[j] - h) % 2 else 1]
+            return (j - i, path.headings[j]) if j - i < need else None
+    return None
 
 
 def current_pose(res: ReservationTable, agent: AgentRequest, tick: int) -> Pose:
@@ -77,6 +142,9 @@ def current_pose(res: ReservationTable, agent: AgentRequest, tick: int) -> Pose:
     path = res.paths.get(agent.agv)
     if path is None:
         return (here, here, 0)
+    turn = _turn_end(res, agent, tick)
+    if turn is not None:
+        return (here, here, turn[0])
     a, b = path.state_at(tick)
     if a == b or b != here:
         return (here, here, 0)
@@ -91,8 +159,10 @@ class PIBTPlanner:
     replans_all = True
     """The loop must send every AGV every tick."""
 
-    def __init__(self, swap: bool = True, **_: object) -> None:
+    def __init__(self, swap: bool = True, rotation: str = "cascade", **_: object) -> None:
         self.swap = swap
+        self.rotation = rotation
+        """How rotation-aware AGVs take part in a step (``footprint_step``'s ``rotation``)."""
 
     def plan(self, request: PlanRequest) -> PlanResult:
         agents: list[AgentRequest] = sorted(request.agents, key=lambda a: a.agv)
@@ -133,13 +203,33 @@ class PIBTPlanner:
         held = {i: a.start for i, a in enumerate(agents) if a.hold and poses[i][2] == 0}
         rng = request.rng if request.rng is not None else np.random.default_rng(0)
         tie = rng.random(len(movers[0].dist)) * 0.5
+        heads = headings_for(agents, res, tick)
+        out_heads: list[int] = []
         nxt = footprint_step(movers, poses, prio, tie, res.cols, forced=held,
-                             headings=headings_for(agents))
+                             headings=heads, out_headings=out_heads,
+                             rotation=self.rotation, undo=_last_turns(res, agents, tick))
         if nxt is None:  # holds never contradict each other; be safe and keep still
             nxt = [successor(p, p[1], mv.m) for p, mv in zip(poses, movers, strict=True)]
+            out_heads = list(heads) if heads is not None else []
         result = PlanResult()
-        for a, here, there in zip(agents, poses, nxt, strict=True):
-            path = TimedPath(a.agv, tick, pose_states([here, there]))
-            res.commit(path, a.k, a.heading)
-            result.paths[a.agv] = path
+        configs = [tuple(poses), tuple(nxt)]
+        commit_poses(result, res, agents, configs,
+                     [heads, tuple(out_heads)] if heads is not None else None, tick)
         return result
+
+
+def commit_poses(result: PlanResult, res: ReservationTable, agents: Sequence[AgentRequest],
+                 configs: Sequence[Sequence[Pose]], heads: Sequence[Sequence[int]] | None,
+                 tick: int) -> None:
+    """Each AGV's path through the pose ``configs`` (from ``tick``), with headings for the
+    rotation-aware ones (``heads``: per config each agent's heading once its pose is
+    done), committed into ``res`` and added to ``result``."""
+    for i, a in enumerate(agents):
+        poses = [c[i] for c in configs]
+        if a.turn_ticks is not None and heads is not None:
+            states, hs = pose_path(poses, [h[i] for h in heads], heading_index(a.heading))
+            path = TimedPath(a.agv, tick, states, hs)
+        else:
+            path = TimedPath(a.agv, tick, pose_states(poses))
+        res.commit(path, a.k, a.heading)
+        result.paths[a.agv] = path

@@ -18,7 +18,22 @@ holds ``n`` (the *occupants' own extents* are taken into account):
   the two turns must not happen at once. That is no cell: a body standing still at ``a`` is
   not hit. :func:`turn_locks` gives these anchors; a turn *locks* its own anchor and each of
   them (two overlapping turns then share a lock and are ordered), nothing else waits on a
-  lock.
+  lock;
+- a shelf the occupant may carry (:attr:`BodyShape.shelf_m`, a square of side
+  :data:`SHELF_BOX` x footprint x cell size when the layout holds shelves it can lift): a
+  carried shelf is kept parallel to the grid while its AGV turns under it (the physics
+  executor, the recording and the clearance figures all model it so), so a loaded body
+  standing or driving straight holds the box of its shelf as well as its own rectangle,
+  whichever reaches further. :func:`sweep_offsets` with shelves gives every cell whose
+  occupant *could* be hit if it carried a shelf; :func:`agv_sweeps` splits that into
+  :attr:`Sweep.cells` (held against every AGV) and :attr:`Sweep.shelf_cells` (held only
+  against AGVs that carry a shelf then). A 0.8 m body's disc (``r = 0.566 m``) misses an
+  aligned neighbour's 0.8 m body by 3.4 cm but reaches 1.6 cm into the 0.9 m shelf it may
+  carry, so its turns hold the four edge neighbours as shelf cells: it may turn beside an
+  unloaded AGV (parked, or on its way to a shelf), not beside a loaded one.
+
+The turner's own carried shelf does not turn either: it stays in the turner's footprint and
+sweeps nothing.
 
 Placements that would overlap the turner's own footprint are ignored (the turner holds those
 cells). Touching is not overlapping: with 0.7 m bodies on 1 m cells two neighbours turning at
@@ -35,6 +50,9 @@ independent validator's sweep check).
 >>> small = BodyShape(k=1, length_m=0.8, width_m=0.8, turns=True)
 >>> sweep_offsets(small, (small,), 1.0)  # a neighbour standing aligned is not reached
 ()
+>>> loaded = BodyShape(k=1, length_m=0.8, width_m=0.8, turns=True, shelf_m=0.9)
+>>> sweep_offsets(loaded, (loaded,), 1.0)  # but the 0.9 m shelf it may carry is
+((-1, 0), (0, -1), (0, 1), (1, 0))
 >>> turn_locks(small, (small,), 1.0)  # but two neighbours turning at once collide
 ((-1, 0), (0, -1), (0, 0), (0, 1), (1, 0))
 >>> default = BodyShape(k=1, length_m=0.7, width_m=0.7, turns=True)
@@ -58,7 +76,7 @@ __all__ = ["turn_locks", "BodyShape", "SweepError", "disc_overlaps_rect", "discs
            "fleet_sweeps", "agv_sweeps", "Sweep", "check_fleet_sweeps", "static_sweep_hits", "turn_sweeps", "sweep_cells",
            "sweep_conflicts", "SweepConflict", "EAST", "no_turn_anchors", "dead_ends", "move_dir",
            "DIR_OF", "turn_aware", "lock_keys", "turn_fields", "heading_after", "turn_dist",
-           "TurnMasks", "SHELF_BOX"]
+           "TurnMasks", "SHELF_BOX", "carried_shelf_m"]
 
 EAST = (0, 1)
 """``(drow, dcol)`` an AGV faces when it is placed (heading 0 = +x)."""
@@ -79,17 +97,56 @@ class BodyShape:
     width_m: float
     turns: bool
     """Differential drive (turns in place); omnidirectional AGVs never turn."""
+    shelf_m: float = 0.0
+    """Side (metres) of the square shelf it may carry, kept parallel to the grid (0: it
+    never carries one; :func:`carried_shelf_m`)."""
 
     @property
     def radius_m(self) -> float:
         """Half-diagonal: the radius of the disc swept by a turn in place."""
         return math.hypot(self.length_m, self.width_m) / 2
 
+    @property
+    def reach_m(self) -> float:
+        """How far from its centre anything it carries reaches (body or shelf corner)."""
+        return max(self.radius_m, self.shelf_m / math.sqrt(2))
+
     @classmethod
-    def of(cls, spec) -> BodyShape:
-        """From an :class:`~warerover_phys.config.AgvTypeSpec`."""
+    def of(cls, spec, shelf_m: float = 0.0) -> BodyShape:
+        """From an :class:`~warerover_phys.config.AgvTypeSpec` (``shelf_m``: the side of
+        the shelf it may carry, :func:`carried_shelf_m`)."""
         return cls(int(spec.footprint), float(spec.body_m[0]), float(spec.body_m[1]),
-                   spec.drive == "diff")
+                   spec.drive == "diff", float(shelf_m))
+
+
+def carried_shelf_m(layout, spec) -> float:
+    """Side (metres) of the square shelf an AGV of type ``spec`` may carry on ``layout``:
+    :data:`SHELF_BOX` x its footprint x the cell size if the layout holds a shelf it can
+    lift, else 0 (``layout`` None: no shelves)."""
+    if layout is None:
+        return 0.0
+    from ..world import can_carry
+
+    if any(can_carry(spec, size) for size in {sh.size for sh in layout.shelves}):
+        return SHELF_BOX * int(spec.footprint) * float(layout.cell_m)
+    return 0.0
+
+
+def _shapes(specs: Sequence, layout) -> list[BodyShape]:
+    """:class:`BodyShape` per spec, with the shelf each may carry on ``layout``."""
+    cache: dict[int, BodyShape] = {}
+    out = []
+    for spec in specs:
+        key = id(spec)
+        if key not in cache:
+            cache[key] = BodyShape.of(spec, carried_shelf_m(layout, spec))
+        out.append(cache[key])
+    return out
+
+
+def _fleet(shapes) -> tuple[BodyShape, ...]:
+    return tuple(sorted(set(shapes), key=lambda s: (s.k, s.length_m, s.width_m, s.turns,
+                                                    s.shelf_m)))
 
 
 def disc_overlaps_rect(cx: float, cy: float, r: float, x0: float, y0: float, x1: float,
@@ -138,7 +195,8 @@ def sweep_offsets(turner: BodyShape, fleet: tuple[BodyShape, ...], cell_m: float
     for b in fleet:
         kb = b.k
         hl, hw = b.length_m / 2, b.width_m / 2
-        reach = math.ceil((r_a + b.radius_m) / m) + kb + 1
+        hs = b.shelf_m / 2  # a carried shelf: axis-aligned, whatever the body's heading
+        reach = math.ceil((r_a + b.reach_m) / m) + kb + 1
         for ar in range(-reach, k + reach):
             for ac in range(-reach, k + reach):
                 fa = set(_fp(ar, ac, kb))
@@ -146,10 +204,14 @@ def sweep_offsets(turner: BodyShape, fleet: tuple[BodyShape, ...], cell_m: float
                     continue
                 qx, qy = _centre(ar, ac, kb, m)
                 # Standing (omni: axis-aligned; a diff body standing is inside its disc,
-                # handled above) and driving one cell straight from ``a``.
+                # handled above, but the shelf it carries is not) and driving one cell
+                # straight from ``a``.
                 shapes = []
                 if not b.turns:
-                    shapes.append(((qx - hl, qy - hw, qx + hl, qy + hw), fa))
+                    sx, sy = max(hl, hs), max(hw, hs)
+                    shapes.append(((qx - sx, qy - sy, qx + sx, qy + sy), fa))
+                elif hs > 0:
+                    shapes.append(((qx - hs, qy - hs, qx + hs, qy + hs), fa))
                 for dr, dc in _DIRS:
                     fb = set(_fp(ar + dr, ac + dc, kb))
                     if fb & own:
@@ -159,6 +221,7 @@ def sweep_offsets(turner: BodyShape, fleet: tuple[BodyShape, ...], cell_m: float
                         ex, ey = (hl, hw) if dc else (hw, hl)
                     else:
                         ex, ey = hl, hw
+                    ex, ey = max(ex, hs), max(ey, hs)
                     shapes.append(((min(qx, rx) - ex, min(qy, ry) - ey,
                                     max(qx, rx) + ex, max(qy, ry) + ey), fa | fb))
                 for (x0, y0, x1, y1), cells in shapes:
@@ -205,34 +268,49 @@ def turn_locks(turner: BodyShape, fleet: tuple[BodyShape, ...], cell_m: float,
     return tuple(sorted(out | {(0, 0)})) if out else ()
 
 
-def fleet_sweeps(types: Mapping[str, object], cell_m: float) -> dict[str, tuple]:
-    """:func:`sweep_offsets` of every AGV type (``name -> AgvTypeSpec``) of a fleet."""
-    shapes = {name: BodyShape.of(spec) for name, spec in types.items()}
-    fleet = tuple(sorted(set(shapes.values()), key=lambda s: (s.k, s.length_m, s.width_m,
-                                                                s.turns)))
+def fleet_sweeps(types: Mapping[str, object], cell_m: float, layout=None,
+                 ) -> dict[str, tuple]:
+    """:func:`sweep_offsets` of every AGV type (``name -> AgvTypeSpec``) of a fleet
+    (``layout``: the floor whose shelves they may carry; None: no shelves)."""
+    names = list(types)
+    shapes = dict(zip(names, _shapes([types[n] for n in names], layout), strict=True))
+    fleet = _fleet(shapes.values())
     return {name: sweep_offsets(s, fleet, cell_m) for name, s in shapes.items()}
 
 
 class Sweep(NamedTuple):
     """What one AGV's turn in place holds: ``cells`` (offsets from its anchor, held
-    exclusively, :func:`sweep_offsets`) and ``locks`` (anchor offsets, :func:`turn_locks`)."""
+    exclusively, :func:`sweep_offsets`), ``locks`` (anchor offsets, :func:`turn_locks`)
+    and ``shelf_cells`` (offsets held only against AGVs that carry a shelf at the time:
+    the disc reaches the shelf such an occupant may carry but not its body)."""
 
     cells: tuple[tuple[int, int], ...]
     locks: tuple[tuple[int, int], ...]
+    shelf_cells: tuple[tuple[int, int], ...] = ()
 
 
-def agv_sweeps(specs: Sequence, cell_m: float) -> dict[int, Sweep]:
+def agv_sweeps(specs: Sequence, cell_m: float, layout=None) -> dict[int, Sweep]:
     """Per AGV (index into ``specs``, one ``AgvTypeSpec`` each) what its turns hold;
     AGVs whose turns hold nothing are left out (all of them for 0.7 m bodies on 1 m
-    cells)."""
-    shapes = [BodyShape.of(s) for s in specs]
-    fleet = tuple(sorted(set(shapes), key=lambda s: (s.k, s.length_m, s.width_m, s.turns)))
+    cells). ``layout``: the floor whose shelves the AGVs may carry (None: no shelves;
+    the planners, the dependency graph and the validator must all pass the same)."""
+    shapes = _shapes(specs, layout)
+    fleet = _fleet(shapes)
+    bare = _fleet(_bare(s) for s in shapes)
     out = {}
     for i, s in enumerate(shapes):
-        sw = Sweep(sweep_offsets(s, fleet, cell_m), turn_locks(s, fleet, cell_m))
-        if sw.cells or sw.locks:
+        body = sweep_offsets(_bare(s), bare, cell_m)
+        loaded = sweep_offsets(s, fleet, cell_m) if s.shelf_m or any(
+            b.shelf_m for b in fleet) else body
+        sw = Sweep(body, turn_locks(_bare(s), bare, cell_m),
+                   tuple(c for c in loaded if c not in body))
+        if sw.cells or sw.locks or sw.shelf_cells:
             out[i] = sw
     return out
+
+
+def _bare(s: BodyShape) -> BodyShape:
+    return BodyShape(s.k, s.length_m, s.width_m, s.turns)
 
 
 def turn_fields(layout, specs: Sequence) -> dict[int, tuple[Sweep | None, frozenset[int]]]:
@@ -240,7 +318,7 @@ def turn_fields(layout, specs: Sequence) -> dict[int, tuple[Sweep | None, frozen
     plan its turns (:class:`~warerover_phys.planning.base.AgentRequest`'s ``sweep`` and
     ``no_turn``); AGVs whose turns need nothing are left out (all of them for the default
     0.7 m bodies on 1 m cells)."""
-    sweeps = agv_sweeps(specs, layout.cell_m)
+    sweeps = agv_sweeps(specs, layout.cell_m, layout)
     masks: dict[BodyShape, frozenset[int]] = {}
     out = {}
     for i, spec in enumerate(specs):
@@ -252,20 +330,30 @@ def turn_fields(layout, specs: Sequence) -> dict[int, tuple[Sweep | None, frozen
     return out
 
 
-def check_fleet_sweeps(types: Mapping[str, object], cell_m: float) -> list[str]:
+def check_fleet_sweeps(types: Mapping[str, object], cell_m: float, layout=None,
+                       ) -> list[str]:
     """Problems with the fleet's turning sweeps, one sentence each (empty if none): a type
-    whose swept disc reaches bodies the reservation cannot hold (see the module doc)."""
-    shapes = {name: BodyShape.of(spec) for name, spec in types.items()}
-    fleet = tuple(sorted(set(shapes.values()), key=lambda s: (s.k, s.length_m, s.width_m,
-                                                                s.turns)))
+    whose swept disc reaches bodies, or shelves they may carry on ``layout``, that the
+    reservation cannot hold (see the module doc)."""
+    names = list(types)
+    shapes = dict(zip(names, _shapes([types[n] for n in names], layout), strict=True))
+    fleet = _fleet(shapes.values())
+    bare = _fleet(_bare(s) for s in shapes.values())
     out = []
     for name, s in shapes.items():
         try:
             sweep_offsets(s, fleet, cell_m)
         except SweepError as err:
+            try:
+                sweep_offsets(_bare(s), bare, cell_m)
+                shelves = sorted({f"{b.shelf_m:g} m" for b in fleet if b.shelf_m > 0})
+                why = (f"; with the shelves the fleet carries on this layout "
+                       f"({', '.join(shelves)} squares, kept parallel to the grid) {err}")
+            except SweepError:
+                why = f"; {err}"
             out.append(f"fleet.types.{name}: a {s.length_m} x {s.width_m} m body on a "
                        f"{s.k}x{s.k} footprint turning in place sweeps a disc of radius "
-                       f"{s.radius_m:.3f} m on {cell_m} m cells; {err}, so its turns cannot "
+                       f"{s.radius_m:.3f} m on {cell_m} m cells{why}, so its turns cannot "
                        "be reserved (use a smaller body, drive: omni, or larger cells)")
     return out
 
@@ -509,14 +597,16 @@ class SweepConflict:
     tick: int
     agvs: tuple[int, ...]
     """(turning AGV, AGV in the swept cells); (one turning AGV, the other) for ``turn_lock``;
-    (the turning AGV,) for ``turn_wall``."""
+    (the turning AGV,) for ``turn_wall``; (turning AGV, loaded AGV) for ``shelf_sweep``."""
     cell: tuple[int, int]
     """The swept cell held by the other AGV; the first turn's anchor for ``turn_lock`` and
     ``turn_wall``."""
     kind: str = "sweep"
     """``sweep``: a turn's swept cell is held by another AGV at the turn's tick or the next;
     ``turn_lock``: two turns at one tick share a turn lock (their swept discs may touch);
-    ``turn_wall``: a turn where the swept disc reaches an obstacle or the map edge."""
+    ``turn_wall``: a turn where the swept disc reaches an obstacle or the map edge;
+    ``shelf_sweep``: a turn's shelf cell (:attr:`Sweep.shelf_cells`) is held by an AGV that
+    carries a shelf at the turn's tick or the next."""
     other: tuple[int, int] | None = None
     """The second turn's anchor (``turn_lock``)."""
 
@@ -529,6 +619,10 @@ class SweepConflict:
             return (f"turn-at-wall conflict at tick {self.tick}: AGV {self.agvs[0]} turns in "
                     f"place at {self.cell}, where its swept disc reaches an obstacle or the "
                     "map edge")
+        if self.kind == "shelf_sweep":
+            return (f"shelf sweep conflict at tick {self.tick}: AGV {self.agvs[0]} turns in "
+                    f"place while AGV {self.agvs[1]}, carrying a shelf, holds {self.cell} "
+                    "(the swept disc reaches its shelf)")
         return (f"sweep conflict at tick {self.tick}: AGV {self.agvs[0]} turns in place "
                 f"while AGV {self.agvs[1]} holds {self.cell}")
 
@@ -539,6 +633,8 @@ def sweep_conflicts(trajectories: Mapping[int, Sequence[tuple[int, int]]], rows:
                     | None = None, max_conflicts: int = 100,
                     locks: Mapping[int, Sequence[tuple[int, int]]] | None = None,
                     no_turn: Mapping[int, frozenset[int]] | None = None,
+                    shelf_offsets: Mapping[int, Sequence] | None = None,
+                    loaded: Mapping[int, Sequence[bool] | bool] | None = None,
                     ) -> list[SweepConflict]:
     """Turns whose swept cells another AGV occupies at the turn's tick or the next one
     (kind ``sweep``), pairs of turns at one tick that share a turn lock (``turn_lock``,
@@ -549,8 +645,18 @@ def sweep_conflicts(trajectories: Mapping[int, Sequence[tuple[int, int]]], rows:
     (``(a, b)`` flat anchors, moving if different; the last state holds). ``offsets``:
     per AGV the cells its turns hold (:func:`sweep_offsets`; missing or empty: it never
     sweeps). ``headings``: the direction each AGV faces before its first move (default
-    east, as AGVs are placed; None: unknown)."""
+    east, as AGVs are placed; None: unknown). ``shelf_offsets``: per AGV its turns'
+    :attr:`Sweep.shelf_cells`, checked (kind ``shelf_sweep``) against AGVs that carry a
+    shelf: ``loaded`` per AGV a bool or one bool per state (missing: loaded)."""
     headings = headings or {}
+    shelf_offsets = shelf_offsets or {}
+
+    def loaded_at(agv: int, i: int) -> bool:
+        x = True if loaded is None else loaded.get(agv, True)
+        if isinstance(x, bool):
+            return x
+        return bool(x[min(i, len(x) - 1)]) if len(x) else True
+
     locks = locks or {}
     no_turn = no_turn or {}
     horizon = max((len(s) for s in trajectories.values()), default=0)
@@ -571,7 +677,8 @@ def sweep_conflicts(trajectories: Mapping[int, Sequence[tuple[int, int]]], rows:
         off = offsets.get(agv)
         lk = locks.get(agv)
         walls = no_turn.get(agv, frozenset())
-        if not off and not lk and not walls:
+        shelf_off = shelf_offsets.get(agv)
+        if not off and not lk and not walls and not shelf_off:
             continue
         for i, anchor in turn_sweeps(states, cols, headings.get(agv, EAST)):
             if anchor in walls:
@@ -581,6 +688,18 @@ def sweep_conflicts(trajectories: Mapping[int, Sequence[tuple[int, int]]], rows:
                 r, c = divmod(anchor, cols)
                 turns_at.setdefault(i, []).append(
                     (agv, anchor, {(r + dr, c + dc) for dr, dc in lk}))
+            if shelf_off:
+                shelf_swept = set(sweep_cells(anchor, shelf_off, rows, cols))
+                for j in (i, i + 1):
+                    if j >= horizon:
+                        continue
+                    for other in sorted(trajectories):
+                        if other == agv or not loaded_at(other, j):
+                            continue
+                        hit = shelf_swept & cells_at(other, j)
+                        if hit:
+                            out.append(SweepConflict(start_tick + j, (agv, other),
+                                                     divmod(min(hit), cols), "shelf_sweep"))
             if not off:
                 continue
             swept = set(sweep_cells(anchor, off, rows, cols))

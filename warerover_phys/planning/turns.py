@@ -20,6 +20,14 @@ one it faces (its last move's). When its body's swept disc leaves its footprint
 Turns take no ticks of their own in the plan (the physics executor spends the turn's time
 inside the move, and its dependency graph orders overlapping turns).
 
+Rotations (issue 15, ``planner.rotations``; :mod:`~warerover_phys.planning.rotation`): for an
+agent with ``turn_ticks`` the same search moves only along the heading and turns in place as
+actions of their own: a quarter turn (either way) takes ``turn_ticks[0]`` ticks, a half turn
+``turn_ticks[1]``, standing on the anchor throughout (CBS no-turn constraints and the turn
+checks above apply at the turn's first tick); the heuristic is the exact single-agent
+distance over (anchor, heading) in ticks (:func:`~warerover_phys.planning.rotation.
+graph_rotation_dist`), and the path carries the heading of every state.
+
 Only AGVs that need it are searched this way (:func:`~warerover_phys.planning.sweep.
 turn_aware`): for the default 0.7 m bodies on 1 m cells nothing changes.
 """
@@ -32,6 +40,7 @@ from collections.abc import Sequence
 from .base import AgentRequest, State, TimedPath, footprint_nodes
 from .graph import UNREACHABLE, MotionGraph
 from .reservation import FOREVER, ReservationTable
+from .rotation import UNREACHABLE_T, graph_rotation_dist
 from .sweep import DIR_OF, lock_keys, move_dir, sweep_cells
 
 __all__ = ["turning_astar", "turn_ok", "heading_index", "request_turn_fields"]
@@ -92,6 +101,7 @@ def turning_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest
     cols, rows, k, m, me = graph.cols, graph.rows, agent.k, agent.ticks_per_move, agent.agv
     start, goal = agent.start, agent.goal
     occ, rest = res._occ, res._rest
+    cap = max_expansions
     vertex = constraints.vertex if constraints is not None else {}
     edge = constraints.edge if constraints is not None else set()
     never = constraints.never if constraints is not None else {}
@@ -180,10 +190,31 @@ def turning_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest
         v = int(h_table[node])
         return v * m if v < UNREACHABLE else (h0 * m if node == start else UNREACHABLE)
 
+    rot = agent.turn_ticks
+    if rot is not None:
+        r_table = graph_rotation_dist(graph, goal, m, rot[0], rot[1])
+        r_min = r_table.min(axis=1)
+
+        def hr(node: int, hd: int) -> int:
+            v = int(r_table[node, hd] if hd < 4 else r_min[node])
+            if v < UNREACHABLE_T:
+                return v
+            return h(node) + (rot[1] if node == start else 0)
+
+        h_start = hr(start, heading_index(agent.heading))
+        t_limit += h_start - h0 * m
+        if cbs:
+            max_expansions = min(cap, 40 * (h_start + 25 + n_cons))
+        elif budget_per_move is not None:
+            max_expansions = min(cap, budget_per_move * (h_start + 25))
+
     loaded_sinks = graph.has_sinks
     expandable = graph.expandable_flat
     neighbors = graph.neighbors
     s0 = start * 5 + heading_index(agent.heading)
+    if rot is not None:
+        return _rotating_search(graph, agent, t0, s0, t_free, t_max, t_limit, max_expansions,
+                                hr, ok, hits, can_turn, edge, dead, fp, m, res, me)
     open_heap: list[tuple[int, int, int, int, int]] = [(t0 + h(start), 0, -t0, s0, t0)]
     parent: dict[tuple[int, int], tuple[int, int] | None] = {(s0, t0): None}
     best: dict[tuple[int, int], int] = {(s0, t0): 0}
@@ -265,16 +296,124 @@ def _swaps(res: ReservationTable, here: tuple[int, ...], there: tuple[int, ...],
     return False
 
 
-def _reconstruct(parent: dict, key: tuple[int, int], agv: int) -> TimedPath:
-    chain: list[tuple[int, int]] = []
+def _reconstruct(parent: dict, key: tuple[int, int], agv: int,
+                 rotations: bool = False) -> TimedPath:
+    """The path to ``key``; with ``rotations`` also the heading of every state (a turn
+    keeps the old heading until its last tick; unknown headings become the first move's
+    direction, east if it never moves)."""
+    chain: list[tuple[int, int, int]] = []
     walk: tuple[int, int] | None = key
     while walk is not None:
-        chain.append((walk[0] // 5, walk[1]))
+        chain.append((walk[0] // 5, walk[0] % 5, walk[1]))
         walk = parent[walk]
     chain.reverse()
     states: list[State] = [(chain[0][0], chain[0][0])]
-    for (a, ta), (b, tb) in zip(chain, chain[1:], strict=False):
+    heads: list[int] = [chain[0][1]]
+    for (a, ha, ta), (b, hb, tb) in zip(chain, chain[1:], strict=False):
+        hold = hb if a != b else ha
         for _ in range(tb - ta - 1):
             states.append((a, b))
+            heads.append(hold)
         states.append((b, b))
-    return TimedPath(agv=agv, start_tick=chain[0][1], states=tuple(states))
+        heads.append(hb)
+    if not rotations:
+        return TimedPath(agv=agv, start_tick=chain[0][2], states=tuple(states))
+    known = next((h for h in heads if h < 4), 0)
+    heads = [known if h == 4 else h for h in heads]
+    return TimedPath(agv=agv, start_tick=chain[0][2], states=tuple(states),
+                     headings=tuple(heads))
+
+
+def _rotating_search(graph: MotionGraph, agent: AgentRequest, t0: int, s0: int, t_free: int,
+                     t_max: int, t_limit: int, max_expansions: int, hr, ok, hits, can_turn,
+                     edge, dead, fp, m: int, res: ReservationTable, me: int,
+                     ) -> tuple[TimedPath | None, int]:
+    """The search of :func:`turning_astar` with rotations (see the module doc): states
+    ``anchor * 5 + heading``; moves only along the heading (any way while it is unknown),
+    quarter and half turns in place that take ``agent.turn_ticks``."""
+    assert agent.turn_ticks is not None
+    q1, q2 = agent.turn_ticks
+    cols, goal, start = graph.cols, agent.goal, agent.start
+    goal_dead = agent.goal_dead
+    loaded_sinks = graph.has_sinks
+    expandable = graph.expandable_flat
+    neighbors = graph.neighbors
+    open_heap: list[tuple[int, int, int, int, int]] = [
+        (t0 + hr(start, s0 % 5), 0, -t0, s0, t0)]
+    parent: dict[tuple[int, int], tuple[int, int] | None] = {(s0, t0): None}
+    best: dict[tuple[int, int], int] = {(s0, t0): 0}
+    closed: set[tuple[int, int]] = set()
+
+    def push(sid: int, t: int, conf: int, hn: int, frm: tuple[int, int]) -> None:
+        key = (sid, t)
+        if key in closed or conf >= best.get(key, UNREACHABLE) or t + hn > t_max:
+            return
+        best[key] = conf
+        parent[key] = frm
+        heapq.heappush(open_heap, (t + hn, conf, -t, sid, t))
+
+    expansions = 0
+    while open_heap:
+        _, conf, _, sid, t = heapq.heappop(open_heap)
+        key = (sid, t)
+        if key in closed or conf > best[key]:
+            continue
+        closed.add(key)
+        node, hd = divmod(sid, 5)
+        if node == goal and t >= t_free and (goal_dead is None or hd not in goal_dead):
+            return _reconstruct(parent, key, me, rotations=True), expansions
+        expansions += 1
+        if expansions > max_expansions:
+            break
+        if t >= t_limit:
+            continue
+        here = fp(node)
+        if ok(here, t + 1):  # wait one tick
+            push(sid, t + 1, conf + hits(here, t + 1), hr(node, hd), key)
+        if hd < 4:  # turn in place: a quarter either way, or half round
+            for h2, q in (((hd + 1) % 4, q1), ((hd + 3) % 4, q1), ((hd + 2) % 4, q2)):
+                if q2 >= 2 * q1 and h2 == (hd + 2) % 4:
+                    continue  # two quarter turns are as fast
+                if all(ok(here, t + i) for i in range(1, q + 1)) and can_turn(node, t):
+                    push(node * 5 + h2, t + q,
+                         conf + sum(hits(here, t + i) for i in range(1, q + 1)),
+                         hr(node, h2), key)
+        for nxt in (neighbors[node] if node == start or expandable[node] else ()):
+            if loaded_sinks and nxt != goal and not expandable[nxt]:
+                continue  # never drive into another shelf's home
+            d = move_dir(node, nxt, cols)
+            if hd < 4 and d != hd:
+                continue  # only along the heading
+            if nxt == goal and goal_dead is not None:
+                if d in goal_dead:
+                    continue
+            elif (nxt, d) in dead:
+                continue
+            t_arr = t + m
+            nsid = nxt * 5 + d
+            if (nsid, t_arr) in closed:
+                continue
+            hn = hr(nxt, d)
+            if hn >= UNREACHABLE_T:
+                continue
+            there = fp(nxt)
+            if not ok(there, t_arr):
+                continue
+            if m > 1:
+                both = tuple(dict.fromkeys(here + there))
+                if not all(ok(both, t + i) for i in range(1, m)):
+                    continue
+                if edge and ((t + 1, (node, node), (node, nxt)) in edge
+                             or (t_arr, (node, nxt), (nxt, nxt)) in edge):
+                    continue
+                extra = sum(hits(both, t + i) for i in range(1, m))
+            else:
+                if _swaps(res, here, there, t, me):
+                    continue
+                if edge and (t_arr, (node, node), (nxt, nxt)) in edge:
+                    continue
+                extra = 0
+            if hd == 4 and not can_turn(node, t):
+                continue
+            push(nsid, t_arr, conf + extra + hits(there, t_arr), hn, key)
+    return None, expansions

@@ -1,0 +1,220 @@
+"""Guide paths for one-shot PIBT / LaCAM ("scatter", after SUO and LaCAM3's use of it).
+
+Plain PIBT sends every agent down its own shortest path, so agents whose shortest paths
+share a corridor pile into it and push each other back and forth. Guide paths spread them
+out before the search starts: each agent gets a path from its start to its goal that is at
+most ``margin`` moves longer than a shortest one and, among those, crosses the other agents'
+guide paths as rarely as possible. A crossing ("collision") is counted in space-time along
+the paths, one move per tick from the start: two guide paths on the same cell at the same
+tick, two paths that swap cells between two ticks, or a path that enters a cell at a tick
+after another path has ended there (its agent waits on its goal). The agents are planned one
+after the other, in a random order, each against all the others' current paths, and the
+whole round is repeated while the number of collisions keeps dropping (a few rounds).
+
+PIBT then uses the guide: at cell ``v`` an agent's first choice is the cell after ``v`` on
+its guide path (if ``v`` is on it), its other candidates follow in the usual distance order
+(:func:`~warerover_phys.planning.pibt.pibt_step`, argument ``guide``).
+
+The single-agent search is A* over cells (not cell-time pairs: each cell is closed once),
+ordered by (collisions so far, f = g + h); ``g`` counts moves, the tick at which a cell is
+reached is ``g``. Paths never return to their start cell. All of it is deterministic for a
+given ``rng``.
+"""
+
+from __future__ import annotations
+
+import heapq
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["GuidePaths", "guide_for", "guide_paths"]
+
+
+@dataclass
+class GuidePaths:
+    """Guide paths (node lists) and, per agent, ``next[i][v]``: the node after ``v`` on
+    agent i's guide path."""
+
+    paths: list[list[int]]
+    next: list[dict[int, int]]
+    stats: dict = field(default_factory=dict)
+
+
+class _Table:
+    """Space-time occupancy of the guide paths: ``body[t * n + v]`` lists the agents whose
+    path is at node v at tick t; ``ends[v]`` the last ticks of the paths that end at v."""
+
+    def __init__(self, num_nodes: int) -> None:
+        self.n = num_nodes
+        self.body: dict[int, list[int]] = {}
+        self.ends: dict[int, list[int]] = {}
+        self.ticks: dict[int, list[int]] = {}
+        """Per node, the ticks at which some path is there (one entry per path and tick)."""
+        self.collisions = 0
+
+    def step_cost(self, u: int, v: int, t: int) -> int:
+        """Collisions of a move u -> v from tick t to t + 1."""
+        n, body = self.n, self.body
+        c = 0
+        here = body.get((t + 1) * n + v)
+        if here:
+            c += len(here)
+        a = body.get((t + 1) * n + u)
+        if a:
+            b = body.get(t * n + v)
+            if b:
+                c += sum(1 for j in a if j in b)
+        e = self.ends.get(v)
+        if e:
+            c += sum(1 for last in e if t + 1 > last)
+        return c
+
+    def _path_cost(self, path: list[int]) -> int:
+        c = sum(self.step_cost(path[t - 1], path[t], t - 1) for t in range(1, len(path)))
+        last = len(path) - 1
+        # others that pass through our goal after we have stopped there
+        return c + sum(1 for t in self.ticks.get(path[-1], ()) if t > last)
+
+    def add(self, i: int, path: list[int]) -> None:
+        self.collisions += self._path_cost(path)
+        n, body = self.n, self.body
+        ticks = self.ticks
+        for t, v in enumerate(path):
+            body.setdefault(t * n + v, []).append(i)
+            ticks.setdefault(v, []).append(t)
+        self.ends.setdefault(path[-1], []).append(len(path) - 1)
+
+    def remove(self, i: int, path: list[int]) -> None:
+        n, body = self.n, self.body
+        for t, v in enumerate(path):
+            lst = body[t * n + v]
+            lst.remove(i)
+            if not lst:
+                del body[t * n + v]
+            self.ticks[v].remove(t)
+        self.ends[path[-1]].remove(len(path) - 1)
+        self.collisions -= self._path_cost(path)
+
+
+def _search(neighbors: Sequence[Sequence[int]], table: _Table, start: int, goal: int,
+            dist: Sequence[int], margin: int) -> list[int] | None:
+    """The guide path of one agent: fewest collisions, then shortest, within ``margin``."""
+    if start == goal:
+        return [start]
+    ub = dist[start] + margin
+    n, body, ends = table.n, table.body, table.ends
+    heap = [(0, dist[start], 0, start, -1)]
+    parent: dict[int, int] = {}
+    push, pop = heapq.heappush, heapq.heappop
+    while heap:
+        c, _f, neg_g, v, par = pop(heap)
+        if v in parent:
+            continue
+        parent[v] = par
+        if v == goal:
+            path = [v]
+            while par != -1:
+                path.append(par)
+                par = parent[par]
+            path.reverse()
+            return path
+        g = -neg_g
+        t1 = g + 1
+        for u in neighbors[v]:
+            if u == start or u in parent:
+                continue
+            f = t1 + dist[u]
+            if f > ub:
+                continue
+            # collisions of the move v -> u from tick g to g + 1 (inlined _Table.step_cost)
+            cc = c
+            here = body.get(t1 * n + u)
+            if here:
+                cc += len(here)
+            a = body.get(t1 * n + v)
+            if a:
+                b = body.get(g * n + u)
+                if b:
+                    cc += sum(1 for j in a if j in b)
+            e = ends.get(u)
+            if e:
+                cc += sum(1 for last in e if t1 > last)
+            push(heap, (cc, f, -t1, u, v))
+    return None
+
+
+def guide_paths(neighbors: Sequence[Sequence[int]], starts: Sequence[int],
+                goals: Sequence[int], dists: Sequence[np.ndarray], rng: np.random.Generator,
+                *, margin: int = 10, max_rounds: int = 3, deadline: float | None = None,
+                ) -> GuidePaths:
+    """Guide paths for agents from ``starts`` to ``goals`` (node indices).
+
+    ``dists[i]`` is the table of moves to agent i's goal; ``margin`` the most moves a guide
+    path may exceed the shortest one by; at most ``max_rounds`` rounds, stopping early when
+    a round does not lower the number of collisions (the paths with the fewest collisions
+    are kept) or at ``deadline`` (a ``time.monotonic()`` value; an agent not planned by then
+    has no guide path and PIBT falls back to its distance order for it).
+    """
+    t0 = time.perf_counter()
+    num = len(starts)
+    table = _Table(len(neighbors))
+    lists = [d.tolist() for d in dists]
+    paths: list[list[int] | None] = [None] * num
+    best: list[list[int] | None] = [None] * num
+    best_collisions: int | None = None
+    history: list[int] = []
+    stopped = "rounds"
+    for _ in range(max_rounds):
+        order = rng.permutation(num).tolist()
+        timed_out = False
+        for i in order:
+            if deadline is not None and time.monotonic() > deadline:
+                timed_out = True
+                break
+            old = paths[i]
+            if old is not None:
+                table.remove(i, old)
+            new = _search(neighbors, table, starts[i], goals[i], lists[i], margin)
+            if new is None:
+                new = old
+            if new is not None:
+                table.add(i, new)
+            paths[i] = new
+        history.append(table.collisions)
+        improved = best_collisions is None or table.collisions < best_collisions
+        if improved and not timed_out:
+            best = list(paths)
+            best_collisions = table.collisions
+        if timed_out:
+            stopped = "time"
+            if best_collisions is None:
+                best = list(paths)
+            break
+        if table.collisions == 0:
+            stopped = "no collisions"
+            break
+        if not improved:
+            stopped = "no improvement"
+            break
+    out = [p if p is not None else [] for p in best]
+    nxt = [{p[t]: p[t + 1] for t in range(len(p) - 1)} for p in out]
+    stats = {"rounds": len(history), "collisions": history, "stopped": stopped,
+             "margin": margin, "wall_s": time.perf_counter() - t0,
+             "unplanned": sum(1 for p in out if not p)}
+    return GuidePaths(out, nxt, stats)
+
+
+def guide_for(graph, starts: Sequence[int], goals: Sequence[int], dists: Sequence[np.ndarray],
+              seed: int, deadline: float, share: float = 0.5,
+              ) -> tuple[list[dict[int, int]], dict]:
+    """Guide paths on a :class:`~warerover_phys.planning.graph.MotionGraph` in at most
+    ``share`` of the time left before ``deadline`` (``time.monotonic()``), with their own
+    generator spawned from ``seed``; returns (``next`` per agent, stats)."""
+    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
+    now = time.monotonic()
+    guide = guide_paths(graph.neighbors, starts, goals, dists, rng,
+                        deadline=now + share * max(0.0, deadline - now))
+    return guide.next, guide.stats
