@@ -248,3 +248,25 @@ def test_paper_plans_are_scheduled(path, seed):
     assert_consistent(cut)
     assert_no_shared_cell(cut, plan.paths, fleet, lay.cols)
     assert cut.makespan_s >= sched.makespan_s - 1e-9
+
+
+def test_downtime_holds_a_run_and_delays_what_follows():
+    path = TimedPath(0, 0, tuple((c, c) for c in range(7)))
+    m = MotionModel.of(SMALL, 1.0)
+    base = schedule({0: path}, [SMALL], cols=7, rows=1)
+    # down before it starts: the run starts when it is up again
+    before = schedule({0: path}, [SMALL], cols=7, rows=1, downtime={0: [(0.0, 3.0)]})
+    assert before.actions[0][0].start_s == pytest.approx(3.0)
+    assert before.finish_s[0] == pytest.approx(3.0 + m.run_s(6))
+    # down while it drives: the rest of the run waits for the window and the speed lost
+    mid = schedule({0: path}, [SMALL], cols=7, rows=1, downtime={0: [(2.5, 6.5)]})
+    lost = 1.5 / 1.0  # peak speed / acceleration
+    assert mid.finish_s[0] == pytest.approx(base.finish_s[0] + 4.0 + lost)
+    starts = [a.start_s for a in mid.actions[0]]
+    assert starts == sorted(starts)
+    for a, b in zip(base.actions[0], mid.actions[0], strict=True):
+        assert b.finish_s == pytest.approx(a.finish_s if a.finish_s <= 2.5 else
+                                           a.finish_s + 4.0 + lost)
+    # down after it is done: nothing changes
+    after = schedule({0: path}, [SMALL], cols=7, rows=1, downtime={0: [(50.0, 60.0)]})
+    assert after.finish_s == base.finish_s

@@ -51,6 +51,7 @@ communication latency (``comm_latency_s``) delays every dependency on another AG
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -187,7 +188,9 @@ def schedule(paths: Mapping[int, TimedPath], fleet: Sequence[AgvTypeSpec], *, co
              rows: int, cell_m: float = 1.0, tick_s: float = 1.0,
              dwells: Mapping[int, Sequence[tuple[int, int]]] | None = None,
              loaded: np.ndarray | None = None, payload: bool = False,
-             comm_latency_s: float = 0.0, max_passes: int = 200) -> Schedule:
+             comm_latency_s: float = 0.0,
+             downtime: Mapping[int, Sequence[tuple[float, float]]] | None = None,
+             max_passes: int = 200) -> Schedule:
     """The motion-timed schedule of a plan (see the module docstring).
 
     ``paths``: every AGV's timed path (all from the same tick, starting and ending standing);
@@ -196,7 +199,10 @@ def schedule(paths: Mapping[int, TimedPath], fleet: Sequence[AgvTypeSpec], *, co
     ``(tick, ticks)`` of its work in place; ``loaded`` (T + 1, N): whether each AGV carries
     a shelf at each tick (with ``payload``: the loaded acceleration limit applies to moves
     that start loaded); ``comm_latency_s`` (``executor.comm_latency_s``): an AGV hears this
-    long after another AGV's action finished that its cells are free. Raises
+    long after another AGV's action finished that its cells are free; ``downtime``: per AGV
+    the ``(from_s, to_s)`` windows it is down (failures replayed, as the open-loop gap
+    does): no run starts inside one, and a run it falls into pauses for it and for the
+    speed it loses (peak speed / acceleration: braking to a stop and back). Raises
     ``ADGCycleError`` if the plan has no execution order.
     """
     agvs = sorted(paths)
@@ -250,6 +256,8 @@ def schedule(paths: Mapping[int, TimedPath], fleet: Sequence[AgvTypeSpec], *, co
                 (prev.agv, index[(prev.agv, prev.leave)]))
             n_deps += 1
     order = _topological(acts, deps)
+    down = {i: sorted((float(a), float(b)) for a, b in w if b > a)
+            for i, w in (downtime or {}).items() if w}
     sweeps = {(i, n): bool(a.sweeps) for i in agvs for n, a in enumerate(acts[i])}
     # Where a run must stop depends on when the other AGVs free its cells, which depends
     # on where their runs stop. Each pass decides every run's length from the ready times
@@ -263,7 +271,7 @@ def schedule(paths: Mapping[int, TimedPath], fleet: Sequence[AgvTypeSpec], *, co
         passes += 1
         times, ready, runs, late, splits = _pass(order, acts, deps, model, dwell_s, turn_s,
                                                  joins, sweeps, predict, forced,
-                                                 comm_latency_s)
+                                                 comm_latency_s, down)
         if not late:
             break
         if passes < max_passes:
@@ -325,12 +333,14 @@ def _topological(acts: Mapping[int, list], deps: Mapping[tuple[int, int], list]
 
 
 def _pass(order, acts, deps, model, dwell_s, turn_s, joins, sweeps, predict, forced,
-          latency=0.0):
+          latency=0.0, down=None):
     """One earliest-time pass (see :func:`schedule`). ``predict``: per action the ready time
     its run's length is decided with (missing: 0); ``forced``: actions that start a run
     whatever ``predict`` says. Returns start/finish per action, ready times, run index per
     action, the moves entered before they were ready (at most one per run) and the moves
-    that start a run although they could have continued the one before (the splits)."""
+    that start a run although they could have continued the one before (the splits).
+    ``down``: per AGV its sorted downtime windows (seconds)."""
+    down = down or {}
     times: dict[tuple[int, int], tuple[float, float]] = {}
     ready: dict[tuple[int, int], float] = {}
     runs: dict[tuple[int, int], int] = {}
@@ -345,13 +355,13 @@ def _pass(order, acts, deps, model, dwell_s, turn_s, joins, sweeps, predict, for
         m = model[key]
         cur = seg.get(i)
         if cur is not None and n < cur[0] + cur[1]:  # inside the AGV's current run
-            first, length, t0, run, flagged = cur
+            first, length, t0, run, flagged, pauses = cur
             pos = n - first
-            start = t0 + m.reach_s(pos, length)
+            start = _paused(t0, m.reach_s(pos, length), pauses, True)
             if r > start + _EPS and not flagged:
                 late.append(key)
                 cur[4] = True
-            times[key] = (start, t0 + m.reach_s(pos + 1, length))
+            times[key] = (start, _paused(t0, m.reach_s(pos + 1, length), pauses, False))
             runs[key] = run
             continue
         if n > 0 and joins[key]:
@@ -373,17 +383,52 @@ def _pass(order, acts, deps, model, dwell_s, turn_s, joins, sweeps, predict, for
                 if predict.get((i, n + j), 0.0) > go + m.reach_s(j, length) + _EPS:
                     length = j
                     break
+        pauses: list[tuple[float, float]] = []
+        if i in down:
+            go, pauses = _downtime(go, m.reach_s(length, length), m, length, down[i])
         run = cur[3] + 1 if cur is not None else 0
-        seg[i] = [n, length, go, run, False]
-        times[key] = (go, go + m.reach_s(1, length))
+        seg[i] = [n, length, go, run, False, pauses]
+        times[key] = (go, _paused(go, m.reach_s(1, length), pauses, False))
         runs[key] = run
     return times, ready, runs, late, splits
+
+
+def _downtime(go: float, span: float, m: MotionModel, length: int,
+              windows: list[tuple[float, float]]) -> tuple[float, list[tuple[float, float]]]:
+    """A run of ``span`` seconds that would start at ``go``: its start moved past the
+    downtime windows it falls in, and the pauses ``(at, seconds)`` (``at`` from the run's
+    start) of the windows that open while it drives: the window and the time lost braking
+    to a stop and getting back to speed (peak speed / acceleration)."""
+    for a, b in windows:
+        if a - _EPS <= go < b:
+            go = b
+    lost = min(m.max_speed_mps, math.sqrt(m.max_accel_mps2 * length * m.cell_m)) \
+        / m.max_accel_mps2
+    pauses, shift = [], 0.0
+    for a, b in windows:
+        if go < a and a < go + span + shift:
+            pauses.append((a - go - shift, b - a + lost))
+            shift += b - a + lost
+    return go, pauses
+
+
+def _paused(t0: float, t: float, pauses: list[tuple[float, float]], start: bool) -> float:
+    """Time ``t0 + t`` of a point ``t`` seconds into a run, later by the pauses before it (a
+    move's start counts a pause that opens right then; its finish one that opens before)."""
+    extra = 0.0
+    for at, sec in pauses:
+        if at < t or (start and at <= t):
+            extra += sec
+    return t0 + t + extra
 
 
 def schedule_plan(plan, *, payload: bool = False, comm_latency_s: float = 0.0) -> Schedule:
     """The schedule of a :class:`~warerover_phys.gap_plan.TimedPlan` (the open-loop gap's
     plan: paths, dwells, cargo); ``payload``, ``comm_latency_s``: the executor's settings."""
     lay = plan.layout
+    down: dict[int, list[tuple[float, float]]] = {}
+    for f in getattr(plan, "failures", ()):
+        down.setdefault(f.agv, []).append((f.tick * plan.tick_s, (f.tick + f.ticks) * plan.tick_s))
     return schedule(plan.paths, plan.types, cols=lay.cols, rows=lay.rows, cell_m=lay.cell_m,
                     tick_s=plan.tick_s, dwells=dict(plan.dwell_view), loaded=plan.loaded,
-                    payload=payload, comm_latency_s=comm_latency_s)
+                    payload=payload, comm_latency_s=comm_latency_s, downtime=down)
