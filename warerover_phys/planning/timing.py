@@ -201,8 +201,8 @@ def schedule(paths: Mapping[int, TimedPath], fleet: Sequence[AgvTypeSpec], *, co
     that start loaded); ``comm_latency_s`` (``executor.comm_latency_s``): an AGV hears this
     long after another AGV's action finished that its cells are free; ``downtime``: per AGV
     the ``(from_s, to_s)`` windows it is down (failures replayed, as the open-loop gap
-    does): no run starts inside one, and a run it falls into pauses for it and for the
-    speed it loses (peak speed / acceleration: braking to a stop and back). Raises
+    does): no run or turn starts inside one; in a run it falls into the AGV brakes at its
+    limit where it is, and drives the rest from rest once it is up again. Raises
     ``ADGCycleError`` if the plan has no execution order.
     """
     agvs = sorted(paths)
@@ -355,13 +355,14 @@ def _pass(order, acts, deps, model, dwell_s, turn_s, joins, sweeps, predict, for
         m = model[key]
         cur = seg.get(i)
         if cur is not None and n < cur[0] + cur[1]:  # inside the AGV's current run
-            first, length, t0, run, flagged, pauses = cur
+            first, length, t0, run, flagged, pause = cur
             pos = n - first
-            start = _paused(t0, m.reach_s(pos, length), pauses, True)
+            d = length * m.cell_m
+            start = _run_time(t0, pos * m.cell_m, d, m, pause)
             if r > start + _EPS and not flagged:
                 late.append(key)
                 cur[4] = True
-            times[key] = (start, _paused(t0, m.reach_s(pos + 1, length), pauses, False))
+            times[key] = (start, _run_time(t0, (pos + 1) * m.cell_m, d, m, pause))
             runs[key] = run
             continue
         if n > 0 and joins[key]:
@@ -383,43 +384,52 @@ def _pass(order, acts, deps, model, dwell_s, turn_s, joins, sweeps, predict, for
                 if predict.get((i, n + j), 0.0) > go + m.reach_s(j, length) + _EPS:
                     length = j
                     break
-        pauses: list[tuple[float, float]] = []
+        pause = None
         if i in down:
-            go, pauses = _downtime(go, m.reach_s(length, length), m, length, down[i])
+            go, pause = _downtime(go, arrive, turn_s[key], m, length, down[i])
         run = cur[3] + 1 if cur is not None else 0
-        seg[i] = [n, length, go, run, False, pauses]
-        times[key] = (go, _paused(go, m.reach_s(1, length), pauses, False))
+        seg[i] = [n, length, go, run, False, pause]
+        times[key] = (go, _run_time(go, m.cell_m, length * m.cell_m, m, pause))
         runs[key] = run
     return times, ready, runs, late, splits
 
 
-def _downtime(go: float, span: float, m: MotionModel, length: int,
-              windows: list[tuple[float, float]]) -> tuple[float, list[tuple[float, float]]]:
-    """A run of ``span`` seconds that would start at ``go``: its start moved past the
-    downtime windows it falls in, and the pauses ``(at, seconds)`` (``at`` from the run's
-    start) of the windows that open while it drives: the window and the time lost braking
-    to a stop and getting back to speed (peak speed / acceleration)."""
+def _downtime(go: float, arrive: float, turn: float, m: MotionModel, length: int,
+              windows: list[tuple[float, float]]) -> tuple[float, tuple | None]:
+    """A run of ``length`` cells that would start at ``go`` (the AGV arrived at ``arrive``
+    and turns for ``turn`` before it), given the AGV's downtime ``windows``: its start moved
+    past the windows it falls in (a turn that a window interrupts is done again after it),
+    and the first window that opens while it drives as ``(at, until, x, v)``: ``at``
+    seconds into the run it brakes at its limit from ``v`` m/s at ``x`` m, and drives the
+    rest of the run from rest at ``until`` (seconds, absolute), as the executor does."""
     for a, b in windows:
-        if a - _EPS <= go < b:
+        if turn > 0 and arrive <= a < arrive + turn and a < go:
+            go = max(go, b + turn)
+        elif a - _EPS <= go < b:
             go = b
-    lost = min(m.max_speed_mps, math.sqrt(m.max_accel_mps2 * length * m.cell_m)) \
-        / m.max_accel_mps2
-    pauses, shift = [], 0.0
+    span = m.reach_s(length, length)
     for a, b in windows:
-        if go < a and a < go + span + shift:
-            pauses.append((a - go - shift, b - a + lost))
-            shift += b - a + lost
-    return go, pauses
+        if go < a < go + span:
+            x, v = m.state_at(a - go, length * m.cell_m)
+            return go, (a - go, b, x, v)
+    return go, None
 
 
-def _paused(t0: float, t: float, pauses: list[tuple[float, float]], start: bool) -> float:
-    """Time ``t0 + t`` of a point ``t`` seconds into a run, later by the pauses before it (a
-    move's start counts a pause that opens right then; its finish one that opens before)."""
-    extra = 0.0
-    for at, sec in pauses:
-        if at < t or (start and at <= t):
-            extra += sec
-    return t0 + t + extra
+def _run_time(go: float, x: float, d: float, m: MotionModel, pause: tuple | None) -> float:
+    """When a run of ``d`` metres started at ``go`` passes ``x`` metres, with the pause of
+    :func:`_downtime` (None: none)."""
+    if pause is None:
+        return go + m.at_s(x, d)
+    at, until, x0, v = pause
+    if x <= x0 + _EPS:
+        return go + m.at_s(x, d)
+    acc = m.max_accel_mps2
+    x_stop = x0 + v * v / (2 * acc)
+    if x <= x_stop + _EPS:  # reached while braking
+        disc = max(0.0, v * v - 2 * acc * (x - x0))
+        return go + at + (v - math.sqrt(disc)) / acc
+    # the rest from rest, once it is up again
+    return until + m.at_s(x - x_stop, d - x_stop)
 
 
 def schedule_plan(plan, *, payload: bool = False, comm_latency_s: float = 0.0) -> Schedule:
