@@ -18,7 +18,6 @@ events the fault model draws and the loop applies.
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -159,7 +158,7 @@ class Simulation:
         self._apply_report(report)
         self.last_report = report
         w.tick += 1
-        self._follow_up(report.blocked, report.poses)
+        self._follow_up(report.blocked)
         self._replan_now(report.replan)
         self._recover(report.freezes)
         if w.corridors and report.intrusion_unit == "cells":
@@ -259,6 +258,13 @@ class Simulation:
         if stray:
             raise ValueError(f"planner {self.planner.name!r} returned paths for AGVs "
                              f"{sorted(stray)}, which it was not asked to plan")
+        if self._rot:
+            flat = sorted(aid for aid, p in result.paths.items() if aid in self._rot and (
+                p.headings is None or len(p.headings) != len(p.states)))
+            if flat:
+                raise ValueError(f"planner {self.planner.name!r} returned paths without one "
+                                 f"heading per state for the rotation-aware AGVs {flat} "
+                                 "(planner.rotations: true): it does not plan rotations")
         failed = set(result.failed)
         for a in agents:
             path = result.paths.get(a.agv)
@@ -441,13 +447,13 @@ class Simulation:
             agv.blocked_ticks = max(agv.blocked_ticks, self.scenario.planner.replan_blocked_ticks)
             agv.retry_at = min(agv.retry_at, self.world.tick)
 
-    def _follow_up(self, blocked: list[int], poses=None) -> None:
+    def _follow_up(self, blocked: list[int]) -> None:
         w = self.world
         blocked_set = set(blocked)
         cols = w.layout.cols
         for agv in w.agvs:
             if agv.id in self._rot:
-                self._track_heading(agv, poses)
+                self._track_heading(agv)
             elif agv.id in self._heading:
                 (pa, pb), (a, b) = self.actual[agv.id][-1], agv.pos
                 src, dst = (a, b) if a != b else (pa, a) if pa == pb else (a, a)
@@ -460,30 +466,28 @@ class Simulation:
             agv.blocked_ticks = agv.blocked_ticks + 1 if agv.id in blocked_set else 0
 
 
-    def _track_heading(self, agv: Agv, poses) -> None:
-        """The heading of a rotation-aware AGV after the tick: on physics its body's, to
-        the nearest quarter; on the grid its plan's at the state it has reached (a
-        planned turn changes it in place), else its last move's direction."""
+    def _track_heading(self, agv: Agv) -> None:
+        """The heading of a rotation-aware AGV after the tick: its plan's at the state it
+        has reached (a planned turn changes it in place), else its last move's direction.
+        The same on every executor: the physics executor turns a body itself before each
+        move (towards the move), so a planned turn counts as done once its ticks are
+        over, wherever the body points meanwhile."""
         w = self.world
         aid = agv.id
-        if poses is not None:
-            h = int(round(float(poses[aid][2]) / (math.pi / 2))) % 4
-        else:
-            path = w.reservations.paths.get(aid)
-            idx = w.tick - agv.delay
-            h = None
-            if path is not None and path.headings is not None and \
-                    path.state_at(idx) == agv.pos:
-                h = path.heading_at(idx)
-            if h is None:
-                (pa, pb), (a, b) = self.actual[aid][-1], agv.pos
-                src, dst = (a, b) if a != b else (pa, a) if pa == pb else (a, a)
-                h = DIR_OF[self._heading[aid]]
-                if src != dst:
-                    r0, c0 = divmod(src, w.layout.cols)
-                    r1, c1 = divmod(dst, w.layout.cols)
-                    if abs(r1 - r0) + abs(c1 - c0) == 1:
-                        h = DIR_OF[(r1 - r0, c1 - c0)]
+        path = w.reservations.paths.get(aid)
+        idx = w.tick - agv.delay
+        h = None
+        if path is not None and path.headings is not None and path.state_at(idx) == agv.pos:
+            h = path.heading_at(idx)
+        if h is None:
+            (pa, pb), (a, b) = self.actual[aid][-1], agv.pos
+            src, dst = (a, b) if a != b else (pa, a) if pa == pb else (a, a)
+            h = DIR_OF[self._heading[aid]]
+            if src != dst:
+                r0, c0 = divmod(src, w.layout.cols)
+                r1, c1 = divmod(dst, w.layout.cols)
+                if abs(r1 - r0) + abs(c1 - c0) == 1:
+                    h = DIR_OF[(r1 - r0, c1 - c0)]
         self._heading[aid] = _DIRS[h]
         self.headings[aid].append(h)
 

@@ -58,6 +58,27 @@ def test_turn_ticks_follow_the_turn_rate():
     assert agent_turn_ticks(fast, 1.0) == (1, 2)
 
 
+def test_docstring_examples():
+    import doctest
+
+    from warerover_phys.planning import rotation
+
+    result = doctest.testmod(rotation)
+    assert result.attempted > 0 and result.failed == 0
+
+
+def test_planner_without_rotations_is_refused():
+    from warerover_phys.planning.base import PlanResult, TimedPath
+
+    sc = load_scenario("layouts/paper_homogeneous.yaml",
+                       [("planner.rotations", True), ("orders.oneshot.count", 2)])
+    sim = Simulation(sc, 0)
+    agv = sim.world.agvs[0]
+    flat = PlanResult(paths={0: TimedPath(0, 0, ((agv.node, agv.node),))})
+    with pytest.raises(ValueError, match="does not plan rotations"):
+        sim._commit(flat, [AgentRequest(agv=0, start=agv.node, goal=agv.node)])
+
+
 def test_heading_helpers():
     assert [quarters(0, h) for h in range(4)] == [0, 1, 2, 1]
     assert turn_towards(0, 1) == 1 and turn_towards(0, 3) == 3 and turn_towards(0, 0) == 0

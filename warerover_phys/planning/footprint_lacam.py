@@ -75,7 +75,7 @@ def update_footprint_priorities(prio: Sequence[float], movers: Sequence[Mover],
 def footprint_lacam(movers: Sequence[Mover], starts: Sequence[Pose], cols: int,
                     deadline: float, rng: np.random.Generator, held: Sequence[int] = (),
                     prio: list[float] | None = None, max_iterations: int | None = None,
-                    headings: Sequence[int] | None = None,
+                    headings: Sequence[int] | None = None, rotation: str = "stay",
                     ) -> tuple[list[Config] | None, dict]:
     """Configurations from ``starts`` until every agent rests on its goal, or None.
 
@@ -84,6 +84,10 @@ def footprint_lacam(movers: Sequence[Mover], starts: Sequence[Pose], cols: int,
     no solution, otherwise ``max_iterations`` high-level iterations were spent
     (``stats["stopped"] == "iterations"``: deterministic) or the deadline (a
     ``time.monotonic()`` value, a safety stop) passed (``"time"``).
+
+    ``rotation``: the configuration generator's mode for rotation-aware agents
+    (:func:`~warerover_phys.planning.footprint_pibt.footprint_step`; ``stay``, the default,
+    realises every low-level constraint exactly; ``cascade`` measured no better here).
 
     ``headings`` (turn-aware fleets, see :mod:`footprint_pibt`): each agent's direction
     index at the start. A node keeps the headings its parent chain gives it; a
@@ -148,7 +152,8 @@ def footprint_lacam(movers: Sequence[Mover], starts: Sequence[Pose], cols: int,
         out_heads: list[int] = []
         nxt = footprint_step(movers, node.config, node.prio, ties[salt:], cols, forced,
                              headings=node.headings,
-                             out_headings=out_heads if rotating else None)
+                             out_headings=out_heads if rotating else None,
+                             rotation=rotation)
         if nxt is None:
             continue
         config = tuple(nxt)

@@ -708,6 +708,13 @@ def _cascade(step: _Step, out: list[Pose], heads: list[int], fixed: Mapping[int,
     cols = step.cols
     for i, mv in enumerate(step.movers):
         p = step.poses[i]
+        if mv.rot is not None and i in step.forced_turn:  # forced to stay and turn
+            new, h = step.forced_turn[i], step.headings[i]
+            if new != h and h < 4:
+                heads[i] = new
+                q = mv.rot[0] if quarters(h, new) == 1 else mv.rot[1]
+                out[i] = (p[1], p[1], q - 1) if q > 1 else (p[1], p[1], 0)
+            continue
         if mv.rot is None or p[2] != 0 or out[i][1] == p[1]:
             continue
         h = step.headings[i]
