@@ -27,6 +27,7 @@ from .config import Scenario
 from .errors import ScenarioError
 from .executors import make_executor
 from .executors.base import AgvBody, ExecutorSetup, StepReport, TickView
+from .faults.exits import exit_spots, inside_open_corridor
 from .faults.model import FaultModel, close_failure, open_failure
 from .metrics import MetricsRecorder
 from .planning import make_planner
@@ -91,6 +92,8 @@ class Simulation:
         self._freeze_hits: dict[int, int] = {}
         self._freeze_yields: set[int] = set()
         """AGVs sent to a yield spot by a freeze recovery (step planners honour these)."""
+        self._exit_sent: dict[int, int] = {}
+        """AGVs caught inside a corridor that were sent out -> the spot they go to."""
         w = self.world
         self._turns = turn_fields(w.layout, [a.spec for a in w.agvs])
         """AGVs whose turns in place planners must reserve: agv -> (sweep, no-turn anchors)."""
@@ -130,6 +133,7 @@ class Simulation:
         """Run one tick of the loop."""
         w = self.world
         self._apply_faults()
+        self._send_out()
         w.add_orders(w.stream.arrivals(w.tick))
         t0 = time.perf_counter()
         for a in self.scheduler.assign(SchedulerView(w), w.rngs["scheduler"]):
@@ -192,6 +196,24 @@ class Simulation:
         for stage in (model.scheduled, lambda tick, agvs: model.random(agvs)):
             for ev in stage(w.tick, w.agvs):
                 open_failure(w, ev.agv, ev.repair_ticks, self.executor, self._view())
+
+    def _send_out(self) -> None:
+        """AGVs caught inside an open corridor go to the nearest free spot outside it
+        (:func:`~warerover_phys.faults.exits.exit_spots`), as a yield goal the planner
+        plans like any other; sent again if the spot is lost or the yield runs out."""
+        w, sent = self.world, self._exit_sent
+        for aid in [a for a in sent if inside_open_corridor(w, a) is None]:
+            del sent[aid]
+        if not w.corridors:
+            return
+        live = {a: s for a, s in sent.items()
+                if w.agvs[a].yield_goal == s and w.tick < w.agvs[a].yield_until}
+        for aid, spot in exit_spots(w, live).items():
+            agv = w.agvs[aid]
+            agv.yield_goal, agv.yield_until, agv.retry_at = spot, w.tick + YIELD_TICKS, w.tick
+            sent[aid] = spot
+            w.log("corridor_exit_sent", agv=aid, corridor=inside_open_corridor(w, aid),
+                  spot=list(w.cell(spot)))
 
     def _plan(self) -> None:
         """Plan the AGVs that need it: a new goal, a path that ran out short of its goal,
@@ -261,9 +283,10 @@ class Simulation:
             hold = goal is None or (agv.standing and agv.node == goal
                                     and agv.state in _TRAVEL_STATES)
             goal = agv.node if goal is None else goal
-            if agv.id in self._freeze_yields:
-                if agv.yield_goal is not None and w.tick < agv.yield_until and not hold:
-                    goal = agv.yield_goal
+            if agv.id in self._freeze_yields or agv.id in self._exit_sent:
+                if agv.yield_goal is not None and w.tick < agv.yield_until and (
+                        not hold or agv.id in self._exit_sent):
+                    goal, hold = agv.yield_goal, False
                 else:
                     agv.yield_goal = None
                     self._freeze_yields.discard(agv.id)
