@@ -242,7 +242,11 @@ class Simulation:
             agv = w.agvs[aid]
             agv.plan_failures += 1
             agv.retry_at = w.tick + min(agv.plan_failures, 4)
-            if agv.plan_failures % STUCK_FAILURES == 0:
+            spot = self._exit_sent.get(aid)
+            if spot is not None:  # leaving a corridor: no time to lose
+                agv.retry_at = w.tick + 1
+                self._make_way_for(agv, spot)
+            elif agv.plan_failures % STUCK_FAILURES == 0:
                 self._make_way_for(agv)
         self.metrics.replans_this_tick(len(result.paths), len(result.failed),
                                        len(result.detours), result.budget_hits)
@@ -352,11 +356,12 @@ class Simulation:
                 res.commit(TimedPath(agv.id, w.tick, (agv.pos,)), agv.k)
         return agents
 
-    def _make_way_for(self, stuck: Agv) -> None:
-        """Send AGVs that stand idle or queue on ``stuck``'s shortest path somewhere else for
-        a while: prioritized planning alone can wall an AGV in with AGVs that wait for it."""
+    def _make_way_for(self, stuck: Agv, goal: int | None = None) -> None:
+        """Send AGVs that stand idle or queue on ``stuck``'s shortest path (to ``goal``,
+        default its task's) somewhere else for a while: prioritized planning alone can wall
+        an AGV in with AGVs that wait for it."""
         w = self.world
-        goal = w.goal_of(stuck)
+        goal = w.goal_of(stuck) if goal is None else goal
         if goal is None:
             return
         shelf = stuck.trip.shelf if stuck.loaded and stuck.trip is not None else None
