@@ -33,6 +33,8 @@ ROWS = (
     ("  acceleration / deceleration", "lost_accel_decel_s_per_agv_mean", None),
     ("  turning", "lost_turning_s_per_agv_mean", None),
     ("  control latency", "lost_control_s_per_agv_mean", None),
+    ("  failures", "lost_failures_s_per_agv_mean", None),
+    ("  rotation repair (planned ticks added)", "lost_rotation_repair_s_per_agv_mean", None),
     ("  faster than plan (gain)", "lost_faster_than_plan_s_per_agv_mean", None),
     ("  plan waits skipped (gain)", "lost_plan_waits_skipped_s_per_agv_mean", None),
     ("dependency waits, fleet total (s)", "delay_dependency_wait_s",
