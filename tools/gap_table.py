@@ -67,8 +67,8 @@ def main(argv: list[str] | None = None) -> int:
         stats, walls, ok = {}, {}, seeds
         for mode in ("open", "closed"):
             t0 = time.perf_counter()
-            # closed loop: the seeds the open loop could run (a grid run with a rotation
-            # cannot run open loop; it is listed as failed there and left out here)
+            # closed loop: the seeds the open loop could run (a seed that fails there, e.g.
+            # a rotation no local detour can repair, is listed as failed and left out here)
             results, failed = run_seeds(sc, ok, mode, args.workers)
             if mode == "open":
                 ok = [r["seed"] for r in results]

@@ -260,6 +260,9 @@ def _open_table(console: Console, title: str, r: dict) -> None:
                   _f(r["executed_orders_makespan_s"], ".2f"), _f(r["orders_makespan_ratio"]))
         t.add_row(escape("throughput [tp_ratio]"), "", "", _f(r.get("tp_ratio")))
         t.add_row(escape("order latency [latency_ratio]"), "", "", _f(r.get("latency_ratio")))
+    if r.get("cycle_repairs"):
+        t.add_row(escape(f"makespan after {r['cycle_repairs']} rotation repair(s) (s) "
+                         "[repaired_makespan_s]"), _f(r["repaired_makespan_s"], ".1f"), "", "")
     console.print(t)
     c = Table(title=f"lost time (executed - planned finish), {r['agents']} AGVs",
               show_header=True)
