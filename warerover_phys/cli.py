@@ -338,6 +338,9 @@ def gap(scenario: Annotated[Path, typer.Argument(
             help="Planned time of the plan: unit (one move per tick) or motion (the motion-"
                  "model schedule over the dependency graph; open loop only). Overrides "
                  "planner.timing.")] = None,
+        video: Annotated[Path | None, typer.Option(
+            help="Open loop, one seed or --plan: render the physics execution to this MP4 "
+                 "(H.264, 720p), each AGV's planned pose drawn as a ghost.")] = None,
         set_: SetOpt = None, scheduler: SchedOpt = None, planner: PlanOpt = None,
         orders: OrdersOpt = None) -> None:
     """The sim-to-real gap. Open loop (default): the plan of the ideal grid run (or --plan
@@ -348,7 +351,7 @@ def gap(scenario: Annotated[Path, typer.Argument(
 
     run_gap(scenario=scenario, mode=mode, seed=seed, seeds=seeds, workers=workers, out=out,
             json_out=json_out, plan=plan, fmt=fmt, yx=yx, fleet=fleet, delays=delays,
-            tick_s=tick_s, dt_s=dt_s, agvs=agvs, pictures=pictures, quiet=quiet,
+            tick_s=tick_s, dt_s=dt_s, agvs=agvs, pictures=pictures, quiet=quiet, video=video,
             timing=timing, overrides=lambda: _scenario(scenario, set_, seed, scheduler, planner, None,
                                         orders))
 
