@@ -398,8 +398,22 @@ def _process_age_s() -> float:
         return 0.0
 
 
-SOLVE_RESERVE = 0.03
-"""Share of ``solve --time-limit`` kept for validating and writing the plan."""
+SOLVE_RESERVE = (0.03, 0.5)
+"""Of ``solve --time-limit``: a share and seconds kept for validating and writing the plan
+and for the interpreter's exit."""
+_ENTERED: tuple[float, float] | None = None
+"""(monotonic time, process age in s) when :func:`main` started: the command is the
+process, so its start-up counts against ``solve --time-limit``; None when the app is called
+in a longer-lived process (tests, notebooks)."""
+
+
+def _command_age_s() -> float:
+    """Seconds since the process started, if this command is the process; else 0."""
+    import time
+
+    if _ENTERED is None:
+        return 0.0
+    return _ENTERED[1] + time.monotonic() - _ENTERED[0]
 
 
 @app.command()
@@ -436,9 +450,9 @@ def solve(map_file: Annotated[Path, typer.Argument(metavar="MAP.map", help="Movi
         grid = read_map(map_file)
         scen = read_scen(scen_file, agents, grid)
         # The limit covers what the user waits for: start-up and reading so far, the
-        # validation and the plan file after solving (SOLVE_RESERVE of it).
-        budget = max(0.05 * time_limit,
-                     time_limit * (1 - SOLVE_RESERVE) - _process_age_s())
+        # validation, the plan file and the exit after solving (SOLVE_RESERVE).
+        share, fixed = SOLVE_RESERVE
+        budget = max(0.05 * time_limit, time_limit * (1 - share) - fixed - _command_age_s())
 
         def improved(seconds: float, soc: int) -> None:
             if not json_out:
@@ -485,6 +499,10 @@ def solve(map_file: Annotated[Path, typer.Argument(metavar="MAP.map", help="Movi
 
 def main() -> None:
     """Console-script entry point."""
+    import time
+
+    global _ENTERED
+    _ENTERED = (time.monotonic(), _process_age_s())
     try:
         app()
     except KeyboardInterrupt:
