@@ -33,6 +33,8 @@ ROWS = (
     ("  acceleration / deceleration", "lost_accel_decel_s_per_agv_mean", None),
     ("  turning", "lost_turning_s_per_agv_mean", None),
     ("  control latency", "lost_control_s_per_agv_mean", None),
+    ("  failures", "lost_failures_s_per_agv_mean", None),
+    ("  rotation repair (planned ticks added)", "lost_rotation_repair_s_per_agv_mean", None),
     ("  faster than plan (gain)", "lost_faster_than_plan_s_per_agv_mean", None),
     ("  plan waits skipped (gain)", "lost_plan_waits_skipped_s_per_agv_mean", None),
     ("dependency waits, fleet total (s)", "delay_dependency_wait_s",
@@ -65,8 +67,8 @@ def main(argv: list[str] | None = None) -> int:
         stats, walls, ok = {}, {}, seeds
         for mode in ("open", "closed"):
             t0 = time.perf_counter()
-            # closed loop: the seeds the open loop could run (a grid run with a rotation
-            # cannot run open loop; it is listed as failed there and left out here)
+            # closed loop: the seeds the open loop could run (a seed that fails there, e.g.
+            # a rotation no local detour can repair, is listed as failed and left out here)
             results, failed = run_seeds(sc, ok, mode, args.workers)
             if mode == "open":
                 ok = [r["seed"] for r in results]

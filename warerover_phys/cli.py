@@ -338,6 +338,9 @@ def gap(scenario: Annotated[Path, typer.Argument(
             help="Planned time of the plan: unit (one move per tick) or motion (the motion-"
                  "model schedule over the dependency graph; open loop only). Overrides "
                  "planner.timing.")] = None,
+        video: Annotated[Path | None, typer.Option(
+            help="Open loop, one seed or --plan: render the physics execution to this MP4 "
+                 "(H.264, 720p), each AGV's planned pose drawn as a ghost.")] = None,
         set_: SetOpt = None, scheduler: SchedOpt = None, planner: PlanOpt = None,
         orders: OrdersOpt = None) -> None:
     """The sim-to-real gap. Open loop (default): the plan of the ideal grid run (or --plan
@@ -348,7 +351,7 @@ def gap(scenario: Annotated[Path, typer.Argument(
 
     run_gap(scenario=scenario, mode=mode, seed=seed, seeds=seeds, workers=workers, out=out,
             json_out=json_out, plan=plan, fmt=fmt, yx=yx, fleet=fleet, delays=delays,
-            tick_s=tick_s, dt_s=dt_s, agvs=agvs, pictures=pictures, quiet=quiet,
+            tick_s=tick_s, dt_s=dt_s, agvs=agvs, pictures=pictures, quiet=quiet, video=video,
             timing=timing, overrides=lambda: _scenario(scenario, set_, seed, scheduler, planner, None,
                                         orders))
 
@@ -381,13 +384,47 @@ def check(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
                f"cells, {len(world.agvs)} AGVs")
 
 
+def _process_age_s() -> float:
+    """Seconds since this process started (Linux ``/proc``; 0 where it cannot be read)."""
+    import os
+
+    try:
+        with open("/proc/self/stat", encoding="ascii") as f:
+            ticks = int(f.read().rsplit(")", 1)[1].split()[19])  # field 22: starttime
+        with open("/proc/uptime", encoding="ascii") as f:
+            up = float(f.read().split()[0])
+        return max(0.0, up - ticks / os.sysconf("SC_CLK_TCK"))
+    except (OSError, ValueError, IndexError):
+        return 0.0
+
+
+SOLVE_RESERVE = (0.03, 0.5)
+"""Of ``solve --time-limit``: a share and seconds kept for validating and writing the plan
+and for the interpreter's exit."""
+_ENTERED: tuple[float, float] | None = None
+"""(monotonic time, process age in s) when :func:`main` started: the command is the
+process, so its start-up counts against ``solve --time-limit``; None when the app is called
+in a longer-lived process (tests, notebooks)."""
+
+
+def _command_age_s() -> float:
+    """Seconds since the process started, if this command is the process; else 0."""
+    import time
+
+    if _ENTERED is None:
+        return 0.0
+    return _ENTERED[1] + time.monotonic() - _ENTERED[0]
+
+
 @app.command()
 def solve(map_file: Annotated[Path, typer.Argument(metavar="MAP.map", help="MovingAI map.")],
           scen_file: Annotated[Path, typer.Argument(metavar="SCEN.scen",
                                                     help="MovingAI scenario.")],
           agents: Annotated[int, typer.Option(help="Use the first N agents.")] = 100,
           planner: Annotated[str, typer.Option(help="lacam | pibt | astar | learned.")] = "lacam",
-          time_limit: Annotated[float, typer.Option(help="Seconds before giving up.")] = 60.0,
+          time_limit: Annotated[float, typer.Option(
+              help="Seconds for the whole command, counted from the process start "
+                   "(--refine uses all of it).")] = 60.0,
           seed: Annotated[int, typer.Option(help="Tie-breaking seed.")] = 0,
           json_out: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
           out: Annotated[Path | None, typer.Option(
@@ -412,12 +449,17 @@ def solve(map_file: Annotated[Path, typer.Argument(metavar="MAP.map", help="Movi
             raise WareroverError(f"--time-limit: must be positive and finite (got {time_limit})")
         grid = read_map(map_file)
         scen = read_scen(scen_file, agents, grid)
+        # The limit covers what the user waits for: start-up and reading so far, the
+        # validation, the plan file and the exit after solving (SOLVE_RESERVE).
+        share, fixed = SOLVE_RESERVE
+        budget = max(0.05 * time_limit, time_limit * (1 - share) - fixed - _command_age_s())
+
         def improved(seconds: float, soc: int) -> None:
             if not json_out:
                 typer.echo(f"refine: {seconds:7.2f} s  sum of costs {soc}", err=True)
 
         result = solve_instance(grid.obstacles, [a.start for a in scen], [a.goal for a in scen],
-                                planner=planner, time_limit_s=time_limit, seed=seed,
+                                planner=planner, time_limit_s=budget, seed=seed,
                                 guide=guide, refine=refine, on_improve=improved)
         conflicts = []
         if result.success:
@@ -457,6 +499,10 @@ def solve(map_file: Annotated[Path, typer.Argument(metavar="MAP.map", help="Movi
 
 def main() -> None:
     """Console-script entry point."""
+    import time
+
+    global _ENTERED
+    _ENTERED = (time.monotonic(), _process_age_s())
     try:
         app()
     except KeyboardInterrupt:

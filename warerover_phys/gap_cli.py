@@ -46,27 +46,33 @@ def run_gap(*, scenario: Path, mode: str, seed: int | None, seeds: str | None,
             workers: int | None, out: Path | None, json_out: bool, plan: Path | None,
             fmt: str | None, yx: bool, fleet: Path | None, delays: str | None,
             tick_s: float, dt_s: float, agvs: str | None, pictures: bool, quiet: bool,
-            overrides: Callable[[], Any], timing: str | None = None) -> None:
+            overrides: Callable[[], Any], timing: str | None = None,
+            video: Path | None = None) -> None:
     """See ``warerover gap --help``."""
     try:
         if mode not in MODE_LABEL:
             raise WareroverError(f"--mode must be open or closed (got {mode!r})")
         if timing is not None and timing not in TIMINGS:
             raise WareroverError(f"--timing must be unit or motion (got {timing!r})")
+        if video is not None and (mode != "open" or seeds):
+            raise WareroverError("--video renders one open-loop execution: it takes neither "
+                                 "--mode closed nor --seeds")
+        if video is not None:
+            _video_check(video)
         picked = _parse_agvs(agvs)
         if plan is not None:
             if mode != "open" or seeds:
                 raise WareroverError("--plan runs one open-loop execution: it takes neither "
                                      "--mode closed nor --seeds")
             return _plan_gap(scenario, plan, fmt, yx, fleet, delays, tick_s, dt_s, seed or 0,
-                             out, json_out, picked, pictures, quiet, timing or "unit")
+                             out, json_out, picked, pictures, quiet, timing or "unit", video)
         sc = _with_timing(overrides(), timing, mode)
         if seeds is not None:
             from .gap_stats import parse_seeds
 
             return _many(sc, parse_seeds(seeds), mode, workers, out, json_out, picked,
                          pictures, quiet)
-        return _one(sc, mode, out, json_out, picked, pictures, quiet)
+        return _one(sc, mode, out, json_out, picked, pictures, quiet, video)
     except ScenarioError as err:
         _fail(err.with_file(str(scenario)) if plan is None else err)
     except WareroverError as err:
@@ -113,7 +119,7 @@ def _bar(show: bool):
 
 
 def _one(sc, mode: str, out: Path | None, json_out: bool, agvs: list[int] | None,
-         pictures: bool, quiet: bool) -> None:
+         pictures: bool, quiet: bool, video: Path | None = None) -> None:
     from .gap import closed_loop_report, open_loop_gap
 
     show = not quiet and not json_out and err_console.is_terminal
@@ -125,6 +131,8 @@ def _one(sc, mode: str, out: Path | None, json_out: bool, agvs: list[int] | None
             g = open_loop_gap(sc, progress=update)
             report, result = g.report, _result(g, sc.seed)
     _print_repairs(report)
+    if video is not None and mode == "open":
+        _video(g, video, f"{sc.name} seed {sc.seed}: ghost = plan", show)
     default = Path("runs") / f"{sc.name}-seed{sc.seed}-gap"
     written = _write_one(out or default, report, result, agvs, pictures)
     if json_out:
@@ -138,6 +146,40 @@ def _one(sc, mode: str, out: Path | None, json_out: bool, agvs: list[int] | None
         _open_table(console, f"open-loop gap: {sc.name}  seed {sc.seed}  "
                              f"{sc.scheduler.name} + {sc.planner.name}", report)
     console.print(f"wrote {written}", markup=False)
+
+
+def _video_check(video: Path) -> None:
+    """Refuse a bad --video before any work is done."""
+    if video.suffix.lower() != ".mp4":
+        raise WareroverError(f"--video: {video}: expected a .mp4 file")
+    try:
+        import av  # noqa: F401
+        import cv2  # noqa: F401
+    except ImportError as err:
+        raise WareroverError(f"--video needs opencv-python-headless and av ({err}): "
+                             "pip install 'warerover-phys[render]'") from None
+
+
+def _video(g, video: Path, title: str, show: bool) -> None:
+    """Render the physics execution of an open-loop gap to ``video``: the bodies as
+    recorded, each AGV's planned pose (the executed plan's ticks x tick_s) as a ghost."""
+    from .render import Style, ghost_poses, recording_with_ghosts, render_video
+
+    run = g.run
+    plan = run.plan
+    if run.trajectory is None:
+        raise WareroverError("--video: the executor kept no trajectory")
+    ghost = ghost_poses({i: list(p.states) for i, p in plan.paths.items()},
+                        [t.footprint for t in plan.types], plan.layout.cols,
+                        float(plan.layout.cell_m), plan.tick_s)
+    rec = recording_with_ghosts(dict(run.trajectory), ghost)
+    style = Style(size=(1280, 720), show_paths=False, ghosts=True, title=title)
+    bar, update = _bar(show)
+    with bar:
+        info = render_video(rec, video, style=style, progress=None if update is None else
+                            lambda k, n: update("video", k, 0))
+    err_console.print(f"wrote {video}: {info['frames']} frames at {info['fps']:g} fps, "
+                      f"{info['speed']:g}x, {info['codec']}", markup=False, highlight=False)
 
 
 def _print_repairs(report: dict) -> None:
@@ -254,6 +296,9 @@ def _open_table(console: Console, title: str, r: dict) -> None:
                   _f(r["executed_orders_makespan_s"], ".2f"), _f(r["orders_makespan_ratio"]))
         t.add_row(escape("throughput [tp_ratio]"), "", "", _f(r.get("tp_ratio")))
         t.add_row(escape("order latency [latency_ratio]"), "", "", _f(r.get("latency_ratio")))
+    if r.get("cycle_repairs"):
+        t.add_row(escape(f"makespan after {r['cycle_repairs']} rotation repair(s) (s) "
+                         "[repaired_makespan_s]"), _f(r["repaired_makespan_s"], ".1f"), "", "")
     console.print(t)
     c = Table(title=f"lost time (executed - planned finish), {r['agents']} AGVs"
                     + (f", against the unit plan (motion timing: {_f(r['lost_s_fleet_total'], '.2f')}"
@@ -391,7 +436,7 @@ def _many(sc, seeds: list[int], mode: str, workers: int | None, out: Path | None
 def _plan_gap(floor: Path, plan: Path, fmt: str | None, yx: bool, fleet: Path | None,
               delays: str | None, tick_s: float, dt_s: float, seed: int, out: Path | None,
               json_out: bool, agvs: list[int] | None, pictures: bool, quiet: bool,
-              timing: str = "unit") -> None:
+              timing: str = "unit", video: Path | None = None) -> None:
     from .gap import plan_gap
 
     if not (math.isfinite(tick_s) and tick_s > 0):
@@ -404,6 +449,8 @@ def _plan_gap(floor: Path, plan: Path, fmt: str | None, yx: bool, fleet: Path | 
         g = plan_gap(floor, plan, fleet=fleet, fmt=fmt, xy=not yx, delays=delays,
                      tick_s=tick_s, dt_s=dt_s, seed=seed, timing=timing, progress=update)
     _print_repairs(g.report)
+    if video is not None:
+        _video(g, video, f"plan {plan.name}: ghost = plan", show)
     written = _write_one(out or Path("runs") / f"gap-{plan.stem}", g.report,
                          _result(g, seed), agvs, pictures)
     if json_out:

@@ -492,7 +492,8 @@ def _motion_order_figures(plan: TimedPlan, sched, report: dict) -> dict:
         p += (o["completed_tick"] - end) * tick_s
         planned.append(p)
         lat.append(p - o["arrival_tick"] * tick_s)
-        lat_unit.append((o["completed_tick"] - o["arrival_tick"]) * tick_s)
+        given = o.get("given_completed_tick", o["completed_tick"])  # as _order_figures
+        lat_unit.append((given - o["arrival_tick"]) * tick_s)
     if not planned:
         return {}
     pm, em = max(planned), report["executed_orders_makespan_s"]

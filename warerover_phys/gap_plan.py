@@ -297,8 +297,8 @@ def repair_rotations(plan: TimedPlan, *, strict: bool = False,
     the same tick: the grid allows it, the dependency graph has no order for it) replaced
     by the local detour of :func:`warerover_phys.execute.repair_cycles`: single-cell moves,
     one AGV at a time, that take the rotation's AGVs to the cells the rotation gives them
-    (1x1 neighbours may step aside and back; AGVs mid-move or at work stay put and their
-    cells are avoided). The ``L`` detour moves are inserted as ``L`` ticks before the
+    (1x1 neighbours may step aside and back; AGVs mid-move, at work or down stay put and
+    their cells are avoided). The ``L`` detour moves are inserted as ``L`` ticks before the
     rotation's tick, in which every other AGV stands: an AGV standing then waits ``L`` ticks
     more there, one mid-move finishes its move first and then waits. Dwells, task states,
     cargo and order completions after the insertion move with their AGV. A plan without
@@ -347,6 +347,8 @@ def repair_rotations(plan: TimedPlan, *, strict: bool = False,
         moving = {i for i in range(n) if before[i][0] != before[i][1]}
         working = {d.agv for i in range(n) for d in dwells[i]
                    if d.tick <= row - 1 < d.tick + d.ticks}
+        g = given_t[min(row - 1, len(given_t) - 1)]
+        working |= {f.agv for f in plan.failures if f.tick <= g < f.tick + f.ticks}  # down
         blocked = {v for i in moving for v in _cells(before[i][1], sizes[i], cols)}
         pos = np.asarray([[divmod(s[0], cols) for s in before],
                           [divmod(states[i][row][0], cols) for i in range(n)]])

@@ -27,6 +27,7 @@ from .config import Scenario
 from .errors import ScenarioError
 from .executors import make_executor
 from .executors.base import AgvBody, ExecutorSetup, StepReport, TickView
+from .faults.exits import exit_spots, inside_open_corridor
 from .faults.model import FaultModel, close_failure, open_failure
 from .metrics import MetricsRecorder
 from .planning import make_planner
@@ -95,6 +96,8 @@ class Simulation:
         self._freeze_hits: dict[int, int] = {}
         self._freeze_yields: set[int] = set()
         """AGVs sent to a yield spot by a freeze recovery (step planners honour these)."""
+        self._exit_sent: dict[int, int] = {}
+        """AGVs caught inside a corridor that were sent out -> the spot they go to."""
         w = self.world
         self._turns = turn_fields(w.layout, [a.spec for a in w.agvs])
         """AGVs whose turns in place planners must reserve: agv -> (sweep, no-turn anchors)."""
@@ -147,6 +150,7 @@ class Simulation:
         """Run one tick of the loop."""
         w = self.world
         self._apply_faults()
+        self._send_out()
         w.add_orders(w.stream.arrivals(w.tick))
         t0 = time.perf_counter()
         for a in self.scheduler.assign(SchedulerView(w), w.rngs["scheduler"]):
@@ -211,6 +215,24 @@ class Simulation:
             for ev in stage(w.tick, w.agvs):
                 open_failure(w, ev.agv, ev.repair_ticks, self.executor, self._view())
 
+    def _send_out(self) -> None:
+        """AGVs caught inside an open corridor go to the nearest free spot outside it
+        (:func:`~warerover_phys.faults.exits.exit_spots`), as a yield goal the planner
+        plans like any other; sent again if the spot is lost or the yield runs out."""
+        w, sent = self.world, self._exit_sent
+        for aid in [a for a in sent if inside_open_corridor(w, a) is None]:
+            del sent[aid]
+        if not w.corridors:
+            return
+        live = {a: s for a, s in sent.items()
+                if w.agvs[a].yield_goal == s and w.tick < w.agvs[a].yield_until}
+        for aid, spot in exit_spots(w, live).items():
+            agv = w.agvs[aid]
+            agv.yield_goal, agv.yield_until, agv.retry_at = spot, w.tick + YIELD_TICKS, w.tick
+            sent[aid] = spot
+            w.log("corridor_exit_sent", agv=aid, corridor=inside_open_corridor(w, aid),
+                  spot=list(w.cell(spot)))
+
     def _plan(self) -> None:
         """Plan the AGVs that need it: a new goal, a path that ran out short of its goal,
         or blocked for ``replan_blocked_ticks``. The planner works on a copy of the
@@ -241,7 +263,11 @@ class Simulation:
             agv = w.agvs[aid]
             agv.plan_failures += 1
             agv.retry_at = w.tick + min(agv.plan_failures, 4)
-            if agv.plan_failures % STUCK_FAILURES == 0:
+            spot = self._exit_sent.get(aid)
+            if spot is not None:  # leaving a corridor: no time to lose
+                agv.retry_at = w.tick + 1
+                self._make_way_for(agv, spot)
+            elif agv.plan_failures % STUCK_FAILURES == 0:
                 self._make_way_for(agv)
         self.metrics.replans_this_tick(len(result.paths), len(result.failed),
                                        len(result.detours), result.budget_hits)
@@ -289,9 +315,10 @@ class Simulation:
             hold = goal is None or (agv.standing and agv.node == goal
                                     and agv.state in _TRAVEL_STATES)
             goal = agv.node if goal is None else goal
-            if agv.id in self._freeze_yields:
-                if agv.yield_goal is not None and w.tick < agv.yield_until and not hold:
-                    goal = agv.yield_goal
+            if agv.id in self._freeze_yields or agv.id in self._exit_sent:
+                if agv.yield_goal is not None and w.tick < agv.yield_until and (
+                        not hold or agv.id in self._exit_sent):
+                    goal, hold = agv.yield_goal, False
                 else:
                     agv.yield_goal = None
                     self._freeze_yields.discard(agv.id)
@@ -361,11 +388,12 @@ class Simulation:
                 res.commit(TimedPath(agv.id, w.tick, (agv.pos,)), agv.k)
         return agents
 
-    def _make_way_for(self, stuck: Agv) -> None:
-        """Send AGVs that stand idle or queue on ``stuck``'s shortest path somewhere else for
-        a while: prioritized planning alone can wall an AGV in with AGVs that wait for it."""
+    def _make_way_for(self, stuck: Agv, goal: int | None = None) -> None:
+        """Send AGVs that stand idle or queue on ``stuck``'s shortest path (to ``goal``,
+        default its task's) somewhere else for a while: prioritized planning alone can wall
+        an AGV in with AGVs that wait for it."""
         w = self.world
-        goal = w.goal_of(stuck)
+        goal = w.goal_of(stuck) if goal is None else goal
         if goal is None:
             return
         shelf = stuck.trip.shelf if stuck.loaded and stuck.trip is not None else None

@@ -16,7 +16,7 @@ SMALL = ["..........", "..SS.SS...", ".........R", "..SS.SS...", "P...P...P."]
 
 def caught_sim(executor: str, **faults) -> Simulation:
     """AGV 1 stands idle at (2, 4), one cell from AGV 0 at (2, 3): AGV 0's corridor (to
-    the access cell (0, 4)) covers it, and nothing sends it anywhere."""
+    the access cell (0, 4)) covers it."""
     return Simulation(scenario_from_dict({
         "layout": {"grid": SMALL},
         "fleet": {"agvs": [{"count": 3, "starts": [[2, 3], [2, 4], [0, 0]]}]},
@@ -25,9 +25,34 @@ def caught_sim(executor: str, **faults) -> Simulation:
 
 
 @pytest.mark.parametrize("executor", ["grid", "physics"])
-def test_agv_left_standing_in_a_corridor_is_an_intrusion_after_its_bound(executor):
+def test_agv_caught_in_a_corridor_is_sent_out_within_its_bound(executor):
+    """Fails on main before the exit requests: the idle AGV caught inside waited for the
+    repair and overran its bound. Now the loop plans it to the nearest free spot outside
+    and it leaves within the bound."""
+    sim = caught_sim(executor)
+    w = sim.world
+    sim.fail(0, repair_ticks=30)
+    (grant,) = w.corridor_book.grants.values()
+    m = sim.run().metrics
+    assert m["corridor_caught_inside"] == 1 == m["corridor_exits_within_bound"]
+    assert m["corridor_exits_overrun"] == 0 and m["corridor_intrusions"] == 0
+    assert m["corridor_intrusion_agv_s"] == 0.0
+    assert 0 < m["corridor_exit_max_s"] <= grant.bound_s
+    sent = [e for e in w.events if e["event"] == "corridor_exit_sent"]
+    assert sent and sent[0]["agv"] == 1 and sent[0]["corridor"] == grant.corridor
+    spot = tuple(sent[0]["spot"])
+    assert w.node(spot) not in w.corridor_log[0]["cells"]
+    (done,) = [e for e in w.events if e["event"] == "corridor_exit"]
+    assert done["within"] and not done["closed"]
+
+
+@pytest.mark.parametrize("executor", ["grid", "physics"])
+def test_agv_left_standing_in_a_corridor_is_an_intrusion_after_its_bound(executor,
+                                                                          monkeypatch):
     """Before the fix: 0 intrusions (an AGV inside at the opening was exempt as long as it
-    stayed). Now its 30 s inside count, less its exit bound."""
+    stayed). Now its 30 s inside count, less its exit bound. (The loop's exit request is
+    switched off here, so that the AGV stays.)"""
+    monkeypatch.setattr(Simulation, "_send_out", lambda self: None)
     sim = caught_sim(executor)
     w = sim.world
     sim.fail(0, repair_ticks=30)
@@ -54,7 +79,8 @@ def test_agv_left_standing_in_a_corridor_is_an_intrusion_after_its_bound(executo
 
 
 @pytest.mark.parametrize("executor", ["grid", "physics"])
-def test_exit_time_is_configurable(executor):
+def test_exit_time_is_configurable(executor, monkeypatch):
+    monkeypatch.setattr(Simulation, "_send_out", lambda self: None)  # it stays
     sim = caught_sim(executor, exit_time_s=40.0)
     sim.fail(0, repair_ticks=30)
     m = sim.run().metrics
@@ -72,9 +98,10 @@ def test_exit_options_are_validated():
             caught_sim("grid", **bad)
 
 
-def test_grid_executor_checks_corridors_every_tick():
+def test_grid_executor_checks_corridors_every_tick(monkeypatch):
     """Before the fix the grid executor's reports said metres, so the loop never ran its
     cell check: an AGV standing in a corridor went unseen on the grid."""
+    monkeypatch.setattr(Simulation, "_send_out", lambda self: None)  # it stays
     sim = caught_sim("grid")
     sim.fail(0, repair_ticks=5)
     for _ in range(3):

@@ -72,6 +72,19 @@ def test_a_run_is_cheaper_than_separate_moves_and_reach_is_monotone(v, a, k):
         assert times[j] + times[k - j] == pytest.approx(m.run_s(k), abs=1e-9)
 
 
+@settings(max_examples=60, deadline=None)
+@given(speeds, accels, cells, st.floats(0.0, 1.0))
+def test_state_at_inverts_at_s(v, a, k, share):
+    m = MotionModel(v, a, 2.0)
+    d = float(k)
+    x = share * d
+    t = m.at_s(x, d)
+    pos, speed = m.state_at(t, d)
+    assert pos == pytest.approx(x, abs=1e-7)
+    assert 0 <= speed <= v + 1e-9
+    assert m.state_at(m.distance_s(d) + 1, d) == (d, 0.0)
+
+
 @pytest.mark.parametrize(("v", "a", "k"), [(1.5, 1.0, 1), (1.5, 1.0, 2), (1.5, 1.0, 10),
                                            (0.75, 0.5, 1), (0.75, 0.5, 6), (2.0, 0.4, 3)])
 def test_run_time_matches_the_executors_reference_law(v, a, k):

@@ -208,8 +208,8 @@ def test_sipp_finds_the_same_cost_as_space_time_astar(instance):
 
 def test_solve_refine_prints_the_first_and_refined_cost(tmp_path):
     out = tmp_path / "plan.txt"
-    proc = subprocess.run([CLI, "solve", str(MAP), str(SCEN), "--agents", "120", "--refine",
-                           "--time-limit", "4", "--out", str(out)], capture_output=True,
+    proc = subprocess.run([CLI, "solve", str(MAP), str(SCEN), "--agents", "60", "--refine",
+                           "--time-limit", "6", "--out", str(out)], capture_output=True,
                           text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     lines = {k.strip(): v.strip() for k, v in (line.split(":", 1)

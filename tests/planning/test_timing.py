@@ -240,3 +240,39 @@ def test_paper_plans_are_scheduled(path, seed):
     assert data["makespan_s"] == sched.makespan_s
     # deterministic
     assert schedule_plan(plan).finish_s == sched.finish_s
+    # A pass limit that cuts the search short falls back to splitting wherever a move is
+    # late: still every dependency kept, never earlier than the settled schedule.
+    lay = plan.layout
+    cut = schedule(plan.paths, plan.types, cols=lay.cols, rows=lay.rows, cell_m=lay.cell_m,
+                   tick_s=plan.tick_s, dwells=dict(plan.dwell_view), max_passes=1)
+    assert_consistent(cut)
+    assert_no_shared_cell(cut, plan.paths, fleet, lay.cols)
+    assert cut.makespan_s >= sched.makespan_s - 1e-9
+
+
+def test_downtime_holds_a_run_and_delays_what_follows():
+    path = TimedPath(0, 0, tuple((c, c) for c in range(7)))
+    m = MotionModel.of(SMALL, 1.0)
+    base = schedule({0: path}, [SMALL], cols=7, rows=1)
+    # down before it starts: the run starts when it is up again
+    before = schedule({0: path}, [SMALL], cols=7, rows=1, downtime={0: [(0.0, 3.0)]})
+    assert before.actions[0][0].start_s == pytest.approx(3.0)
+    assert before.finish_s[0] == pytest.approx(3.0 + m.run_s(6))
+    # down while it drives (2.5 s in: 2.625 m at 1.5 m/s): it brakes at its limit to a
+    # stop at 3.75 m (the move ending at 3 m finishes while braking) and drives the last
+    # 2.25 m from rest when it is up again at 6.5 s
+    mid = schedule({0: path}, [SMALL], cols=7, rows=1, downtime={0: [(2.5, 6.5)]})
+    assert m.state_at(2.5, 6.0) == pytest.approx((2.625, 1.5))
+    assert mid.finish_s[0] == pytest.approx(6.5 + m.distance_s(2.25))
+    assert mid.actions[0][2].finish_s == pytest.approx(2.5 + 1.5 - math.sqrt(1.5))
+    assert mid.actions[0][3].start_s == pytest.approx(mid.actions[0][2].finish_s)
+    assert mid.actions[0][3].finish_s == pytest.approx(6.5 + m.at_s(0.25, 2.25))
+    for a, b in zip(base.actions[0][:2], mid.actions[0][:2], strict=True):
+        assert b.finish_s == pytest.approx(a.finish_s)
+    # a turn the window interrupts is done again after it
+    turn = TimedPath(0, 0, ((8, 8), (1, 1), (1, 1)))  # (1, 1) -> (0, 1): north, a quarter
+    t = schedule({0: turn}, [SMALL], cols=7, rows=2, downtime={0: [(0.2, 2.0)]})
+    assert t.actions[0][0].start_s == pytest.approx(2.0 + m.turn_s(1))
+    # down after it is done: nothing changes
+    after = schedule({0: path}, [SMALL], cols=7, rows=1, downtime={0: [(50.0, 60.0)]})
+    assert after.finish_s == base.finish_s

@@ -436,3 +436,20 @@ def test_adg_shelf_cells_hold_back_only_loaded_agvs():
     assert g.ready(0) and not g.ready(1)
     g.set_loaded([False, False])
     assert g.ready(1)
+
+
+def test_check_rejects_loaded_turns_at_side_by_side_stations():
+    """With 0.9 m shelves an 0.8 m body cannot turn beside a loaded neighbour: `check`
+    says so for stations side by side (the padded floor: 0.8 m bodies clear its walls)."""
+    from typer.testing import CliRunner
+
+    from warerover_phys.cli import app
+
+    runner = CliRunner()
+    path = "tools/scenarios/paper_homogeneous_padded.yaml"
+    assert runner.invoke(app, ["check", path]).exit_code == 0
+    bad = runner.invoke(app, ["check", path, "--set", "fleet.types.agv.body_m=[0.8,0.8]"])
+    assert bad.exit_code == 2
+    text = " ".join(bad.output.split())
+    assert "1.6 cm into the 0.9 m shelf" in text and "(4, 1) and (5, 1)" in text
+    assert "Traceback" not in bad.output

@@ -77,6 +77,33 @@ def bfs_depths(graph: csr_matrix, source: int) -> np.ndarray:
     return depth
 
 
+def _exit_moves(closed: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Per anchor in ``closed``, the fewest 4-neighbour moves over ``valid`` anchors to a
+    valid anchor outside ``closed`` (0 outside; a large number where there is none)."""
+    rows, cols = closed.shape
+    far = rows * cols + 1
+    out = np.where(closed, far, 0).astype(np.int64)
+    frontier = [(int(r), int(c)) for r, c in np.argwhere(closed)
+                if valid[r, c] and any(0 <= r + dr < rows and 0 <= c + dc < cols
+                                       and valid[r + dr, c + dc] and not closed[r + dr, c + dc]
+                                       for dr, dc in ((0, 1), (1, 0), (0, -1), (-1, 0)))]
+    for r, c in frontier:
+        out[r, c] = 1
+    d = 1
+    while frontier:
+        d += 1
+        nxt = []
+        for r, c in frontier:
+            for dr, dc in ((0, 1), (1, 0), (0, -1), (-1, 0)):
+                rr, cc = r + dr, c + dc
+                if 0 <= rr < rows and 0 <= cc < cols and closed[rr, cc] and valid[rr, cc] \
+                        and out[rr, cc] == far:
+                    out[rr, cc] = d
+                    nxt.append((rr, cc))
+        frontier = nxt
+    return out
+
+
 class MotionGraph:
     """Anchors and moves of one AGV class (footprint ``k``, loaded or not) on a layout."""
 
@@ -109,11 +136,13 @@ class MotionGraph:
         areas = [] if closed is None else [m for m in np.reshape(
             closed, (-1, self.rows, self.cols)) if m.any()]
         self._closed_areas = [~_window_all(~m, k) for m in areas]
-        if areas:
-            from scipy.ndimage import distance_transform_cdt  # slow to import; rarely needed
-        self._exit_steps = [distance_transform_cdt(a, metric="taxicab")
-                            for a in self._closed_areas]
-        """Per closed area, moves from each anchor to the nearest anchor outside it."""
+        # Moves (over this graph's anchors) to the nearest anchor outside *every* closed
+        # area: an AGV in one area next to another (two corridors side by side), or whose
+        # nearest way out is blocked (a loaded AGV beside shelves), still has a way out.
+        steps = _exit_moves(np.logical_or.reduce(self._closed_areas), self.valid) \
+            if areas else None
+        self._exit_steps = [steps for _ in self._closed_areas]
+        """Per closed area, moves from each anchor to the nearest anchor outside all."""
         self.closed = (np.logical_or.reduce(self._closed_areas) if self._closed_areas
                        else np.zeros_like(self.valid))
         self.expandable_flat: list[bool] = self.valid.ravel().tolist()

@@ -141,6 +141,24 @@ class MotionModel:
         the centre of its ``j``-th cell (the end of the run's ``j``-th move, ``0 <= j <= k``)."""
         return self.at_s(j * self.cell_m, k * self.cell_m)
 
+    def state_at(self, t_s: float, d_m: float) -> tuple[float, float]:
+        """Distance covered (m) and speed (m/s) ``t_s`` seconds into a rest-to-rest run of
+        ``d_m`` metres (at rest on its end after :meth:`distance_s`)."""
+        if d_m <= 0 or t_s <= 0:
+            return 0.0, 0.0
+        total = self.distance_s(d_m)
+        if t_s >= total:
+            return d_m, 0.0
+        a = self.max_accel_mps2
+        vp = self._peak(d_m)
+        t_acc = vp / a
+        if t_s <= t_acc:
+            return 0.5 * a * t_s * t_s, a * t_s
+        if t_s <= total - t_acc:
+            return vp * vp / (2 * a) + vp * (t_s - t_acc), vp
+        left = total - t_s
+        return d_m - 0.5 * a * left * left, a * left
+
     def pass_s(self, k: int) -> float:
         """Seconds to cross ``k`` cells at top speed, without stopping: the middle of a long
         run (a lower bound of any ``k`` moves)."""

@@ -82,6 +82,9 @@ def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner:
     valid throughout. ``on_improve(seconds, soc)`` is called after each improvement;
     ``stats["refine"]`` holds the first solution's SoC and the SoC after each improvement.
     """
+    t0 = time.perf_counter()
+    start_mono = time.monotonic()
+    deadline = start_mono + time_limit_s
     graph = grid_graph(obstacles)
     lb = 0
     for s, g in zip(starts, goals, strict=True):
@@ -89,9 +92,6 @@ def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner:
         if d >= UNREACHABLE:
             raise PlanningError(f"goal {g} cannot be reached from start {s}")
         lb += d
-    t0 = time.perf_counter()
-    start_mono = time.monotonic()
-    deadline = start_mono + time_limit_s
     if planner == "pibt":
         from .pibt import pibt_oneshot
         paths, stats = pibt_oneshot(graph, starts, goals, deadline, seed, guide=guide)

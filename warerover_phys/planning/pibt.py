@@ -184,7 +184,7 @@ def pibt_oneshot(graph: MotionGraph, starts: Sequence[Cell], goals: Sequence[Cel
     rng = np.random.default_rng(seed)
     s = [graph.node(c) for c in starts]
     g = [graph.node(c) for c in goals]
-    dists = [graph.dist_to(c) for c in goals]
+    dists = [graph.dist_to(c).tolist() for c in goals]  # lists: faster single reads
     nxt_of, guide_stats = None, None
     if guide:
         from .scatter import guide_for
@@ -196,8 +196,8 @@ def pibt_oneshot(graph: MotionGraph, starts: Sequence[Cell], goals: Sequence[Cel
     while configs[-1] != g:
         if len(configs) > max_steps or time.monotonic() > deadline:
             return None, {"steps": len(configs) - 1, **extra}
-        nxt = pibt_step(graph, configs[-1], dists, prio, rng.random(graph.num_nodes) * 0.5,
-                        goals=g, guide=nxt_of)
+        nxt = pibt_step(graph, configs[-1], dists, prio,
+                        (rng.random(graph.num_nodes) * 0.5).tolist(), goals=g, guide=nxt_of)
         assert nxt is not None
         configs.append(nxt)
         prio = update_priorities(prio, nxt, g)

@@ -99,6 +99,10 @@ class _Table:
         self.collisions -= self._path_cost(path)
 
 
+_BIG = 1 << 24
+"""Heap keys are ``collisions * _BIG + f`` (f stays far below it)."""
+
+
 def _search(neighbors: Sequence[Sequence[int]], table: _Table, start: int, goal: int,
             dist: Sequence[int], margin: int) -> list[int] | None:
     """The guide path of one agent: fewest collisions, then shortest, within ``margin``."""
@@ -106,11 +110,13 @@ def _search(neighbors: Sequence[Sequence[int]], table: _Table, start: int, goal:
         return [start]
     ub = dist[start] + margin
     n, body, ends = table.n, table.body, table.ends
-    heap = [(0, dist[start], 0, start, -1)]
+    heap = [(dist[start], 0, start, -1)]
     parent: dict[int, int] = {}
+    best: dict[int, int] = {}  # lowest key pushed per node: a higher one can never win
     push, pop = heapq.heappush, heapq.heappop
+    big = _BIG
     while heap:
-        c, _f, neg_g, v, par = pop(heap)
+        key, neg_g, v, par = pop(heap)
         if v in parent:
             continue
         parent[v] = par
@@ -123,13 +129,14 @@ def _search(neighbors: Sequence[Sequence[int]], table: _Table, start: int, goal:
             return path
         g = -neg_g
         t1 = g + 1
+        c = key // big
         for u in neighbors[v]:
             if u == start or u in parent:
                 continue
             f = t1 + dist[u]
             if f > ub:
                 continue
-            # collisions of the move v -> u from tick g to g + 1 (inlined _Table.step_cost)
+            # collisions of the move v -> u from tick g to g + 1 (as _Table.step_cost)
             cc = c
             here = body.get(t1 * n + u)
             if here:
@@ -138,17 +145,26 @@ def _search(neighbors: Sequence[Sequence[int]], table: _Table, start: int, goal:
             if a:
                 b = body.get(g * n + u)
                 if b:
-                    cc += sum(1 for j in a if j in b)
+                    for j in a:
+                        if j in b:
+                            cc += 1
             e = ends.get(u)
             if e:
-                cc += sum(1 for last in e if t1 > last)
-            push(heap, (cc, f, -t1, u, v))
+                for last in e:
+                    if t1 > last:
+                        cc += 1
+            k = cc * big + f
+            old = best.get(u)
+            if old is not None and old <= k:
+                continue
+            best[u] = k
+            push(heap, (k, -t1, u, v))
     return None
 
 
 def guide_paths(neighbors: Sequence[Sequence[int]], starts: Sequence[int],
-                goals: Sequence[int], dists: Sequence[np.ndarray], rng: np.random.Generator,
-                *, margin: int = 10, max_rounds: int = 3, deadline: float | None = None,
+                goals: Sequence[int], dists: Sequence[np.ndarray | list[int]], rng: np.random.Generator,
+                *, margin: int = 20, max_rounds: int = 2, deadline: float | None = None,
                 ) -> GuidePaths:
     """Guide paths for agents from ``starts`` to ``goals`` (node indices).
 
@@ -161,7 +177,7 @@ def guide_paths(neighbors: Sequence[Sequence[int]], starts: Sequence[int],
     t0 = time.perf_counter()
     num = len(starts)
     table = _Table(len(neighbors))
-    lists = [d.tolist() for d in dists]
+    lists = [d if isinstance(d, list) else d.tolist() for d in dists]
     paths: list[list[int] | None] = [None] * num
     best: list[list[int] | None] = [None] * num
     best_collisions: int | None = None
@@ -177,6 +193,9 @@ def guide_paths(neighbors: Sequence[Sequence[int]], starts: Sequence[int],
             old = paths[i]
             if old is not None:
                 table.remove(i, old)
+                if table._path_cost(old) == 0:
+                    table.add(i, old)  # no collision: nothing to gain
+                    continue
             new = _search(neighbors, table, starts[i], goals[i], lists[i], margin)
             if new is None:
                 new = old

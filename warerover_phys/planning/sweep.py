@@ -353,6 +353,29 @@ def check_fleet_sweeps(types: Mapping[str, object], cell_m: float, layout=None,
                        f"{s.k}x{s.k} footprint turning in place sweeps a disc of radius "
                        f"{s.radius_m:.3f} m on {cell_m} m cells{why}, so its turns cannot "
                        "be reserved (use a smaller body, drive: omni, or larger cells)")
+            continue
+        if layout is None or s.k != 1 or not s.turns:
+            continue
+        body = set(sweep_offsets(_bare(s), bare, cell_m))
+        shelf = set(sweep_offsets(s, fleet, cell_m)) - body
+        stations = sorted(tuple(x) for x in layout.stations)
+        pairs = [(a, b) for a in stations for b in stations
+                 if a < b and (b[0] - a[0], b[1] - a[1]) in shelf]
+        if pairs:
+            more = f" and {len(pairs) - 2} more pairs" if len(pairs) > 2 else ""
+            reach = s.radius_m - (cell_m - max(b.shelf_m for b in fleet) / 2)
+            out.append(f"fleet.types.{name}: a {s.length_m} x {s.width_m} m body on a "
+                       f"1x1 footprint turning in place sweeps a disc of radius "
+                       f"{s.radius_m:.3f} m, which reaches {reach * 100:.1f} cm into the "
+                       f"{max(b.shelf_m for b in fleet):g} m shelf a neighbour carries (kept "
+                       f"parallel to the grid) on {cell_m} m cells; stations "
+                       f"{', '.join(f'{a} and {b}' for a, b in pairs[:2])}{more} are side "
+                       "by side, so two loaded AGVs there block each other's turns and "
+                       "neither can turn to leave; the planners do not reserve turns "
+                       "against loaded neighbours (the physics executor makes such a turn "
+                       "wait), so these stations cannot be served together (use a body "
+                       f"whose half-diagonal is at most {cell_m - SHELF_BOX * cell_m / 2:g} m, "
+                       "drive: omni, larger cells, or a free cell between stations)")
     return out
 
 

@@ -19,8 +19,10 @@ plan the way the physics executor drives it (:mod:`warerover_phys.executors.foll
   run is *split* there: the AGV stops at the cell before and starts a new run when they are.
   Where to split depends on the other AGVs' runs, so the earliest-time pass is repeated,
   each deciding the runs' lengths from the ready times of the pass before, until no move is
-  entered before it is ready (ready times only grow from pass to pass, so no split is kept
-  that the schedule does not need).
+  entered before it is ready (a handful of passes on the paper scenarios). Ready times
+  mostly grow from pass to pass, but not always (a run split earlier may pass a later cell
+  at speed, sooner than a robot that stopped there), so after ``max_passes`` passes the
+  search falls back to adding a split wherever a move is late, which only delays and ends.
 - **Turns** (differential drive): before a move in a direction other than the AGV's heading
   (AGVs start facing east, as the physics executor places them) it turns in place for
   :meth:`MotionModel.turn_s`. As in the executor the turn starts when the AGV arrives, during
@@ -49,6 +51,7 @@ communication latency (``comm_latency_s``) delays every dependency on another AG
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -185,7 +188,9 @@ def schedule(paths: Mapping[int, TimedPath], fleet: Sequence[AgvTypeSpec], *, co
              rows: int, cell_m: float = 1.0, tick_s: float = 1.0,
              dwells: Mapping[int, Sequence[tuple[int, int]]] | None = None,
              loaded: np.ndarray | None = None, payload: bool = False,
-             comm_latency_s: float = 0.0, max_passes: int = 200) -> Schedule:
+             comm_latency_s: float = 0.0,
+             downtime: Mapping[int, Sequence[tuple[float, float]]] | None = None,
+             max_passes: int = 200) -> Schedule:
     """The motion-timed schedule of a plan (see the module docstring).
 
     ``paths``: every AGV's timed path (all from the same tick, starting and ending standing);
@@ -194,7 +199,10 @@ def schedule(paths: Mapping[int, TimedPath], fleet: Sequence[AgvTypeSpec], *, co
     ``(tick, ticks)`` of its work in place; ``loaded`` (T + 1, N): whether each AGV carries
     a shelf at each tick (with ``payload``: the loaded acceleration limit applies to moves
     that start loaded); ``comm_latency_s`` (``executor.comm_latency_s``): an AGV hears this
-    long after another AGV's action finished that its cells are free. Raises
+    long after another AGV's action finished that its cells are free; ``downtime``: per AGV
+    the ``(from_s, to_s)`` windows it is down (failures replayed, as the open-loop gap
+    does): no run or turn starts inside one; in a run it falls into the AGV brakes at its
+    limit where it is, and drives the rest from rest once it is up again. Raises
     ``ADGCycleError`` if the plan has no execution order.
     """
     agvs = sorted(paths)
@@ -248,13 +256,14 @@ def schedule(paths: Mapping[int, TimedPath], fleet: Sequence[AgvTypeSpec], *, co
                 (prev.agv, index[(prev.agv, prev.leave)]))
             n_deps += 1
     order = _topological(acts, deps)
+    down = {i: sorted((float(a), float(b)) for a, b in w if b > a)
+            for i, w in (downtime or {}).items() if w}
     sweeps = {(i, n): bool(a.sweeps) for i in agvs for n, a in enumerate(acts[i])}
     # Where a run must stop depends on when the other AGVs free its cells, which depends
     # on where their runs stop. Each pass decides every run's length from the ready times
     # the pass before found (a run stops before its first move that would be entered before
-    # it is ready) and computes the earliest times in dependency order. Ready times only
-    # grow from pass to pass (from none at all), so a pass in which no move is entered
-    # before it is ready is the schedule, with no split it does not need.
+    # it is ready) and computes the earliest times in dependency order; the first pass in
+    # which no move is entered before it is ready is the schedule.
     passes = 0
     predict: dict[tuple[int, int], float] = {}
     forced: set[tuple[int, int]] = set()
@@ -262,12 +271,12 @@ def schedule(paths: Mapping[int, TimedPath], fleet: Sequence[AgvTypeSpec], *, co
         passes += 1
         times, ready, runs, late, splits = _pass(order, acts, deps, model, dwell_s, turn_s,
                                                  joins, sweeps, predict, forced,
-                                                 comm_latency_s)
+                                                 comm_latency_s, down)
         if not late:
             break
         if passes < max_passes:
             predict = ready
-        else:  # not settled yet (never seen): split where late, which only adds splits
+        else:  # not settled: split wherever a move is late (only adds splits, so it ends)
             forced |= splits | set(late)
             predict = {}
     out: dict[int, tuple[TimedAction, ...]] = {}
@@ -324,12 +333,14 @@ def _topological(acts: Mapping[int, list], deps: Mapping[tuple[int, int], list]
 
 
 def _pass(order, acts, deps, model, dwell_s, turn_s, joins, sweeps, predict, forced,
-          latency=0.0):
+          latency=0.0, down=None):
     """One earliest-time pass (see :func:`schedule`). ``predict``: per action the ready time
     its run's length is decided with (missing: 0); ``forced``: actions that start a run
     whatever ``predict`` says. Returns start/finish per action, ready times, run index per
     action, the moves entered before they were ready (at most one per run) and the moves
-    that start a run although they could have continued the one before (the splits)."""
+    that start a run although they could have continued the one before (the splits).
+    ``down``: per AGV its sorted downtime windows (seconds)."""
+    down = down or {}
     times: dict[tuple[int, int], tuple[float, float]] = {}
     ready: dict[tuple[int, int], float] = {}
     runs: dict[tuple[int, int], int] = {}
@@ -344,13 +355,14 @@ def _pass(order, acts, deps, model, dwell_s, turn_s, joins, sweeps, predict, for
         m = model[key]
         cur = seg.get(i)
         if cur is not None and n < cur[0] + cur[1]:  # inside the AGV's current run
-            first, length, t0, run, flagged = cur
+            first, length, t0, run, flagged, pause = cur
             pos = n - first
-            start = t0 + m.reach_s(pos, length)
+            d = length * m.cell_m
+            start = _run_time(t0, pos * m.cell_m, d, m, pause)
             if r > start + _EPS and not flagged:
                 late.append(key)
                 cur[4] = True
-            times[key] = (start, t0 + m.reach_s(pos + 1, length))
+            times[key] = (start, _run_time(t0, (pos + 1) * m.cell_m, d, m, pause))
             runs[key] = run
             continue
         if n > 0 and joins[key]:
@@ -372,17 +384,61 @@ def _pass(order, acts, deps, model, dwell_s, turn_s, joins, sweeps, predict, for
                 if predict.get((i, n + j), 0.0) > go + m.reach_s(j, length) + _EPS:
                     length = j
                     break
+        pause = None
+        if i in down:
+            go, pause = _downtime(go, arrive, turn_s[key], m, length, down[i])
         run = cur[3] + 1 if cur is not None else 0
-        seg[i] = [n, length, go, run, False]
-        times[key] = (go, go + m.reach_s(1, length))
+        seg[i] = [n, length, go, run, False, pause]
+        times[key] = (go, _run_time(go, m.cell_m, length * m.cell_m, m, pause))
         runs[key] = run
     return times, ready, runs, late, splits
+
+
+def _downtime(go: float, arrive: float, turn: float, m: MotionModel, length: int,
+              windows: list[tuple[float, float]]) -> tuple[float, tuple | None]:
+    """A run of ``length`` cells that would start at ``go`` (the AGV arrived at ``arrive``
+    and turns for ``turn`` before it), given the AGV's downtime ``windows``: its start moved
+    past the windows it falls in (a turn that a window interrupts is done again after it),
+    and the first window that opens while it drives as ``(at, until, x, v)``: ``at``
+    seconds into the run it brakes at its limit from ``v`` m/s at ``x`` m, and drives the
+    rest of the run from rest at ``until`` (seconds, absolute), as the executor does."""
+    for a, b in windows:
+        if turn > 0 and arrive <= a < arrive + turn and a < go:
+            go = max(go, b + turn)
+        elif a - _EPS <= go < b:
+            go = b
+    span = m.reach_s(length, length)
+    for a, b in windows:
+        if go < a < go + span:
+            x, v = m.state_at(a - go, length * m.cell_m)
+            return go, (a - go, b, x, v)
+    return go, None
+
+
+def _run_time(go: float, x: float, d: float, m: MotionModel, pause: tuple | None) -> float:
+    """When a run of ``d`` metres started at ``go`` passes ``x`` metres, with the pause of
+    :func:`_downtime` (None: none)."""
+    if pause is None:
+        return go + m.at_s(x, d)
+    at, until, x0, v = pause
+    if x <= x0 + _EPS:
+        return go + m.at_s(x, d)
+    acc = m.max_accel_mps2
+    x_stop = x0 + v * v / (2 * acc)
+    if x <= x_stop + _EPS:  # reached while braking
+        disc = max(0.0, v * v - 2 * acc * (x - x0))
+        return go + at + (v - math.sqrt(disc)) / acc
+    # the rest from rest, once it is up again
+    return until + m.at_s(x - x_stop, d - x_stop)
 
 
 def schedule_plan(plan, *, payload: bool = False, comm_latency_s: float = 0.0) -> Schedule:
     """The schedule of a :class:`~warerover_phys.gap_plan.TimedPlan` (the open-loop gap's
     plan: paths, dwells, cargo); ``payload``, ``comm_latency_s``: the executor's settings."""
     lay = plan.layout
+    down: dict[int, list[tuple[float, float]]] = {}
+    for f in getattr(plan, "failures", ()):
+        down.setdefault(f.agv, []).append((f.tick * plan.tick_s, (f.tick + f.ticks) * plan.tick_s))
     return schedule(plan.paths, plan.types, cols=lay.cols, rows=lay.rows, cell_m=lay.cell_m,
                     tick_s=plan.tick_s, dwells=dict(plan.dwell_view), loaded=plan.loaded,
-                    payload=payload, comm_latency_s=comm_latency_s)
+                    payload=payload, comm_latency_s=comm_latency_s, downtime=down)

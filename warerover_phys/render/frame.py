@@ -2,7 +2,8 @@
 
 :func:`draw_frame` draws, in this order: the floor (cell types: shelves, stations, parking,
 obstacles; grid lines when cells are big enough), the open safety corridors (translucent zone
-and outline), the planned path ahead of each AGV (optional), the AGVs as rotated rectangles
+and outline), the planned path ahead of each AGV (optional), each AGV's planned pose as an outlined
+ghost (optional, ``Style.ghosts``: the open-loop gap's video), the AGVs as rotated rectangles
 of their true size coloured by status (idle, moving, loaded, failed) with a heading mark, a
 cargo marker, a cross when failed and the id, then a heads-up line (simulated time, orders
 done / total, throughput, active failures) and a legend. Colours are the Okabe-Ito palette
@@ -63,6 +64,7 @@ PALETTE: dict[str, tuple[int, int, int]] = {
     "loaded": OKABE_ITO["orange"],
     "failed": OKABE_ITO["vermillion"],
     "corridor": OKABE_ITO["purple"],
+    "ghost": OKABE_ITO["green"],
     "outline": (30, 30, 30),
     "hud_bg": (38, 38, 38),
     "hud_text": (245, 245, 245),
@@ -126,6 +128,9 @@ class Snapshot:
     orders_total: int | None = None
     paths: list[np.ndarray | None] | None = None
     """Per AGV, ``(K, 2)`` points (metres) of the path ahead, or None."""
+    ghosts: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    """Per AGV, the planned pose ``(x, y, heading)`` at this time (metres, radians; NaN:
+    none), drawn as an outlined ghost when ``Style.ghosts`` is on."""
 
 
 @dataclass(frozen=True)
@@ -150,6 +155,9 @@ class Style:
     corridor_alpha: float = 0.4
     title: str = ""
     """Shown at the right end of the heads-up line."""
+    ghosts: bool = False
+    """Draw each AGV's planned pose (``Snapshot.ghosts``) as an outlined ghost, with a line
+    to the real body when they are apart (and a legend entry)."""
 
     def __post_init__(self) -> None:
         w, h = self.size
@@ -268,6 +276,8 @@ def _legend(img: np.ndarray, geo: Geometry, style: Style) -> None:
              ("obstacle", "obstacle"), ("corridor", "safety corridor")]
     if style.show_paths:
         items.append(("path", "planned path"))
+    if style.ghosts:
+        items.append(("ghost", "planned pose (ghost)"))
     w = style.size[0]
     font = geo.font * 0.9
     for _ in range(6):
@@ -282,6 +292,8 @@ def _legend(img: np.ndarray, geo: Geometry, style: Style) -> None:
         y0 = yc - box // 2
         if key == "path":
             cv2.line(img, (x, yc), (x + box, yc), PALETTE["moving"], 2, _AA)
+        elif key == "ghost":
+            cv2.rectangle(img, (x + 1, y0 + 1), (x + box - 1, y0 + box - 1), PALETTE["ghost"], 2)
         elif key == "corridor":
             cv2.rectangle(img, (x, y0), (x + box, y0 + box),
                           _blend(PALETTE["floor"], PALETTE["corridor"], style.corridor_alpha), -1)
@@ -448,6 +460,38 @@ def _agvs(band: np.ndarray, geo: Geometry, snap: Snapshot, style: Style,
                         outline if st in (0, 2) else (255, 255, 255), th, _AA)
 
 
+def _ghosts(band: np.ndarray, geo: Geometry, snap: Snapshot, style: Style) -> None:
+    """Each AGV's planned pose as an outline of its body in the ``ghost`` colour, and a
+    line from it to the real body's centre when they are more than a body apart / 4."""
+    gx, gy, gh = (np.asarray(a, dtype=np.float64) for a in snap.ghosts)
+    body = snap.scene.body_m
+    keep = np.flatnonzero(np.isfinite(gx) & np.isfinite(gy) & np.isfinite(gh))
+    if len(keep) == 0:
+        return
+    s = geo.scale
+    half = np.maximum(body[keep] * s, style.min_agv_px) / 2
+    cx = geo.ox + (gx[keep] - geo.x0_m) * s
+    cy = geo.oy + (gy[keep] - geo.y0_m) * s
+    c, si = np.cos(gh[keep]), np.sin(gh[keep])
+    ux, uy = np.stack([c, si], axis=1), np.stack([-si, c], axis=1)
+    centre = np.stack([cx, cy], axis=1)
+    sx = np.array([1, -1, -1, 1])[None, :, None]
+    sy = np.array([1, 1, -1, -1])[None, :, None]
+    corners = (centre[:, None, :] + sx * half[:, None, 0:1] * ux[:, None, :]
+               + sy * half[:, None, 1:2] * uy[:, None, :])
+    color = PALETTE["ghost"]
+    thick = max(2, int(round(float(half.min()) * 0.2)))
+    cv2.polylines(band, list(_fixed(corners)), True, color, thick, _AA, SHIFT)
+    rx = geo.ox + (np.asarray(snap.x, dtype=np.float64)[keep] - geo.x0_m) * s
+    ry = geo.oy + (np.asarray(snap.y, dtype=np.float64)[keep] - geo.y0_m) * s
+    apart = np.hypot(rx - cx, ry - cy) > half.min(axis=1) / 2
+    for j in np.flatnonzero(apart).tolist():
+        a = _fixed(np.array([cx[j], cy[j]]))
+        b = _fixed(np.array([rx[j], ry[j]]))
+        cv2.line(band, (int(a[0]), int(a[1])), (int(b[0]), int(b[1])), color,
+                 max(1, thick // 2), _AA, SHIFT)
+
+
 def _hud(img: np.ndarray, geo: Geometry, snap: Snapshot, style: Style, failures: int) -> None:
     tick = snap.time_s / snap.tick_s if snap.tick_s > 0 else 0.0
     parts = [f"t {snap.time_s:.1f} s", f"tick {int(math.floor(tick + 1e-9))}"]
@@ -477,6 +521,8 @@ def draw_frame(snapshot: Snapshot, style: Style | None = None) -> np.ndarray:
         _corridors(band, geo, snapshot.corridors, style)
     if style.show_paths and snapshot.paths:
         _paths(band, geo, snapshot, status, style)
+    if style.ghosts and snapshot.ghosts is not None:
+        _ghosts(band, geo, snapshot, style)
     _agvs(band, geo, snapshot, style, status)
     if style.show_hud:
         _hud(img, geo, snapshot, style, int((status == 3).sum()))

@@ -31,7 +31,8 @@ if TYPE_CHECKING:
     from ..sim import EpisodeResult
     from .frame import Scene, Snapshot
 
-__all__ = ["Recording", "load_trajectory", "recording_from_episode", "grid_trajectory"]
+__all__ = ["Recording", "load_trajectory", "recording_from_episode", "grid_trajectory",
+           "ghost_poses", "recording_with_ghosts"]
 
 FAILED = 7
 """``AgvState.FAILED``."""
@@ -65,6 +66,9 @@ class Recording:
     """Completion tick of every completed order (sorted)."""
     plans: dict[int, list[tuple[int, np.ndarray]]] = field(default_factory=dict)
     """AGV -> committed plans ``(start tick, (L, 2) centre points in metres)``, by tick."""
+    ghost: dict[str, np.ndarray] | None = None
+    """Planned poses drawn as ghosts: ``t`` (G,) seconds, ``x``, ``y``, ``heading`` (G, N)
+    (:func:`ghost_poses`); None: none."""
     _scene: list = field(default_factory=list, repr=False)
     _plan_index: list = field(default_factory=list, repr=False)
 
@@ -121,9 +125,10 @@ class Recording:
             total = int(np.searchsorted(self.order_created, tick, side="right"))
             done = int(np.searchsorted(self.order_done, tick, side="right"))
         paths = self._paths_ahead(tick, x, y, path_ticks) if path_ticks > 0 else None
+        ghosts = _sample(self.ghost, q) if self.ghost is not None else None
         return Snapshot(scene=self.scene(), time_s=q, tick_s=self.tick_s, x=x, y=y,
                         heading=heading, state=state, loaded=loaded, corridors=corridors,
-                        orders_done=done, orders_total=total, paths=paths)
+                        orders_done=done, orders_total=total, paths=paths, ghosts=ghosts)
 
     def _paths_ahead(self, tick: float, x: np.ndarray, y: np.ndarray,
                      horizon: int) -> list[np.ndarray | None]:
@@ -153,6 +158,58 @@ class Recording:
                 pts[1:] = ahead
                 out[aid] = pts
         return out
+
+
+def _sample(g: dict[str, np.ndarray], q: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Poses of ``g`` (``t``, ``x``, ``y``, ``heading``) at time ``q``, interpolated (held
+    at the ends)."""
+    t = g["t"]
+    q = min(max(q, float(t[0])), float(t[-1]))
+    i = min(max(int(np.searchsorted(t, q, side="right")) - 1, 0), len(t) - 1)
+    j = min(i + 1, len(t) - 1)
+    w = 0.0 if j == i else (q - float(t[i])) / (float(t[j]) - float(t[i]))
+    dh = (g["heading"][j] - g["heading"][i] + np.pi) % (2 * np.pi) - np.pi
+    return (g["x"][i] + w * (g["x"][j] - g["x"][i]), g["y"][i] + w * (g["y"][j] - g["y"][i]),
+            g["heading"][i] + w * dh)
+
+
+def ghost_poses(states: dict[int, list], footprint: np.ndarray, cols: int, cell_m: float,
+                tick_s: float) -> dict[str, np.ndarray]:
+    """Planned poses of per-tick grid states (a plan's timing: tick ``k`` at ``k * tick_s``
+    seconds), as :attr:`Recording.ghost`. Between ticks the ghost moves linearly; it turns
+    at once when a move starts (plans carry no turning time)."""
+    pos, heading = states_poses(states, np.asarray(footprint), cols, cell_m)
+    # face the next move while standing before it (the body turns before it drives)
+    return {"t": np.arange(len(pos), dtype=np.float64) * float(tick_s),
+            "x": pos[..., 0], "y": pos[..., 1], "heading": _facing(pos, heading)}
+
+
+def _facing(pos: np.ndarray, heading: np.ndarray) -> np.ndarray:
+    """``heading`` where a move starts after tick ``t``: the ghost faces the move from
+    ``t`` on (``states_poses`` gives it on arrival)."""
+    out = heading.copy()
+    if len(pos) > 1:
+        step = np.diff(pos, axis=0)
+        moving = np.abs(step).sum(axis=2) > 1e-9
+        ang = np.arctan2(step[..., 1], step[..., 0])
+        out[:-1] = np.where(moving, ang, out[:-1])
+    return out
+
+
+def recording_with_ghosts(trajectory: dict, ghost: dict[str, np.ndarray],
+                          source: str = "open loop") -> Recording:
+    """A :class:`Recording` of an executor's ``trajectory`` dict with ``ghost`` poses
+    (:func:`ghost_poses`) to draw beside the bodies (``Style(ghosts=True)``)."""
+    import dataclasses
+
+    rec = _from_dict(trajectory, None, None, source)
+    n = rec.num_agvs
+    for key in ("x", "y", "heading"):
+        if np.asarray(ghost[key]).shape != (len(ghost["t"]), n):
+            raise WareroverError(f"{source}: ghost {key}: expected shape "
+                                 f"({len(ghost['t'])}, {n})")
+    return dataclasses.replace(rec, ghost={k: np.asarray(v, dtype=np.float64)
+                                           for k, v in ghost.items()})
 
 
 # ------------------------------------------------------------------------------ building
