@@ -29,11 +29,12 @@ LaCAM (the LoRR entries' rule: an AGV whose best next cell is not ahead turns to
 from __future__ import annotations
 
 import heapq
-import math
 from collections import OrderedDict
 from collections.abc import Sequence
 
 import numpy as np
+
+from .motion import MotionModel
 
 __all__ = ["turn_s", "turn_ticks", "agent_turn_ticks", "rotating", "quarters",
            "rotation_dist", "graph_rotation_dist", "turn_towards", "UNREACHABLE_T"]
@@ -44,19 +45,20 @@ UNREACHABLE_T = 1 << 30
 
 def turn_s(agv_type, quarters: int) -> float:
     """Seconds the physics executor needs to turn ``agv_type`` in place by ``quarters``
-    quarter turns: its reference heading turns at ``max_turn_rate_radps`` from the first
-    step (:mod:`~warerover_phys.executors.control`; no angular acceleration limit), and the
-    body follows within :data:`~warerover_phys.executors.control.ALIGN_EPS_RAD`."""
-    return quarters * (math.pi / 2) / float(agv_type.max_turn_rate_radps)
+    quarter turns: the motion model's :meth:`~.motion.MotionModel.turn_s` (its reference
+    heading turns at ``max_turn_rate_radps`` from the first step, no angular acceleration
+    limit, and the body follows within
+    :data:`~warerover_phys.executors.control.ALIGN_EPS_RAD`)."""
+    return MotionModel.of(agv_type, cell_m=1.0).turn_s(quarters)
 
 
 def turn_ticks(agv_type, tick_s: float, quarters: int = 1) -> int:
-    """Ticks a turn in place of ``quarters`` quarter turns takes in a plan: the ceiling of
-    :func:`turn_s` in ticks of ``tick_s`` seconds (at least 1); 0 for omnidirectional AGVs,
-    which never turn. (Kept small so that it can later ask the motion model instead.)"""
+    """Ticks a turn in place of ``quarters`` quarter turns takes in a plan: the motion
+    model's turn time in whole ticks of ``tick_s`` seconds (:meth:`~.motion.MotionModel.
+    ticks`: at least 1); 0 for omnidirectional AGVs, which never turn."""
     if getattr(agv_type, "drive", "diff") != "diff" or quarters <= 0:
         return 0
-    return max(1, math.ceil(turn_s(agv_type, quarters) / tick_s - 1e-9))
+    return MotionModel.ticks(turn_s(agv_type, quarters), tick_s)
 
 
 def agent_turn_ticks(agv_type, tick_s: float) -> tuple[int, int] | None:
