@@ -374,7 +374,8 @@ def check(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
     starts: dict[str, list] = {}
     for agv in world.agvs:
         starts.setdefault(agv.type_name, []).append(world.cell(agv.node))
-    problems = check_fleet_sweeps(sc.fleet.types, lay.cell_m, lay) or static_sweep_hits(
+    problems = check_fleet_sweeps(sc.fleet.types, lay.cell_m, lay,
+                                  shelf_sweeps=sc.executor.shelf_sweeps) or static_sweep_hits(
         lay, sc.fleet.types, starts)
     if problems:
         _fail(ScenarioError("turning sweeps cannot be reserved: " + "; ".join(problems),

@@ -499,6 +499,16 @@ class ExecutorSpec(_Model):
     ``0.9 x shelf size x cell_m`` with sides along the grid, as in ``min_clearance_m``);
     contacts of a carried shelf with another AGV or its shelf count as AGV contacts, with a
     wall as static contacts."""
+    shelf_sweeps: Bool = False
+    """Physics: a turn in place whose disc reaches the shelf a *neighbour* may carry (but
+    not its body: an 0.8 m body next to a 0.9 m shelf on 1 m cells, 1.6 cm deep) waits in
+    the dependency graph until that neighbour carries no shelf
+    (:attr:`~warerover_phys.planning.sweep.Sweep.shelf_cells`). The planners do not reserve
+    these cells yet, so AGVs often block each other: on the padded paper floors with 0.8 m
+    bodies the shelf overlaps fell from 177-548 samples per episode to 0-10, but success
+    fell from 1.0 to 0.15-0.35 (``tools/README.md``). ``false`` (default): such a turn
+    goes ahead, the overlap is reported in ``min_clearance_m``. No effect on bodies whose
+    disc stays clear of neighbours' shelves (the default 0.7 m)."""
     park: Bool = True
     """Physics: an AGV that stands still on its hold point (within 1 mm, at rest, facing its
     heading) has its drive joints taken out of the pymunk world until it moves again, so

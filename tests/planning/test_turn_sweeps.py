@@ -361,7 +361,7 @@ def test_turn_beside_a_loaded_neighbour_waits_for_it():
                             "slow": {"body_m": [0.8, 0.8], "max_speed_mps": 0.25}},
                   "agvs": [{"type": "t", "count": 2, "starts": [[3, 2], [3, 3]]},
                            {"type": "slow", "count": 1, "starts": [[3, 4]]}]},
-        "executor": {"name": "physics"}}))
+        "executor": {"name": "physics", "shelf_sweeps": True}}))
     from warerover_phys.sim import executor_setup
     from warerover_phys.testing import plan_turn_conflicts
     from warerover_phys.world import Trip
@@ -439,8 +439,9 @@ def test_adg_shelf_cells_hold_back_only_loaded_agvs():
 
 
 def test_check_rejects_loaded_turns_at_side_by_side_stations():
-    """With 0.9 m shelves an 0.8 m body cannot turn beside a loaded neighbour: `check`
-    says so for stations side by side (the padded floor: 0.8 m bodies clear its walls)."""
+    """With 0.9 m shelves and ``executor.shelf_sweeps`` an 0.8 m body cannot turn beside a
+    loaded neighbour: `check` says so for stations side by side (the padded floor: 0.8 m
+    bodies clear its walls)."""
     from typer.testing import CliRunner
 
     from warerover_phys.cli import app
@@ -448,7 +449,10 @@ def test_check_rejects_loaded_turns_at_side_by_side_stations():
     runner = CliRunner()
     path = "tools/scenarios/paper_homogeneous_padded.yaml"
     assert runner.invoke(app, ["check", path]).exit_code == 0
-    bad = runner.invoke(app, ["check", path, "--set", "fleet.types.agv.body_m=[0.8,0.8]"])
+    big = ["--set", "fleet.types.agv.body_m=[0.8,0.8]"]
+    # Without executor.shelf_sweeps such turns go ahead (the overlap is reported): accepted.
+    assert runner.invoke(app, ["check", path, *big]).exit_code == 0
+    bad = runner.invoke(app, ["check", path, *big, "--set", "executor.shelf_sweeps=true"])
     assert bad.exit_code == 2
     text = " ".join(bad.output.split())
     assert "1.6 cm into the 0.9 m shelf" in text and "(4, 1) and (5, 1)" in text

@@ -96,9 +96,11 @@ class PhysicsExecutor:
             no_slip=np.array([a.spec.drive != "omni" for a in agvs], dtype=bool)
             if getattr(spec, "no_slip", False) else None,
             decide_every=max(1, round(DECIDE_S / self.dt)))
+        sweeps = agv_sweeps([a.spec for a in agvs], layout.cell_m, layout)
+        if not getattr(spec, "shelf_sweeps", False):
+            sweeps = {i: sw._replace(shelf_cells=()) for i, sw in sweeps.items()}
         self.adg = ActionGraph(layout.cols, {a.id: a.k for a in agvs},
-                               sweeps=agv_sweeps([a.spec for a in agvs], layout.cell_m,
-                                                 layout),
+                               sweeps=sweeps,
                                rows=layout.rows,
                                latency_s=getattr(spec, "comm_latency_s", 0.0))
         self.acc = Accounting(self.state, self.space, self.fleet, self.io, self.adg, layout,

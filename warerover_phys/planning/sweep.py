@@ -329,10 +329,12 @@ def turn_fields(layout, specs: Sequence) -> dict[int, tuple[Sweep | None, frozen
 
 
 def check_fleet_sweeps(types: Mapping[str, object], cell_m: float, layout=None,
-                       ) -> list[str]:
+                       shelf_sweeps: bool = True) -> list[str]:
     """Problems with the fleet's turning sweeps, one sentence each (empty if none): a type
     whose swept disc reaches bodies, or shelves they may carry on ``layout``, that the
-    reservation cannot hold (see the module doc)."""
+    reservation cannot hold (see the module doc). ``shelf_sweeps``
+    (``executor.shelf_sweeps``): turns wait for loaded neighbours, so two loaded AGVs at
+    stations side by side can never turn (reported); without it such turns go ahead."""
     names = list(types)
     shapes = dict(zip(names, _shapes([types[n] for n in names], layout), strict=True))
     fleet = _fleet(shapes.values())
@@ -354,7 +356,7 @@ def check_fleet_sweeps(types: Mapping[str, object], cell_m: float, layout=None,
                        f"{s.radius_m:.3f} m on {cell_m} m cells{why}, so its turns cannot "
                        "be reserved (use a smaller body, drive: omni, or larger cells)")
             continue
-        if layout is None or s.k != 1 or not s.turns:
+        if layout is None or s.k != 1 or not s.turns or not shelf_sweeps:
             continue
         body = set(sweep_offsets(_bare(s), bare, cell_m))
         shelf = set(sweep_offsets(s, fleet, cell_m)) - body
