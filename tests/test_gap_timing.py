@@ -40,6 +40,8 @@ def test_motion_timing_plans_what_physics_does(motion_gap):
     assert rep["timing"] == "motion" and rep["mode"] == "open-loop"
     # the target of issue 15: within 1.10 (the unit plan is far off: about 1.4)
     assert 0.98 <= rep["makespan_ratio"] <= 1.10
+    # the schedule itself, checked in continuous time: no two planned bodies meet
+    assert rep["schedule_spacetime_conflicts"] == 0 and not rep["schedule_spacetime_truncated"]
     assert rep["makespan_ratio_unit"] > 1.2
     assert rep["planned_makespan_s"] > rep["planned_makespan_s_unit"]
     assert rep["executed_makespan_s"] == pytest.approx(

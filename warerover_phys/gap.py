@@ -124,7 +124,29 @@ def _timed(report: dict, agents: list[dict], actions: list[dict], plan, timing: 
     sched = schedule_plan(plan, payload=bool(getattr(spec, "payload", False)),
                           comm_latency_s=float(getattr(spec, "comm_latency_s", 0.0)))
     report, agents, actions = motion_timed(report, agents, actions, plan, sched)
-    return report, agents, actions, sched
+    return {**report, **schedule_spacetime(plan, sched)}, agents, actions, sched
+
+
+def schedule_spacetime(plan, sched) -> dict:
+    """The continuous-time check of a motion-timed schedule (:mod:`.spacetime`): every
+    planned move and turn as its swept body volume in ``(x, y, t)``, checked pairwise with
+    fcl (``schedule_spacetime_conflicts``: pairs of AGVs whose planned bodies meet; the
+    first few under ``schedule_spacetime_first``). Bodies only: carried shelves stay
+    parallel to the grid and are not in the schedule."""
+    from .spacetime import from_schedule, validate_spacetime
+
+    lay = plan.layout
+    starts = {i: p.states[0][0] for i, p in plan.paths.items()}
+    poses = sched.poses(lay.cols, starts)
+    tp = from_schedule(poses, cell_m=lay.cell_m,
+                       footprints={i: int(plan.types[i].footprint) for i in poses},
+                       body_m={i: tuple(plan.types[i].body_m) for i in poses},
+                       source="schedule")
+    res = validate_spacetime(tp, shelves=False, contact_resolution_s=None, max_conflicts=20)
+    return {"schedule_spacetime_conflicts": len(res.conflicts),
+            "schedule_spacetime_truncated": res.truncated,
+            "schedule_spacetime_first": [str(c) for c in res.conflicts[:3]],
+            "schedule_spacetime_s": round(res.timings_s.get("total", 0.0), 3)}
 
 
 def plan_gap(floor, plan_file, *, fleet=None, fmt: str | None = None, xy: bool = True,

@@ -276,3 +276,32 @@ def test_downtime_holds_a_run_and_delays_what_follows():
     # down after it is done: nothing changes
     after = schedule({0: path}, [SMALL], cols=7, rows=1, downtime={0: [(50.0, 60.0)]})
     assert after.finish_s == base.finish_s
+
+
+def test_schedule_poses_pass_the_space_time_check_and_a_shifted_one_does_not():
+    """A follower that waits for its leader in the schedule never meets it in continuous
+    time (:mod:`warerover_phys.spacetime`); with the leader started 3 s late (the
+    dependency dropped) the follower runs into its body, and the check says so."""
+    from dataclasses import replace
+
+    from warerover_phys.spacetime import from_schedule, validate_spacetime
+
+    cols = 8
+    # Leader 0 at (0, 1) drives east to (0, 5); follower 1 at (0, 0) follows one cell behind.
+    lead = TimedPath(0, 0, tuple((c, c) for c in (1, 1, 2, 3, 4, 5, 5, 5)))
+    follow = TimedPath(1, 0, tuple((c, c) for c in (0, 0, 0, 1, 2, 3, 4, 4)))
+    paths = {0: lead, 1: follow}
+    fleet = [SMALL, SMALL]
+    sched = schedule(paths, fleet, cols=cols, rows=1)
+    poses = sched.poses(cols, {0: 1, 1: 0})
+    assert poses[1][0] == ((0, 0), 0, 0.0) and poses[0][-1][0] == (0, 5)
+    for entries in poses.values():
+        assert all(b[2] > a[2] for a, b in zip(entries, entries[1:], strict=False))
+    body = {0: (0.7, 0.7), 1: (0.7, 0.7)}
+    ok = validate_spacetime(from_schedule(poses, body_m=body), shelves=False)
+    assert ok.ok, [str(c) for c in ok.conflicts]
+    late = {0: tuple(replace(a, start_s=a.start_s + 3.0, finish_s=a.finish_s + 3.0)
+                     for a in sched.actions[0]), 1: sched.actions[1]}
+    bad = replace(sched, actions=late).poses(cols, {0: 1, 1: 0})
+    found = validate_spacetime(from_schedule(bad, body_m=body), shelves=False)
+    assert not found.ok and found.conflicts[0].agvs == (0, 1)

@@ -72,6 +72,7 @@ SCHEDULE_FORMAT = "warerover-schedule/1"
 """``format`` of :meth:`Schedule.to_json` (``schedule.json``)."""
 _EPS = 1e-9
 _EAST = (0, 1)
+_HEADING = {(0, 1): 0, (1, 0): 1, (0, -1): 2, (-1, 0): 3}
 
 
 @dataclass(frozen=True)
@@ -140,6 +141,46 @@ class Schedule:
         """When AGV ``agv`` starts its first move (or turn); 0 without moves."""
         acts = self.actions.get(agv, ())
         return acts[0].start_s - acts[0].turn_s if acts else 0.0
+
+    def poses(self, cols: int, starts: Mapping[int, int]) -> dict[int, list[tuple]]:
+        """Per AGV its planned poses as ``((row, col), heading, t_s)`` (heading 0 east, 1
+        south, 2 west, 3 north; AGVs start facing east, as the physics executor places
+        them): where each turn starts and ends and where each move starts and ends, so that
+        straight lines between them trace the planned motion's path in space (within a run
+        the schedule's speed profile is a trapezoid, not the constant speed of the lines
+        between cell centres). ``starts``: every AGV's first cell (linear), also for AGVs
+        that never move (they stand there until the makespan). For
+        :func:`warerover_phys.spacetime.from_schedule`."""
+        end = self.makespan_s
+        out: dict[int, list[tuple]] = {}
+        for i, cell in starts.items():
+            h = 0
+            here = divmod(cell, cols)
+            poses: list[tuple] = [(here, h, 0.0)]
+
+            def add(pose: tuple, t: float, poses: list[tuple] = poses) -> None:
+                last = poses[-1]
+                if t <= last[2] + 1e-9:
+                    if pose == last[:2]:
+                        return  # standing: nothing new
+                    t = last[2] + 1e-6  # an instant change (none expected): keep time strict
+                poses.append((*pose, t))
+
+            omni = i in self.models and self.models[i].omni
+            for a in self.actions.get(i, ()):
+                h_new = h if omni else _HEADING[a.direction]  # omni bodies never turn
+                if a.turn_s > 0 or h_new != h:
+                    add((here, h), a.start_s - a.turn_s)
+                    add((here, h_new), a.start_s)
+                else:
+                    add((here, h), a.start_s)
+                h, here = h_new, divmod(a.dst, cols)
+                add((here, h), a.finish_s)
+            add((here, h), end)
+            if len(poses) == 1:
+                poses.append((here, h, max(end, 1e-6)))
+            out[i] = poses
+        return out
 
     def to_json(self, cols: int, source: str | None = None) -> dict[str, Any]:
         """The schedule as plain data (``schedule.json``; cells as ``[row, col]``)."""
