@@ -33,12 +33,16 @@ def check_corridor_figures(m: dict) -> None:
     assert 0 <= m["corridor_intrusion_agv_s"] <= m["corridor_inside_agv_s"], m
 
 
-@pytest.mark.parametrize("executor", ["grid", "physics"])
-@pytest.mark.parametrize("planner", ["astar", "cbs", "pibt"])
+# cbs and pibt on physics take ~30 s each: in the slow set (the random fuzz test of
+# tests/faults/test_fuzz_physics.py draws planners on physics in the default set).
+@pytest.mark.parametrize("planner,executor", [
+    ("astar", "grid"), ("cbs", "grid"), ("pibt", "grid"), ("astar", "physics"),
+    pytest.param("cbs", "physics", marks=pytest.mark.slow),
+    pytest.param("pibt", "physics", marks=pytest.mark.slow)])
 def test_paper_fault_scenario_finishes(planner, executor):
-    """Every order completes and no AGV-AGV contact. Intrusions are not 0 on physics:
-    AGVs caught inside a corridor are not sent out and overrun their exit bound (issue
-    13, fault 5; counted, no longer hidden by an exemption)."""
+    """Every order completes and no AGV-AGV contact. Intrusions need not be 0: AGVs caught
+    inside a new corridor are sent out but may still overrun their exit bound (issue 13,
+    fault 5; counted, no longer hidden by an exemption)."""
     failures = 0
     for seed in range(2):
         m = fault_run(planner, executor, seed)
