@@ -14,13 +14,13 @@ from __future__ import annotations
 
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from .graph import UNREACHABLE, MotionGraph
 
-__all__ = ["pibt_step", "pibt_oneshot", "initial_priorities", "update_priorities"]
+__all__ = ["pibt_step", "in_priority_order", "pibt_oneshot", "initial_priorities", "update_priorities"]
 
 Cell = tuple[int, int]
 
@@ -35,6 +35,21 @@ def initial_priorities(dists: Sequence[np.ndarray], starts: Sequence[int]) -> li
 def update_priorities(prio: list[float], config: Sequence[int], goals: Sequence[int]) -> list[float]:
     return [p - int(p) if q == g else p + 1.0
             for p, q, g in zip(prio, config, goals, strict=True)]
+
+
+def in_priority_order(prio: Sequence[float], nxt: list, push: Callable[[int, int], object]
+                      ) -> None:
+    """PIBT's outer loop: ``push(i, -1)`` for every agent not yet decided (``nxt[i] ==
+    -1``), highest ``prio`` first, with the recursion limit raised for the priority
+    inheritance chains (up to one call per agent) and restored afterwards."""
+    limit = sys.getrecursionlimit()
+    sys.setrecursionlimit(max(limit, 4 * len(nxt) + 1000))
+    try:
+        for i in sorted(range(len(nxt)), key=lambda i: -prio[i]):
+            if nxt[i] == -1:
+                push(i, -1)
+    finally:
+        sys.setrecursionlimit(limit)
 
 
 def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndarray],
@@ -162,15 +177,7 @@ def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndar
         occ_next[here] = i
         return False
 
-    order = sorted(range(n), key=lambda i: -prio[i])
-    limit = sys.getrecursionlimit()
-    sys.setrecursionlimit(max(limit, 4 * n + 1000))
-    try:
-        for i in order:
-            if nxt[i] == -1:
-                push(i, -1)
-    finally:
-        sys.setrecursionlimit(limit)
+    in_priority_order(prio, nxt, push)
     if len(occ_next) != n:
         return None  # a forced move left two agents on one cell
     return nxt

@@ -27,12 +27,12 @@ hold up the robots behind it in the same timestep by surprise.
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Sequence
 
 import numpy as np
 
 from .graph import UNREACHABLE as _UNREACHABLE
+from .pibt import in_priority_order
 
 __all__ = ["STEP", "heading_pibt_step", "turns_to_progress"]
 
@@ -168,13 +168,5 @@ def heading_pibt_step(neighbors: Sequence[Sequence[int]], cols: int, config: Seq
                 best, key = h, kk
         return best
 
-    order = sorted(range(n), key=lambda i: -prio[i])
-    limit = sys.getrecursionlimit()
-    sys.setrecursionlimit(max(limit, 4 * n + 1000))
-    try:
-        for i in order:
-            if nxt[i] == -1:
-                push(i, -1)
-    finally:
-        sys.setrecursionlimit(limit)
+    in_priority_order(prio, nxt, push)
     return nxt, nh, acts, frozenset(escaped)
