@@ -333,3 +333,32 @@ def test_executor_option_errors():
     core = GridMAPF(small(), EnvConfig(num_agents=2, executor=ExecutorSpec(name="physics")))
     core.reset(np.random.default_rng(0))
     assert core.executor.name == "physics"
+
+
+def test_env_episode_with_learned_policy_equals_cli_solve(tmp_path):
+    """``warerover solve --planner learned --seed S --out PLAN`` writes exactly the
+    configurations the environment goes through when the learned driver (seed S) steps it."""
+    from typer.testing import CliRunner
+
+    from warerover_phys.cli import app
+
+    agents, seed = 25, 4
+    plan = tmp_path / "plan.txt"
+    r = CliRunner().invoke(app, ["solve", str(MAP), str(SCEN), "--agents", str(agents),
+                                 "--planner", "learned", "--seed", str(seed), "--out",
+                                 str(plan)])
+    assert r.exit_code == 0, r.output
+    lines = plan.read_text().split("solution=\n", 1)[1].split()
+    solved = [[(int(y), int(x)) for x, y in
+               (c.split(",") for c in line.split(":", 1)[1].strip("(),").split("),("))]
+              for line in lines]
+    env = parallel_env(Instance.from_movingai(MAP, SCEN, num_agents=agents),
+                       num_agents=agents, max_steps=2000)
+    env.reset(seed=seed)
+    driver = LearnedDriver(env.core, seed=seed)
+    driver.reset()
+    traj = [env.core.paths()]
+    while env.agents:
+        env.step(dict(zip(env.possible_agents, driver.actions().tolist(), strict=True)))
+        traj.append(env.core.paths())
+    assert traj == solved

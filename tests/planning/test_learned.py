@@ -205,3 +205,27 @@ def test_learned_by_name_in_solve_and_weights_field(tmp_path):
                                             "paper_homogeneous.yaml"), "--planner", "learned",
                                  "--set", f"planner.weights={bad}", "--json"])
     assert r.exit_code == 2 and str(bad) in r.output and "Traceback" not in r.output
+
+
+@pytest.mark.parametrize("kind", ["missing", "truncated", "wrong shape"])
+def test_cli_solve_exits_2_on_missing_truncated_or_misshapen_weights(tmp_path, kind):
+    """Each of the three faults the issue names: exit 2, one line naming the file."""
+    from typer.testing import CliRunner
+
+    from warerover_phys.cli import app
+
+    path = {"missing": lambda: tmp_path / "none.npz",
+            "truncated": lambda: tmp_path / "cut.npz",
+            "wrong shape": lambda: _resave(tmp_path, W2=np.zeros((7, 128), np.float32))}[kind]()
+    if kind == "truncated":
+        path.write_bytes(DEFAULT_WEIGHTS.read_bytes()[: DEFAULT_WEIGHTS.stat().st_size // 3])
+    want = {"missing": "weights file not found", "truncated": "not a readable .npz",
+            "wrong shape": "W2: expected"}[kind]
+    r = CliRunner().invoke(app, ["solve", str(DATA / "random-32-32-10.map"),
+                                 str(DATA / "random-32-32-10-random-1.scen"), "--agents", "5",
+                                 "--planner", "learned", "--json"],
+                           env={"WAREROVER_LEARNED_WEIGHTS": str(path), "NO_COLOR": "1",
+                                "COLUMNS": "300"})
+    lines = r.output.strip().splitlines()
+    assert r.exit_code == 2 and len(lines) == 1, r.output
+    assert str(path.name) in lines[0] and want in lines[0] and "Traceback" not in r.output
