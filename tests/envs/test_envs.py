@@ -362,3 +362,98 @@ def test_env_episode_with_learned_policy_equals_cli_solve(tmp_path):
         env.step(dict(zip(env.possible_agents, driver.actions().tolist(), strict=True)))
         traj.append(env.core.paths())
     assert traj == solved
+
+
+# ----------------------------------------------------------------------------- rotations
+
+
+def test_rotations_check_env_and_parallel_api_test():
+    env = MAPFGymEnv(small(), num_agents=4, max_steps=30, rotations=True)
+    assert env.action_space.n == 4 and env.observation_space.shape == (NUM_CHANNELS + 1, 11, 11)
+    check_env(env, skip_render_check=True)
+    check_env(MAPFGymEnv(small(), num_agents=3, others="wait", max_steps=20, rotations=True),
+              skip_render_check=True)
+    parallel_api_test(parallel_env(small(), num_agents=5, max_steps=40, rotations=True),
+                      num_cycles=60)
+
+
+def _rotation_episode(seed: int, agents: int = 6, steps: int = 80):
+    env = parallel_env(small(), num_agents=agents, max_steps=steps, rotations=True,
+                       lifelong=True)
+    env.reset(seed=seed)
+    core = env.core
+    rng = np.random.default_rng(seed + 100)
+    states, heads = [core.pos.copy()], [core.heading.copy()]
+    blocked_any = False
+    while env.agents:
+        acts = rng.choice(4, size=agents, p=[0.1, 0.6, 0.15, 0.15])
+        before, h0 = core.pos.copy(), core.heading.copy()
+        _, _, _, _, infos = env.step(dict(zip(env.possible_agents, acts.tolist(), strict=True)))
+        blocked = np.array([infos[a]["blocked"] for a in env.possible_agents])
+        blocked_any |= bool(blocked.any())
+        moved = core.pos != before
+        assert not (moved & (acts != 1)).any()  # only forward moves
+        assert ((core.heading - h0) % 4 == np.array([0, 0, 3, 1])[acts]).all()
+        assert (blocked == ((acts == 1) & ~moved)).all()
+        states.append(core.pos.copy())
+        heads.append(core.heading.copy())
+    return np.array(states), np.array(heads), blocked_any, core
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_rotations_pass_the_validators_heading_checks(seed):
+    from warerover_phys.validate import validate_headings
+
+    states, heads, blocked_any, core = _rotation_episode(seed)
+    traj = {i: [(int(v), int(v)) for v in states[:, i]] for i in range(states.shape[1])}
+    assert validate_states(traj, ~core.free) == []
+    headings = {i: heads[:, i].tolist() for i in range(heads.shape[1])}
+    assert validate_headings(traj, headings, core.cols,
+                             turn_ticks={i: (1, 2) for i in headings}) == []
+    assert (states[1:] != states[:-1]).sum() > 20 and blocked_any  # it moved, some blocked
+    again = _rotation_episode(seed)
+    assert np.array_equal(again[0], states) and np.array_equal(again[1], heads)
+
+
+def test_rotation_actions_and_heading_channel():
+    from warerover_phys.envs.core import rotation_actions
+
+    core = GridMAPF(Instance(np.zeros((3, 4), dtype=bool), ((1, 1),), ((1, 3),)),
+                    EnvConfig(num_agents=1, fov_radius=1, rotations=True))
+    obs = core.reset(np.random.default_rng(0))
+    core.heading[:] = 3  # north
+    obs = core.observe()
+    assert obs.shape == (1, 5, 3, 3) and obs[0, 4, 0, 1] == 1 and obs[0, 4].sum() == 1
+    assert rotation_actions(np.array([4]), core.heading).tolist() == [3]  # east: turn right
+    _, rew, blocked, _, _ = core.step(np.array([3]))
+    assert core.heading.tolist() == [0] and not blocked[0] and core.paths() == [(1, 1)]
+    core.step(np.array([1]))
+    assert core.paths() == [(1, 2)]
+    assert rotation_actions(np.array([0, 4, 1, 3, 2]), np.array([0, 0, 0, 0, 0])).tolist() \
+        == [0, 1, 2, 3, 3]
+    with pytest.raises(ValueError, match="actions in 0..3"):
+        core.step(np.array([4]))
+    with pytest.raises(ValueError, match="grid executor"):
+        EnvConfig(rotations=True, executor="physics")
+
+
+def test_rotations_from_the_scenario(tmp_path):
+    import yaml
+
+    src = yaml.safe_load((ROOT / "layouts" / "paper_homogeneous.yaml").read_text())
+    name = src.get("planner", "pibt")
+    src["planner"] = {**(name if isinstance(name, dict) else {"name": name}), "rotations": True}
+    if isinstance(src.get("layout"), str):
+        src["layout"] = str(ROOT / "layouts" / src["layout"])
+    path = tmp_path / "rot.yaml"
+    path.write_text(yaml.safe_dump(src))
+    inst = Instance.from_scenario(path)
+    assert inst.rotations
+    env = MAPFGymEnv(inst, num_agents=6, max_steps=15)
+    assert env.action_space.n == 4
+    obs, _ = env.reset(seed=0)
+    for _ in range(15):  # the others follow the learned policy through rotation actions
+        obs, _, term, trunc, _ = env.step(1)
+        assert obs.shape == (NUM_CHANNELS + 1, 11, 11)
+        if term or trunc:
+            break

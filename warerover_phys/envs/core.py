@@ -23,6 +23,16 @@ Episodes: one-shot (default) ends (``terminated``) when every agent stands on it
 lifelong (``lifelong=True``) gives an agent a new random goal the step it arrives and never
 terminates. Both are truncated after ``max_steps`` steps.
 
+Rotations (``EnvConfig.rotations``, or a scenario whose ``planner.rotations`` is true):
+every agent has a heading (``0`` east, ``1`` south, ``2`` west, ``3`` north, as
+:func:`~warerover_phys.validate.validate_headings`), drawn at random at reset, and four
+actions: ``0`` wait, ``1`` forward (one cell along the heading, the only way to move),
+``2`` turn left, ``3`` turn right (a quarter turn in place, one step). Forward moves go
+through the rules above (a cancelled forward move is ``blocked``); the observation gets a
+fifth channel, 1 on the cell ahead of the agent (its heading). Trajectories and headings
+pass the validator's rotation checks with one-step quarter turns. Grid executor only (a real
+executor turns its AGVs itself).
+
 Executors (``EnvConfig.executor``). With ``"grid"`` (the default) the rules above *are* the
 step: every move they keep happens. With ``"physics"`` or any other executor the registry
 knows (a built-in name, an entry point, ``package.module:ClassName``, or an
@@ -93,6 +103,9 @@ class EnvConfig:
     by name or as an :class:`~warerover_phys.config.ExecutorSpec` (see the module doc)."""
     agv_type: AgvTypeSpec | None = None
     """Every agent's AGV on a real executor (default: 1x1, 0.7 m body, 1 m/s, diff drive)."""
+    rotations: bool = False
+    """Headings and wait / forward / turn left / turn right actions (see the module doc);
+    also on when the instance asks (``Instance.rotations``)."""
 
     def __post_init__(self) -> None:
         if self.num_agents < 1:
@@ -116,6 +129,9 @@ class EnvConfig:
             if not isinstance(self.agv_type, AgvTypeSpec) or self.agv_type.footprint != 1:
                 raise ValueError(f"agv_type must be an AgvTypeSpec of footprint 1 (got "
                                  f"{self.agv_type!r})")
+        if self.rotations and self.executor_spec is not None:
+            raise ValueError("rotations: only on the grid executor (a real executor turns "
+                             "its AGVs itself)")
 
     @property
     def executor_spec(self) -> ExecutorSpec | None:
@@ -136,6 +152,8 @@ class Instance:
     starts: tuple[tuple[int, int], ...] | None = None
     goals: tuple[tuple[int, int], ...] | None = None
     name: str = "grid"
+    rotations: bool = False
+    """The instance asks for headings and turn actions (a scenario's ``planner.rotations``)."""
 
     @classmethod
     def from_movingai(cls, map_file: str | Path, scen_file: str | Path | None = None,
@@ -164,7 +182,7 @@ class Instance:
         sc = load_scenario(path)
         layout = build_layout(sc.layout, fleet_size=sc.fleet.size, file=str(path),
                               name=sc.name)
-        return cls(layout.obstacles.copy(), name=sc.name)
+        return cls(layout.obstacles.copy(), name=sc.name, rotations=sc.planner.rotations)
 
 
 class GridMAPF:
@@ -179,6 +197,13 @@ class GridMAPF:
         self.free = ~obstacles
         self.obs_grid = ObsGrid(obstacles, config.fov_radius)
         n = config.num_agents
+        self.rotations = bool(config.rotations or instance.rotations)
+        """Headings and turn actions (see the module doc)."""
+        if self.rotations and config.executor_spec is not None:
+            raise ValueError(f"instance {instance.name!r} asks for rotations: only on the "
+                             "grid executor")
+        self.heading = np.zeros(n, dtype=np.int64)
+        """Each agent's heading (rotations only): 0 east, 1 south, 2 west, 3 north."""
         if instance.starts is not None:
             if len(instance.starts) != n or instance.goals is None or len(instance.goals) != n:
                 raise ValueError(f"instance {instance.name!r} fixes "
@@ -236,7 +261,13 @@ class GridMAPF:
     @property
     def obs_shape(self) -> tuple[int, int, int]:
         w = 2 * self.config.fov_radius + 1
-        return (NUM_CHANNELS, w, w)
+        return (NUM_CHANNELS + int(self.rotations), w, w)
+
+    @property
+    def num_actions(self) -> int:
+        """5 (wait, up, down, left, right), or 4 with rotations (wait, forward, left,
+        right)."""
+        return NUM_ROT_ACTIONS if self.rotations else NUM_ACTIONS
 
     # ------------------------------------------------------------------------ episode
 
@@ -252,6 +283,8 @@ class GridMAPF:
         else:
             self.pos[:] = rng.choice(self.sample_nodes, size=n, replace=False)
             self.goal[:] = rng.choice(self.sample_nodes, size=n, replace=False)
+        if self.rotations:
+            self.heading = rng.integers(4, size=n).astype(np.int64)
         for i in range(n):
             self.dist[i, :-1] = self.graph.dist_to(self.graph.cell(int(self.goal[i])))
         if (self.dist[np.arange(n), self.pos] >= UNREACHABLE).any():
@@ -279,7 +312,15 @@ class GridMAPF:
         self.collisions = 0
 
     def observe(self) -> np.ndarray:
-        return observe(self.obs_grid, self.pos, self.goal, self.dist)
+        obs = observe(self.obs_grid, self.pos, self.goal, self.dist)
+        if not self.rotations:
+            return obs
+        n, _, w, _ = obs.shape
+        ahead = np.zeros((n, 1, w, w), dtype=np.float32)
+        r = self.config.fov_radius
+        ahead[np.arange(n), 0, r + HEADING_STEP[self.heading, 0],
+              r + HEADING_STEP[self.heading, 1]] = 1.0
+        return np.concatenate([obs, ahead], axis=1)
 
     def on_goal(self) -> np.ndarray:
         """Agents standing on their goals."""
@@ -302,12 +343,19 @@ class GridMAPF:
         """Apply one action per agent: ``(obs, rewards, blocked, terminated, truncated)``."""
         cfg = self.config
         actions = np.asarray(actions, dtype=np.int64)
+        k = self.num_actions
         if actions.shape != (self.num_agents,) or actions.min(initial=0) < 0 \
-                or actions.max(initial=0) >= NUM_ACTIONS:
-            raise ValueError(f"expected {self.num_agents} actions in 0..{NUM_ACTIONS - 1}, "
+                or actions.max(initial=0) >= k:
+            raise ValueError(f"expected {self.num_agents} actions in 0..{k - 1}, "
                              f"got {actions!r}")
         was_on = self.on_goal()
-        if self.executor is None:
+        if self.rotations:
+            moves = np.where(actions == 1, HEADING_MOVE[self.heading], 0)
+            target = self._resolve(moves)
+            blocked = (actions == 1) & (target == self.pos)
+            self.pos = self.dest = target
+            self.heading = (self.heading + TURN[actions]) % 4
+        elif self.executor is None:
             target = self._resolve(actions)
             blocked = (actions != 0) & (target == self.pos)
             self.pos = self.dest = target
@@ -404,6 +452,27 @@ class GridMAPF:
         return [divmod(int(v), self.cols) for v in self.pos]
 
 
+HEADING_STEP = np.array([[0, 1], [1, 0], [0, -1], [-1, 0]], dtype=np.int64)
+"""(d_row, d_col) of each heading: east, south, west, north."""
+HEADING_MOVE = np.array([4, 2, 3, 1], dtype=np.int64)
+"""The move action (right, down, left, up) of each heading."""
+MOVE_HEADING = np.array([-1, 3, 1, 2, 0], dtype=np.int64)
+"""The heading of each move action (-1: wait)."""
+TURN = np.array([0, 0, -1, 1], dtype=np.int64)
+"""Heading change of each rotation action: wait, forward, turn left, turn right."""
+NUM_ROT_ACTIONS = 4
+
+
+def rotation_actions(moves: np.ndarray, heading: np.ndarray) -> np.ndarray:
+    """Rotation actions that follow move actions: forward where the move is along the
+    heading, else a turn towards it (left or right; right for a half turn), wait for wait."""
+    moves = np.asarray(moves, dtype=np.int64)
+    want = MOVE_HEADING[moves]
+    diff = (want - heading) % 4
+    out = np.where(diff == 0, 1, np.where(diff == 3, 2, 3))
+    return np.where(moves == 0, 0, out)
+
+
 class LearnedDriver:
     """The learned planner's policy and shield choosing every agent's action in a
     :class:`GridMAPF` (the same :class:`~warerover_phys.planning.learned.LearnedController`
@@ -420,14 +489,17 @@ class LearnedDriver:
         self.controller.reset(self.core.pos.tolist(), self.core.goal.tolist())
 
     def actions(self) -> np.ndarray:
-        """One action per agent for the core's current state (call once per step)."""
+        """One action per agent for the core's current state (call once per step); with
+        rotations, the move's rotation action (a turn first where the move is not straight
+        ahead: the policy is asked again next step)."""
         from ..planning.policy import actions_from_moves
 
         ctrl, core = self.controller, self.core
         for i in np.flatnonzero(np.asarray(ctrl.goals) != core.goal):
             ctrl.set_goal(int(i), int(core.goal[i]))
         config = core.pos.tolist()
-        return actions_from_moves(config, ctrl.step(config), core.cols)
+        moves = actions_from_moves(config, ctrl.step(config), core.cols)
+        return rotation_actions(moves, core.heading) if core.rotations else moves
 
 
 def render_ansi(core: GridMAPF) -> str:

@@ -2,7 +2,9 @@
 
 Every agent observes its ``(4, 2r+1, 2r+1)`` window (see
 :mod:`warerover_phys.planning.policy`) and picks one of five actions (wait, up, down, left,
-right); rules and rewards are those of :mod:`warerover_phys.envs.core`. Agents stay in the
+right; with rotations, ``rotations=True`` or a scenario's ``planner.rotations``: a fifth
+channel for the heading and four actions, wait, forward, turn left, turn right); rules and
+rewards are those of :mod:`warerover_phys.envs.core`. Agents stay in the
 episode until it ends: a one-shot episode terminates for everybody when all stand on their
 goals; any episode is truncated after ``max_steps``. ``infos[agent]`` holds ``on_goal``,
 ``blocked`` (it asked to move and did not leave its cell) and ``in_transit`` (on a real
@@ -30,7 +32,6 @@ from gymnasium import spaces  # noqa: E402
 from gymnasium.utils import seeding  # noqa: E402
 from pettingzoo import ParallelEnv  # noqa: E402
 
-from ..planning.policy import NUM_ACTIONS  # noqa: E402
 from .core import EnvConfig, GridMAPF, Instance, render_ansi, render_rgb  # noqa: E402
 
 __all__ = ["MAPFParallelEnv", "parallel_env"]
@@ -51,7 +52,7 @@ class MAPFParallelEnv(ParallelEnv):
         self.agents: list[str] = []
         self._np_random: np.random.Generator | None = None
         self._obs_space = spaces.Box(-1.0, 1.0, self.core.obs_shape, dtype=np.float32)
-        self._act_space = spaces.Discrete(NUM_ACTIONS)
+        self._act_space = spaces.Discrete(self.core.num_actions)
 
     def observation_space(self, agent: str) -> spaces.Box:  # one object for all agents
         return self._obs_space

@@ -8,7 +8,9 @@ one-shot) and truncation are agent 0's. With ``executor="physics"`` (or another 
 the moves are carried out by it (see :mod:`warerover_phys.envs.core`); while agent 0 is
 ``info["in_transit"]`` its actions are treated as wait. :func:`register` adds it to Gymnasium's registry as
 ``warerover/MAPF-v0`` (``gymnasium.make("warerover/MAPF-v0", instance=...)``); importing
-changes no registry.
+changes no registry. With rotations (``rotations=True`` or a scenario's
+``planner.rotations``) the others' moves become rotation actions (a turn first where a move
+is not straight ahead; see :func:`~warerover_phys.envs.core.rotation_actions`).
 
 >>> from warerover_phys.envs import MAPFGymEnv, Instance
 >>> import numpy as np
@@ -29,7 +31,6 @@ _require("gymnasium")
 import gymnasium as gym  # noqa: E402
 from gymnasium import spaces  # noqa: E402
 
-from ..planning.policy import NUM_ACTIONS  # noqa: E402
 from .core import EnvConfig, GridMAPF, Instance, LearnedDriver, render_ansi, render_rgb  # noqa: E402
 
 __all__ = ["MAPFGymEnv", "register"]
@@ -49,7 +50,7 @@ class MAPFGymEnv(gym.Env):
         self.render_mode = render_mode
         self.others = others
         self.observation_space = spaces.Box(-1.0, 1.0, self.core.obs_shape, dtype=np.float32)
-        self.action_space = spaces.Discrete(NUM_ACTIONS)
+        self.action_space = spaces.Discrete(self.core.num_actions)
         self._driver: LearnedDriver | None = None
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
