@@ -167,8 +167,13 @@ def main() -> None:
     ap.add_argument("--agents", nargs="+", type=int, default=[50, 100, 200, 400])
     ap.add_argument("--time-limit", type=float, default=60.0)
     ap.add_argument("--skip-paper", action="store_true")
+    ap.add_argument("--weights", type=Path, default=None,
+                    help="weights of the learned planner (default: the shipped ones); set "
+                         "as $WAREROVER_LEARNED_WEIGHTS for every run")
     ap.add_argument("--out", type=Path, default=ROOT / "tools" / "out" / "learned_table.json")
     args = ap.parse_args()
+    if args.weights is not None:
+        os.environ["WAREROVER_LEARNED_WEIGHTS"] = str(args.weights.resolve())
     tmp = Path(os.environ.get("TMPDIR", "/tmp")) / "learned_table_runs"
     paper = [] if args.skip_paper else paper_rows(args.scenarios, args.planners, args.seeds,
                                                   tmp)
@@ -176,6 +181,7 @@ def main() -> None:
                        args.time_limit)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({"paper": paper, "oneshot": one,
+                                    "weights": os.environ.get("WAREROVER_LEARNED_WEIGHTS"),
                                     "machine": platform.platform(),
                                     "time_limit_s": args.time_limit}, indent=2) + "\n")
     print(markdown(paper, one))

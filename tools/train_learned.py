@@ -46,14 +46,19 @@ import numpy as np  # noqa: E402
 from warerover_phys.planning.graph import UNREACHABLE  # noqa: E402  (also the off-grid column)
 from warerover_phys.planning.lacam import lacam  # noqa: E402
 from warerover_phys.planning.oneshot import grid_graph  # noqa: E402
-from warerover_phys.planning.pibt import pibt_oneshot  # noqa: E402
+from warerover_phys.planning.pibt import (  # noqa: E402
+    initial_priorities,
+    pibt_oneshot,
+    update_priorities,
+)
 from warerover_phys.planning.policy import (  # noqa: E402
     DEFAULT_WEIGHTS,
     NUM_ACTIONS,
+    WEIGHTS_VERSION,
     MLPPolicy,
     ObsGrid,
     actions_from_moves,
-    observe,
+    policy_features,
 )
 
 # Label permutations of the square's symmetries (action order: wait, up, down, left, right).
@@ -119,29 +124,46 @@ def expert(obstacles, starts, goals, seed: int):
     return graph, paths, "lacam"
 
 
-def samples(graph, paths, goals, radius: int, rng: np.random.Generator, keep_idle: float):
-    """(obs as int8 = round(obs * r), labels) of one solved instance."""
+def encode(feats: np.ndarray, keep: np.ndarray, radius: int, version: int):
+    """Compact storage of features of the agents in ``keep``: the spatial channels as int8
+    ``round(x * r)`` (exact: every value is a multiple of 1 / r), shape ``(K, C, W, W)``,
+    and the scalars as float32 ``(K, S)``."""
+    w = 2 * radius + 1
+    channels = 4 if version == 1 else 6
+    f = feats[keep]
+    spatial = f[:, :channels * w * w].reshape(len(f), channels, w, w)
+    return np.rint(spatial * radius).astype(np.int8), f[:, channels * w * w:].copy()
+
+
+def samples(graph, paths, goals, radius: int, rng: np.random.Generator, keep_idle: float,
+            version: int):
+    """(spatial int8, scalars, labels) of one solved instance; PIBT's priorities are
+    replayed along the expert's solution (what a PIBT step depends on)."""
     grid = ObsGrid(~graph.enterable, radius)
     cols = graph.cols
     g = np.array([graph.node(c) for c in goals])
     dists = np.stack([np.append(graph.dist_to(c), UNREACHABLE) for c in goals])
     configs = np.array([[r * cols + c for r, c in p] for p in paths]).T  # (T+1, N)
-    xs, ys = [], []
+    prio = initial_priorities(dists, configs[0].tolist())
+    xs, ss, ys = [], [], []
     for t in range(len(configs) - 1):
         here, there = configs[t], configs[t + 1]
         labels = actions_from_moves(here, there, cols)
         idle = (here == g) & (labels == 0)
         keep = ~idle | (rng.random(len(here)) < keep_idle)
-        if not keep.any():
-            continue
-        obs = observe(grid, here[keep], g[keep], dists[keep])
-        xs.append(np.rint(obs * radius).astype(np.int8))
-        ys.append(labels[keep].astype(np.int8))
-    return np.concatenate(xs), np.concatenate(ys)
+        if keep.any():
+            feats = policy_features(grid, here, g, dists, prio, version=version)
+            x, sc = encode(feats, keep, radius, version)
+            xs.append(x)
+            ss.append(sc)
+            ys.append(labels[keep].astype(np.int8))
+        prio = update_priorities(prio, there.tolist(), g.tolist())
+    return np.concatenate(xs), np.concatenate(ss), np.concatenate(ys)
 
 
-def build_dataset(root: np.random.SeedSequence, count: int, radius: int, keep_idle: float):
-    xs, ys, group = [], [], []
+def build_dataset(root: np.random.SeedSequence, count: int, radius: int, keep_idle: float,
+                  version: int):
+    xs, ss, ys, group = [], [], [], []
     stats = {"pibt": 0, "lacam": 0, "unsolved": 0}
     t0 = time.perf_counter()
     for i, child in enumerate(root.spawn(count)):
@@ -152,14 +174,16 @@ def build_dataset(root: np.random.SeedSequence, count: int, radius: int, keep_id
             stats["unsolved"] += 1
             continue
         stats[who] += 1
-        x, y = samples(graph, paths, goals, radius, rng, keep_idle)
+        x, sc, y = samples(graph, paths, goals, radius, rng, keep_idle, version)
         xs.append(x)
+        ss.append(sc)
         ys.append(y)
         group.append(np.full(len(y), i, dtype=np.int32))
         if (i + 1) % 25 == 0:
             print(f"  instance {i + 1}/{count}: {sum(len(a) for a in ys)} samples, "
                   f"{time.perf_counter() - t0:.0f} s", flush=True)
-    return np.concatenate(xs), np.concatenate(ys), np.concatenate(group), stats
+    return (np.concatenate(xs), np.concatenate(ss), np.concatenate(ys), np.concatenate(group),
+            stats)
 
 
 # ----------------------------------------------------------------------------- network
@@ -205,11 +229,18 @@ def augment(x: np.ndarray, y: np.ndarray, code: int):
     return x, y
 
 
-def accuracy(p: dict, x8: np.ndarray, y: np.ndarray, radius: int) -> float:
-    policy = MLPPolicy(p, radius)
+def batch_features(x8: np.ndarray, sc: np.ndarray, radius: int) -> np.ndarray:
+    """Network input of stored samples: spatial / r, flattened, then the scalars."""
+    x = np.ascontiguousarray(x8, dtype=np.float32).reshape(len(x8), -1) * np.float32(1 / radius)
+    return np.concatenate([x, sc], axis=1) if sc.shape[1] else x
+
+
+def accuracy(p: dict, x8: np.ndarray, sc: np.ndarray, y: np.ndarray, radius: int,
+             version: int) -> float:
+    policy = MLPPolicy(p, radius, version=version)
     hits = 0
     for i in range(0, len(y), 8192):
-        xb = x8[i:i + 8192].astype(np.float32) / radius
+        xb = batch_features(x8[i:i + 8192], sc[i:i + 8192], radius)
         hits += int((policy.logits(xb).argmax(1) == y[i:i + 8192]).sum())
     return hits / max(1, len(y))
 
@@ -223,8 +254,8 @@ def dagger_dataset(root: np.random.SeedSequence, count: int, policy: MLPPolicy,
     from warerover_phys.planning.learned import LearnedController
     from warerover_phys.planning.pibt import pibt_step
 
-    radius = policy.fov_radius
-    xs, ys, group = [], [], []
+    radius, version = policy.fov_radius, policy.version
+    xs, ss, ys, group = [], [], [], []
     t0 = time.perf_counter()
     for i, child in enumerate(root.spawn(count)):
         rng = np.random.default_rng(child)
@@ -246,23 +277,26 @@ def dagger_dataset(root: np.random.SeedSequence, count: int, policy: MLPPolicy,
             here = np.array(config)
             labels = actions_from_moves(here, best, graph.cols)
             keep = ~((here == g_arr) & (labels == 0)) | (rng.random(len(here)) < keep_idle)
-            obs = observe(grid, here[keep], g_arr[keep], dists2[keep])
-            xs.append(np.rint(obs * radius).astype(np.int8))
+            feats = policy_features(grid, here, g_arr, dists2, ctrl.prio, version=version)
+            x, sc = encode(feats, keep, radius, version)
+            xs.append(x)
+            ss.append(sc)
             ys.append(labels[keep].astype(np.int8))
             group.append(np.full(int(keep.sum()), group0 + i, dtype=np.int32))
             config = ctrl.step(config)
         if (i + 1) % 25 == 0:
             print(f"  dagger instance {i + 1}/{count}: {sum(len(a) for a in ys)} samples, "
                   f"{time.perf_counter() - t0:.0f} s", flush=True)
-    return np.concatenate(xs), np.concatenate(ys), np.concatenate(group)
+    return np.concatenate(xs), np.concatenate(ss), np.concatenate(ys), np.concatenate(group)
 
 
-def train(x8, y, groups, *, rng, radius, hidden, epochs, batch, lr, init=None):
+def train(x8, sc, y, groups, *, rng, radius, version, hidden, epochs, batch, lr, init=None):
     held = np.unique(groups)
     held = set(rng.choice(held, size=max(1, len(held) // 20), replace=False).tolist())
     val = np.isin(groups, list(held))
     xt, yt, xv, yv = x8[~val], y[~val].astype(np.int64), x8[val], y[val].astype(np.int64)
-    features = x8[0].size
+    st, sv = sc[~val], sc[val]
+    features = x8[0].size + sc.shape[1]
     p = init if init is not None else init_params(rng, [features, hidden, hidden // 2,
                                                          NUM_ACTIONS])
     m = {k: np.zeros_like(v) for k, v in p.items()}
@@ -279,7 +313,7 @@ def train(x8, y, groups, *, rng, radius, hidden, epochs, batch, lr, init=None):
         for s in range(steps_per_epoch):
             idx = np.sort(order[s * batch:(s + 1) * batch])
             xb, yb = augment(xt[idx], yt[idx], int(rng.integers(8)))
-            xb = np.ascontiguousarray(xb, dtype=np.float32).reshape(len(yb), -1) / radius
+            xb = batch_features(xb, st[idx], radius)
             loss, grads = forward_backward(p, xb, yb)
             losses.append(loss)
             step += 1
@@ -290,7 +324,7 @@ def train(x8, y, groups, *, rng, radius, hidden, epochs, batch, lr, init=None):
                 mh = m[k] / (1 - b1 ** step)
                 vh = v[k] / (1 - b2 ** step)
                 p[k] -= (rate * mh / (np.sqrt(vh) + eps)).astype(np.float32)
-        acc = accuracy(p, xv, yv, radius)
+        acc = accuracy(p, xv, sv, yv, radius, version)
         log.append({"epoch": epoch + 1, "loss": float(np.mean(losses)), "val_acc": acc,
                     "s": time.perf_counter() - t0})
         print(f"  epoch {epoch + 1}/{epochs}: loss {np.mean(losses):.4f}  "
@@ -303,6 +337,9 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--instances", type=int, default=1000)
     ap.add_argument("--radius", type=int, default=5, help="field-of-view radius (cells)")
+    ap.add_argument("--features", type=int, default=WEIGHTS_VERSION, choices=(1, 2),
+                    help="feature set (= weights version): 1 the observation only, 2 with "
+                         "priorities, intentions and scalars")
     ap.add_argument("--hidden", type=int, default=256)
     ap.add_argument("--epochs", type=int, default=8)
     ap.add_argument("--batch", type=int, default=512)
@@ -318,27 +355,31 @@ def main() -> None:
     root = np.random.SeedSequence(args.seed)
     data_seed, train_seed, *dagger_seeds = root.spawn(2 + args.dagger_rounds)
     print(f"generating {args.instances} instances and expert solutions (seed {args.seed})")
-    x8, y, groups, stats = build_dataset(data_seed, args.instances, args.radius, args.keep_idle)
+    x8, sc, y, groups, stats = build_dataset(data_seed, args.instances, args.radius,
+                                             args.keep_idle, args.features)
     t_data = time.perf_counter() - t_start
     counts = np.bincount(y.astype(np.int64), minlength=NUM_ACTIONS).tolist()
     print(f"{len(y)} samples (actions wait/up/down/left/right: {counts}), experts {stats}, "
           f"{t_data:.0f} s")
     train_rng = np.random.default_rng(train_seed)
-    p, log, split = train(x8, y, groups, rng=train_rng, radius=args.radius, hidden=args.hidden,
-                          epochs=args.epochs, batch=args.batch, lr=args.lr)
+    p, log, split = train(x8, sc, y, groups, rng=train_rng, radius=args.radius,
+                          version=args.features, hidden=args.hidden, epochs=args.epochs,
+                          batch=args.batch, lr=args.lr)
     for k, seed in enumerate(dagger_seeds):
         print(f"DAgger round {k + 1}: rolling out the policy on {args.dagger_instances} new "
               "instances")
-        dx, dy, dg = dagger_dataset(seed, args.dagger_instances, MLPPolicy(p, args.radius),
-                                    args.keep_idle, int(groups.max()) + 1)
+        dx, ds, dy, dg = dagger_dataset(seed, args.dagger_instances,
+                                        MLPPolicy(p, args.radius, version=args.features),
+                                        args.keep_idle, int(groups.max()) + 1)
         print(f"  {len(dy)} new samples")
-        x8, y, groups = (np.concatenate([x8, dx]), np.concatenate([y, dy]),
-                         np.concatenate([groups, dg]))
-        p, more, split = train(x8, y, groups, rng=train_rng, radius=args.radius,
-                               hidden=args.hidden, epochs=args.dagger_epochs,
+        x8, sc, y, groups = (np.concatenate([x8, dx]), np.concatenate([sc, ds]),
+                             np.concatenate([y, dy]), np.concatenate([groups, dg]))
+        p, more, split = train(x8, sc, y, groups, rng=train_rng, radius=args.radius,
+                               version=args.features, hidden=args.hidden,
+                               epochs=args.dagger_epochs,
                                batch=args.batch, lr=args.lr / 2, init=p)
         log += [{**e, "dagger_round": k + 1} for e in more]
-    policy = MLPPolicy(p, args.radius)
+    policy = MLPPolicy(p, args.radius, version=args.features)
     policy.save(args.out)
     wall = time.perf_counter() - t_start
     info = {"seed": args.seed, "args": {k: str(v) for k, v in vars(args).items()},

@@ -229,3 +229,44 @@ def test_cli_solve_exits_2_on_missing_truncated_or_misshapen_weights(tmp_path, k
     lines = r.output.strip().splitlines()
     assert r.exit_code == 2 and len(lines) == 1, r.output
     assert str(path.name) in lines[0] and want in lines[0] and "Traceback" not in r.output
+
+
+def test_policy_features_v2_priorities_intentions_scalars():
+    """Feature set 2: the observation, others' priority sign, their greedy next cells
+    (signed by priority) and four scalars; version 1 is the flattened observation."""
+    from warerover_phys.planning.policy import ObsGrid, num_features, observe, policy_features
+
+    obstacles = np.zeros((5, 5), dtype=bool)
+    g = grid_graph(obstacles)
+    grid = ObsGrid(obstacles, 2)
+    pos = np.array([12, 13, 7])  # (2,2) centre, (2,3) right of it, (1,2) above it
+    goals = np.array([12, 14, 2])  # agent 0 on its goal; 1 wants right; 2 wants up
+    dists = [g.dist_to(g.cell(int(v))) for v in goals]
+    prio = [0.5, 3.25, 0.75]
+    f1 = policy_features(grid, pos, goals, dists, prio, version=1)
+    assert f1.shape == (3, num_features(1, 2)) == (3, 100)
+    assert np.array_equal(f1, observe(grid, pos, goals, dists).reshape(3, -1))
+    f = policy_features(grid, pos, goals, dists, prio, version=2)
+    assert f.shape == (3, num_features(2, 2)) == (3, 6 * 25 + 4)
+    assert np.array_equal(f[:, :100], f1)
+    prio_ch = f[0, 100:125].reshape(5, 5)
+    assert prio_ch[2, 3] == 1 and prio_ch[1, 2] == 1 and prio_ch[2, 2] == 0  # both outrank 0
+    assert f[1, 100:125].reshape(5, 5)[2, 1] == -1  # agent 0, left of agent 1, ranks lower
+    aim = f[0, 125:150].reshape(5, 5)
+    assert aim[2, 4] == 1 and aim[0, 2] == 1 and aim[2, 2] == 0  # 1 aims right, 2 up
+    assert f[0, 150:].tolist() == [0.0, 0.5, 0.0, 1.0]  # on its goal
+    assert f[1, 150:] == pytest.approx([3 / 32, 0.25, 1 / 64, 0.0])
+
+
+def test_old_weights_version_1_still_load_and_plan(tmp_path):
+    """The first shipped weights (feature set 1) stay readable: solve with them."""
+    v1 = DEFAULT_WEIGHTS.with_name("learned_v1.npz")
+    policy = MLPPolicy.load(v1)
+    assert policy.version == 1
+    m = read_map(DATA / "random-32-32-10.map")
+    scen = read_scen(DATA / "random-32-32-10-random-1.scen")[:20]
+    paths, _ = learned_oneshot(grid_graph(m.obstacles), [a.start for a in scen],
+                               [a.goal for a in scen], time.monotonic() + 60, policy=policy)
+    assert paths is not None
+    states = {i: [(r * m.cols + c,) * 2 for r, c in p] for i, p in enumerate(paths)}
+    assert validate_states(states, m.obstacles) == []

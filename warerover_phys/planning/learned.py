@@ -37,7 +37,7 @@ from .base import AgentRequest, PlanRequest, PlanResult, TimedPath
 from .graph import MotionGraph
 from .pibt import _to_paths, initial_priorities, pibt_step, update_priorities
 from .pibt_planner import uniform_fleet
-from .policy import MLPPolicy, ObsGrid, observe, shield_step
+from .policy import MLPPolicy, ObsGrid, shield_step
 
 __all__ = ["LearnedPlanner", "learned_oneshot", "LearnedController", "WEIGHTS_ENV"]
 
@@ -64,8 +64,8 @@ def policy_step(policy: MLPPolicy, grid: ObsGrid, neighbors: Sequence[Sequence[t
     """One shielded step of the policy: observe, rank actions, resolve with PIBT. The
     highest-priority agent off its goal (not held) is guided by distance (see
     :func:`~warerover_phys.planning.policy.shield_step`)."""
-    obs = observe(grid, np.asarray(config), np.asarray(goals), dists, classes)
-    logits = policy.logits(obs)
+    logits = policy.logits(policy.features(grid, np.asarray(config), np.asarray(goals), dists,
+                                           prio, classes))
     pinned = {i for i, _ in forced}
     off = [i for i in range(len(config)) if config[i] != goals[i] and i not in pinned]
     guide = max(off, key=lambda i: (prio[i], -i)) if off else None

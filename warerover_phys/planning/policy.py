@@ -26,8 +26,22 @@ choose in priority order; an agent that wants a cell held by a lower-priority ag
 goal is unreachable is skipped. The result is always a valid next configuration (no vertex
 or swap conflicts), whatever the network says.
 
+Policy features (what the network reads; :func:`policy_features`). Version 1 weights read
+the observation above, flattened (``F = 4 (2r+1)^2``). Version 2 weights read it plus what a
+PIBT step depends on and the observation lacks (``F = 6 (2r+1)^2 + 4``):
+
+4. others' priority: at each other agent's cell, +1 if its PIBT priority is higher than
+   this agent's, -1 if lower;
+5. others' intentions: at the cell each other agent would enter going greedily towards its
+   goal (its lowest-distance neighbour, or its own cell), +1 if the highest-priority agent
+   aiming there outranks this agent, -1 if not, 0 where nobody aims (or only itself);
+
+and four scalars: steps off the goal since the last arrival (``min(int(prio), 32) / 32``),
+the priority's fractional part (initial distance order), distance to goal
+(``min(d, 64) / 64``), and 1 if on the goal.
+
 Weights file (``.npz``): ``W1 (F, H1)``, ``b1 (H1,)``, ``W2 (H1, H2)``, ``b2 (H2,)``,
-``W3 (H2, 5)``, ``b3 (5,)``, ``fov_radius ()`` and ``version ()``; ``F = 4 (2r+1)^2``.
+``W3 (H2, 5)``, ``b3 (5,)``, ``fov_radius ()`` and ``version ()`` (1 or 2, the feature set).
 """
 
 from __future__ import annotations
@@ -44,7 +58,7 @@ from ..errors import ScenarioError
 from .graph import UNREACHABLE
 
 __all__ = ["ACTIONS", "NUM_ACTIONS", "NUM_CHANNELS", "DEFAULT_WEIGHTS", "WeightsError",
-           "ObsGrid", "observe", "MLPPolicy", "action_targets", "shield_step",
+           "ObsGrid", "observe", "policy_features", "num_features", "MLPPolicy", "action_targets", "shield_step",
            "actions_from_moves"]
 
 ACTIONS = np.array([[0, 0], [-1, 0], [1, 0], [0, -1], [0, 1]], dtype=np.int64)
@@ -52,7 +66,12 @@ ACTIONS = np.array([[0, 0], [-1, 0], [1, 0], [0, -1], [0, 1]], dtype=np.int64)
 NUM_ACTIONS = 5
 NUM_CHANNELS = 4
 DEFAULT_WEIGHTS = Path(__file__).with_name("weights") / "learned_v1.npz"
-WEIGHTS_VERSION = 1
+WEIGHTS_VERSION = 2
+"""The newest weights format (feature set); every version up to it loads."""
+EXTRA_CHANNELS = 2
+"""Spatial channels feature set 2 adds to the observation (priorities, intentions)."""
+NUM_SCALARS = 4
+"""Scalars feature set 2 appends (see the module doc)."""
 
 
 class WeightsError(ScenarioError):
@@ -137,6 +156,81 @@ def observe(grid: ObsGrid, positions: np.ndarray, goals: np.ndarray,
     return out.reshape(n, NUM_CHANNELS, w, w)
 
 
+def num_features(version: int, fov_radius: int) -> int:
+    """Length of the feature vector the network of weights ``version`` reads."""
+    area = (2 * fov_radius + 1) ** 2
+    if version == 1:
+        return NUM_CHANNELS * area
+    return (NUM_CHANNELS + EXTRA_CHANNELS) * area + NUM_SCALARS
+
+
+def _dist_at(dists, agents: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """``dists[agents[k]][nodes[k, j]]`` for a 2-D table or a sequence of 1-D tables
+    (``nodes`` must lie on the grid)."""
+    if isinstance(dists, np.ndarray) and dists.ndim == 2:
+        return dists[agents[:, None], nodes]
+    return np.stack([np.asarray(dists[i])[v] for i, v in zip(agents, nodes, strict=True)])
+
+
+def greedy_next(grid: ObsGrid, positions: np.ndarray, dists) -> np.ndarray:
+    """Each agent's greedy next node: its neighbour (or its own cell) nearest its goal,
+    the first in action order on ties."""
+    positions = np.asarray(positions, dtype=np.int64)
+    n = len(positions)
+    r, c = np.divmod(positions, grid.cols)
+    nr, nc = r[:, None] + ACTIONS[None, :, 0], c[:, None] + ACTIONS[None, :, 1]
+    inside = (nr >= 0) & (nr < grid.rows) & (nc >= 0) & (nc < grid.cols)
+    nodes = np.where(inside, nr * grid.cols + nc, positions[:, None])
+    d = _dist_at(dists, np.arange(n), nodes).astype(np.int64)
+    d[~inside] = UNREACHABLE
+    return nodes[np.arange(n), d.argmin(axis=1)]
+
+
+def policy_features(grid: ObsGrid, positions: np.ndarray, goals: np.ndarray, dists,
+                    prio: Sequence[float], classes: np.ndarray | None = None,
+                    version: int = WEIGHTS_VERSION) -> np.ndarray:
+    """``(N, F)`` float32 features of weights ``version`` (see the module doc);
+    ``prio`` are the agents' PIBT priorities (unused by version 1)."""
+    positions = np.asarray(positions, dtype=np.int64)
+    obs = observe(grid, positions, goals, dists, classes)
+    n = len(positions)
+    if version == 1:
+        return obs.reshape(n, -1)
+    r, w, cols = grid.r, grid.width, grid.cols
+    area = w * w
+    out = np.zeros((n, num_features(version, r)), dtype=np.float32)
+    out[:, :NUM_CHANNELS * area] = obs.reshape(n, -1)
+    if n == 0:
+        return out
+    p = np.asarray(prio, dtype=np.float64)
+    pr, pc = np.divmod(positions, cols)
+    base = (pr + r) * grid.padded_cols + (pc + r)
+    idx = base[:, None] + grid.window
+    here = p[:, None]
+    at = np.full(grid.node_flat.shape, np.nan)  # priority of the agent on each cell
+    at[base] = p
+    win = at[idx]
+    rel = np.where(np.isnan(win), 0.0, np.sign(win - here))
+    rel[:, area // 2] = 0.0
+    o = NUM_CHANNELS * area
+    out[:, o:o + area] = rel
+    g = greedy_next(grid, positions, dists)
+    gr, gc = np.divmod(g, cols)
+    aim = np.full(grid.node_flat.shape, -np.inf)  # highest priority aiming at each cell
+    np.maximum.at(aim, (gr + r) * grid.padded_cols + (gc + r), p)
+    win = aim[idx]
+    rel = np.where(np.isinf(win), 0.0, np.sign(win - here))
+    out[:, o + area:o + 2 * area] = rel
+    s = o + 2 * area
+    whole = np.floor(p)
+    d_here = _dist_at(dists, np.arange(n), positions[:, None])[:, 0].astype(np.float64)
+    out[:, s] = np.minimum(whole, 32.0) / 32.0
+    out[:, s + 1] = p - whole
+    out[:, s + 2] = np.minimum(d_here, 64.0) / 64.0
+    out[:, s + 3] = positions == np.asarray(goals, dtype=np.int64)
+    return out
+
+
 def _weights_error(message: str, file: str, field: str | None = None, value=ScenarioError._MISSING):
     return WeightsError(message, file=file, field=field, value=value)
 
@@ -151,10 +245,13 @@ class MLPPolicy:
 
     LAYERS = (("W1", "b1"), ("W2", "b2"), ("W3", "b3"))
 
-    def __init__(self, params: dict[str, np.ndarray], fov_radius: int, source: str = "<memory>"):
+    def __init__(self, params: dict[str, np.ndarray], fov_radius: int, source: str = "<memory>",
+                 version: int = 1):
         self.params = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in params.items()}
         self.fov_radius = int(fov_radius)
         self.source = source
+        self.version = int(version)
+        """Weights format = feature set the network reads (1 or 2; see the module doc)."""
         self._check(source)
 
     def _check(self, file: str) -> None:
@@ -168,9 +265,7 @@ class MLPPolicy:
                                          tuple(p[name].shape))
                 if not np.isfinite(p[name]).all():
                     raise _weights_error("non-finite values", file, name)
-        width = 2 * self.fov_radius + 1
-        expect = NUM_CHANNELS * width * width
-        prev = expect
+        prev = num_features(self.version, self.fov_radius)
         for w, b in self.LAYERS:
             rows, cols = p[w].shape
             if rows != prev:
@@ -202,21 +297,27 @@ class MLPPolicy:
             if name not in params:
                 raise _weights_error("field missing from the weights file", file, name)
         version = int(params.pop("version"))
-        if version != WEIGHTS_VERSION:
-            raise _weights_error(f"unsupported weights version (this code reads "
+        if not 1 <= version <= WEIGHTS_VERSION:
+            raise _weights_error(f"unsupported weights version (this code reads 1.."
                                  f"{WEIGHTS_VERSION})", file, "version", version)
         radius = int(params.pop("fov_radius"))
         if not 1 <= radius <= 32:
             raise _weights_error("fov_radius must be in 1..32", file, "fov_radius", radius)
-        return cls(params, radius, file)
+        return cls(params, radius, file, version)
 
     def save(self, path: str | os.PathLike[str]) -> None:
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         np.savez_compressed(path, fov_radius=np.int64(self.fov_radius),
-                            version=np.int64(WEIGHTS_VERSION), **self.params)
+                            version=np.int64(self.version), **self.params)
+
+    def features(self, grid: ObsGrid, positions, goals, dists, prio,
+                 classes: np.ndarray | None = None) -> np.ndarray:
+        """The ``(N, F)`` features this network reads (:func:`policy_features`)."""
+        return policy_features(grid, positions, goals, dists, prio, classes, self.version)
 
     def logits(self, obs: np.ndarray) -> np.ndarray:
-        """``(N, 5)`` action logits for ``(N, 4, W, W)`` observations."""
+        """``(N, 5)`` action logits for ``(N, F)`` features (version 1: also ``(N, 4, W,
+        W)`` observations)."""
         p = self.params
         x = obs.reshape(len(obs), -1).astype(np.float32, copy=False)
         h = np.maximum(x @ p["W1"] + p["b1"], 0.0)
