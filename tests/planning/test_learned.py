@@ -70,7 +70,8 @@ def test_missing_truncated_and_misshapen_weights_name_file_and_field(tmp_path):
         MLPPolicy.load(_resave(tmp_path, version=np.int64(9)))
     with pytest.raises(WeightsError, match="W3: expected 5 outputs"):
         p = MLPPolicy.load()
-        MLPPolicy({**p.params, "W3": p.params["W3"][:, :4], "b3": p.params["b3"][:4]}, 5)
+        MLPPolicy({**p.params, "W3": p.params["W3"][:, :4], "b3": p.params["b3"][:4]}, 5,
+                  version=p.version)
 
 
 def test_cli_exits_2_with_one_line_on_bad_weights(tmp_path):

@@ -14,7 +14,8 @@ tick on which some AGV has chased its goal for more than ``fallback_age`` ticks 
 by plain PIBT with swap (counted as a budget hit). Fleets of 1x1 AGVs that
 move one cell per tick only: any other fleet raises :class:`PlanningError`.
 
-The weights default to the shipped ``weights/learned_v1.npz``; another file can be given as
+The weights default to the shipped ``weights/learned_v2.npz`` (feature set 2; the first
+weights, ``learned_v1.npz``, feature set 1, still load); another file can be given as
 ``LearnedPlanner(weights=PATH)`` or, from the command line, in the environment variable
 ``WAREROVER_LEARNED_WEIGHTS``. A missing, truncated or misshapen file raises
 :class:`~warerover_phys.planning.policy.WeightsError` (the CLI prints one line, exits 2).

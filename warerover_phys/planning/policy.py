@@ -65,7 +65,7 @@ ACTIONS = np.array([[0, 0], [-1, 0], [1, 0], [0, -1], [0, 1]], dtype=np.int64)
 """(d_row, d_col) per action: wait, up, down, left, right."""
 NUM_ACTIONS = 5
 NUM_CHANNELS = 4
-DEFAULT_WEIGHTS = Path(__file__).with_name("weights") / "learned_v1.npz"
+DEFAULT_WEIGHTS = Path(__file__).with_name("weights") / "learned_v2.npz"
 WEIGHTS_VERSION = 2
 """The newest weights format (feature set); every version up to it loads."""
 EXTRA_CHANNELS = 2
@@ -280,7 +280,7 @@ class MLPPolicy:
 
     @classmethod
     def load(cls, path: str | os.PathLike[str] | None = None) -> MLPPolicy:
-        """Load a weights file (default: the shipped ``learned_v1.npz``); a
+        """Load a weights file (default: the shipped ``learned_v2.npz``); a
         :class:`WeightsError` naming the file and field if it is missing, truncated or of
         the wrong shape."""
         path = Path(path) if path is not None else DEFAULT_WEIGHTS
