@@ -57,7 +57,7 @@ from .errors import ScenarioError
 from .movingai import MovingAIMap, read_map
 
 __all__ = ["LorrProblem", "LorrResult", "read_problem", "run_lifelong", "output_json",
-           "HEADINGS", "RULES"]
+           "write_output_json", "ActionChunks", "HEADINGS", "RULES"]
 
 HEADINGS = "ESWN"
 """Heading codes 0-3: east (+col), south (+row), west (-col), north (-row)."""
@@ -222,9 +222,10 @@ class LorrResult:
     rule: str
     """How PIBT met the rotation model (:data:`RULES`; ``"none"`` without rotations)."""
     actions: list[list[str]]
-    """Per robot, one action per timestep."""
+    """Per robot, one action per timestep (empty when ``chunks`` holds them)."""
     positions: list[list[int]]
-    """Per robot, its linearised cell at every timestep (0 .. ticks)."""
+    """Per robot, its linearised cell at every timestep (0 .. ticks; empty when the run
+    streamed its actions to ``chunks``)."""
     headings: list[list[int]]
     events: list[tuple[int, int, int, int]] = field(default_factory=list)
     """(timestep, robot, task, errands done)."""
@@ -236,10 +237,27 @@ class LorrResult:
     """Wall seconds of every timestep (assignment, planning and moving)."""
     finished: int = 0
     setup_s: float = 0.0
+    chunks: ActionChunks | None = None
+    """Where a streamed run's actions are (``run_lifelong(trace_dir=...)``)."""
+    dist: dict[str, Any] = field(default_factory=dict)
+    """The distance-table store's counters at the end (:meth:`DistStore.counters`)."""
+    tick_misses: list[int] = field(default_factory=list)
+    """Distance tables computed in every timestep."""
+    tick_bfs_s: list[float] = field(default_factory=list)
+    """Seconds of breadth-first search in every timestep (part of ``tick_s``)."""
 
     @property
     def ticks(self) -> int:
         return len(self.tick_s)
+
+    def action_rows(self, block: int = 512):
+        """Every robot's actions as one string (one character per timestep), in robot
+        order, read block by block from ``chunks`` when the run streamed them."""
+        if self.chunks is None:
+            for acts in self.actions:
+                yield "".join(acts)
+        else:
+            yield from self.chunks.rows(block)
 
     def summary(self) -> dict[str, Any]:
         ms = np.asarray(self.tick_s) * 1e3 if self.tick_s else np.zeros(1)
@@ -249,6 +267,14 @@ class LorrResult:
                 "ms_per_tick_mean": float(ms.mean()), "ms_per_tick_p99":
                 float(np.percentile(ms, 99)), "ms_per_tick_max": float(ms.max()),
                 "setup_s": self.setup_s, "wall_s": self.setup_s + float(ms.sum()) / 1e3,
+                "first_tick_s": float(ms[0]) / 1e3,
+                "dist_tables": {**self.dist, "misses_per_tick_mean": float(np.mean(
+                    self.tick_misses)) if self.tick_misses else 0.0,
+                    "misses_per_tick_max": max(self.tick_misses, default=0),
+                    "bfs_ms_per_tick_mean": float(np.mean(self.tick_bfs_s)) * 1e3
+                    if self.tick_bfs_s else 0.0,
+                    "bfs_ms_per_tick_p99": float(np.percentile(self.tick_bfs_s, 99)) * 1e3
+                    if self.tick_bfs_s else 0.0},
                 "agent_counter_modelled": False if self.problem.agent_counter != 1 else None,
                 "delays_modelled": False if self.problem.delay_config else None}
 
@@ -316,12 +342,21 @@ class _Tasks:
 
 def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, seed: int = 0,
                  rule: str = "actions",
-                 progress: Callable[[int, int], None] | None = None) -> LorrResult:
+                 progress: Callable[[int, int], None] | None = None,
+                 dist_budget_mb: float | None = None, trace_dir: str | Path | None = None,
+                 chunk_ticks: int = 100) -> LorrResult:
     """Run ``problem`` for ``ticks`` timesteps with lifelong PIBT (see the module
     docstring; ``rule``: one of :data:`RULES`, used with ``rotations``); every timestep's
-    configuration is checked (no two robots on a cell, no swaps, no jumps)."""
+    configuration is checked (no two robots on a cell, no swaps, no jumps).
+
+    Distance tables come from one :class:`~.planning.dist_store.DistStore` (MiB budget
+    ``dist_budget_mb``, default :data:`~.planning.dist_store.DEFAULT_BUDGET_MB`) shared by
+    all robots and timesteps. ``trace_dir``: stream the actions to ``.npy`` files there,
+    ``chunk_ticks`` timesteps each (:class:`ActionChunks`), instead of keeping actions,
+    positions and headings in lists, so memory does not grow with ``ticks``."""
     if rule not in RULES:
         raise ValueError(f"rule: expected one of {RULES}, got {rule!r}")
+    from .planning.dist_store import DEFAULT_BUDGET_MB, DistStore
     from .planning.oneshot import grid_graph
     from .planning.pibt import pibt_step
     from .planning.pibt_heading import heading_pibt_step
@@ -330,6 +365,7 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
     grid = problem.grid
     cols = grid.cols
     graph = grid_graph(grid.obstacles)
+    store = DistStore(graph, DEFAULT_BUDGET_MB if dist_budget_mb is None else dist_budget_mb)
     n = problem.team_size
     tasks = _Tasks(problem)
     rng = np.random.default_rng(seed)
@@ -341,12 +377,16 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
     dists: list[np.ndarray] = [None] * n  # type: ignore[list-item]
     since = [0] * n
     escaping: frozenset[int] = frozenset()
-    result = LorrResult(problem, rotations, rule if rotations else "none", actions=[[] for _ in range(n)],
-                        positions=[[c] for c in config], headings=[[0] for _ in range(n)],
-                        schedule=[[] for _ in range(n)])
+    chunks = None if trace_dir is None else ActionChunks(Path(trace_dir), n, chunk_ticks)
+    result = LorrResult(problem, rotations, rule if rotations else "none",
+                        actions=[[] for _ in range(n)] if chunks is None else [],
+                        positions=[[c] for c in config] if chunks is None else [],
+                        headings=[[0] for _ in range(n)] if chunks is None else [],
+                        schedule=[[] for _ in range(n)], chunks=chunks)
     result.setup_s = time.perf_counter() - t0
     for tick in range(ticks):
         w0 = time.perf_counter()
+        misses0, bfs0 = store.misses, store.bfs_s
         # Errands reached (any heading), then new tasks for free robots.
         done_now = 0
         for i in range(n):
@@ -369,7 +409,7 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
             g = config[i] if k < 0 else tasks._task(k)[errand[i]]
             if g != goal[i]:
                 goal[i] = g
-                dists[i] = graph.dist_to(divmod(g, cols))
+                dists[i] = store.get(g)
                 since[i] = tick
         prio = [tick - s + i / (n + 1) for i, s in enumerate(since)]
         tie = rng.random(graph.num_nodes) * 0.5
@@ -394,15 +434,69 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
                     acts[i] = {(0, 1): "R", (1, 0): "D", (0, -1): "L", (-1, 0): "U"}[(dr, dc)]
         _check(config, nxt, graph, tick)
         config = nxt
-        for i in range(n):
-            result.actions[i].append(acts[i])
-            result.positions[i].append(config[i])
-            result.headings[i].append(heading[i])
+        if chunks is not None:
+            chunks.append(acts)
+        else:
+            for i in range(n):
+                result.actions[i].append(acts[i])
+                result.positions[i].append(config[i])
+                result.headings[i].append(heading[i])
+        result.tick_misses.append(store.misses - misses0)
+        result.tick_bfs_s.append(store.bfs_s - bfs0)
         result.tick_s.append(time.perf_counter() - w0)
         if progress is not None:
             progress(tick + 1, ticks)
+    if chunks is not None:
+        chunks.flush()
     result.releases = dict(tasks.releases)
+    result.dist = store.counters()
     return result
+
+
+class ActionChunks:
+    """A run's actions on disk: every ``chunk`` timesteps one ``.npy`` array (timesteps x
+    robots, ``uint8`` ASCII codes of the action letters) in ``folder``; read back robot by
+    robot (:meth:`rows`) a block of robots at a time, so neither writing nor reading holds
+    the whole run."""
+
+    def __init__(self, folder: Path, robots: int, chunk: int = 100) -> None:
+        if chunk < 1:
+            raise ValueError(f"chunk: expected a positive number of timesteps, got {chunk}")
+        self.folder = Path(folder)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.robots = robots
+        self.chunk = chunk
+        self.files: list[Path] = []
+        self._buf: list[bytes] = []
+        self.ticks = 0
+
+    def append(self, acts: list[str]) -> None:
+        """One timestep's actions (one letter per robot)."""
+        self._buf.append("".join(acts).encode("ascii"))
+        self.ticks += 1
+        if len(self._buf) >= self.chunk:
+            self.flush()
+
+    def flush(self) -> None:
+        if not self._buf:
+            return
+        arr = np.frombuffer(b"".join(self._buf), dtype=np.uint8).reshape(len(self._buf),
+                                                                         self.robots)
+        path = self.folder / f"actions_{len(self.files):06d}.npy"
+        np.save(path, arr)
+        self.files.append(path)
+        self._buf = []
+
+    def rows(self, block: int = 512):
+        """Every robot's actions as one string, in robot order."""
+        self.flush()
+        arrays = [np.load(f, mmap_mode="r") for f in self.files]
+        for b0 in range(0, self.robots, block):
+            b1 = min(self.robots, b0 + block)
+            part = (np.concatenate([a[:, b0:b1] for a in arrays], axis=0) if arrays
+                    else np.zeros((0, b1 - b0), dtype=np.uint8))
+            for row in np.ascontiguousarray(part.T):
+                yield row.tobytes().decode("ascii")
 
 
 class _Facing:
@@ -469,18 +563,19 @@ def _check(config: list[int], nxt: list[int], graph: Any, tick: int) -> None:
             raise AssertionError(f"robot {i} jumps at timestep {tick + 1}")
 
 
-def output_json(result: LorrResult) -> dict[str, Any]:
-    """The start-kit's output JSON of a run (see the module docstring)."""
+def output_json(result: LorrResult, *, paths: bool = True) -> dict[str, Any]:
+    """The start-kit's output JSON of a run (see the module docstring); without ``paths``,
+    ``actualPaths`` and ``plannerPaths`` are None (:func:`write_output_json` streams
+    them)."""
     p = result.problem
     cols = p.grid.cols
     n = p.team_size
     sum_of_cost = 0
-    for acts in result.actions:
-        end = len(acts)
-        while end > 0 and acts[end - 1] == "W":
-            end -= 1
-        sum_of_cost += end
-    paths = [",".join(a) for a in result.actions]
+    path_list: list[str] | None = [] if paths else None
+    for row in result.action_rows():
+        sum_of_cost += len(row.rstrip("W"))
+        if path_list is not None:
+            path_list.append(",".join(row))
     tasks = []
     for k in sorted(result.releases):
         errs = p.tasks[k % len(p.tasks)]
@@ -496,11 +591,29 @@ def output_json(result: LorrResult) -> dict[str, Any]:
         "numTaskFinished": result.finished,
         "sumOfCost": sum_of_cost,
         "makespan": result.ticks,
-        "actualPaths": paths,
-        "plannerPaths": paths,
+        "actualPaths": path_list,
+        "plannerPaths": path_list,
         "plannerTimes": [round(s, 6) for s in result.tick_s],
         "errors": [],
         "events": [list(e) for e in result.events],
         "tasks": tasks,
         "actualSchedule": ["".join(f"{t}:{k}," for t, k in s) for s in result.schedule],
     }
+
+
+def write_output_json(result: LorrResult, path: str | Path) -> None:
+    """Write :func:`output_json` to ``path`` (the same bytes as ``json.dumps`` of it and a
+    newline) without building the paths in memory: they are streamed robot by robot."""
+    doc = output_json(result, paths=False)
+    with open(path, "w", encoding="utf-8") as f:
+        f.write("{")
+        for k, (key, value) in enumerate(doc.items()):
+            f.write((", " if k else "") + json.dumps(key) + ": ")
+            if key in ("actualPaths", "plannerPaths"):
+                f.write("[")
+                for i, row in enumerate(result.action_rows()):
+                    f.write((", " if i else "") + json.dumps(",".join(row)))
+                f.write("]")
+            else:
+                f.write(json.dumps(value))
+        f.write("}\n")
