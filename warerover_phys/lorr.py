@@ -350,7 +350,7 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
                  rule: str = "actions",
                  progress: Callable[[int, int], None] | None = None,
                  dist_budget_mb: float | None = None, trace_dir: str | Path | None = None,
-                 chunk_ticks: int = 100) -> LorrResult:
+                 chunk_ticks: int = 100, prefetch: bool = False) -> LorrResult:
     """Run ``problem`` for ``ticks`` timesteps with lifelong PIBT (see the module
     docstring; ``rule``: one of :data:`RULES`, used with ``rotations``); every timestep's
     configuration is checked (no two robots on a cell, no swaps, no jumps).
@@ -359,7 +359,10 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
     ``dist_budget_mb``, default :data:`~.planning.dist_store.DEFAULT_BUDGET_MB`) shared by
     all robots and timesteps. ``trace_dir``: stream the actions to ``.npy`` files there,
     ``chunk_ticks`` timesteps each (:class:`ActionChunks`), instead of keeping actions,
-    positions and headings in lists, so memory does not grow with ``ticks``."""
+    positions and headings in lists, so memory does not grow with ``ticks``. ``prefetch``:
+    before the first timestep, compute the tables of the tasks' errand cells, in the order
+    the tasks come, until the budget is full (set-up time instead of timestep time; the
+    league gives entrants a preprocessing phase); plans do not change."""
     if rule not in RULES:
         raise ValueError(f"rule: expected one of {RULES}, got {rule!r}")
     from .planning.dist_store import DEFAULT_BUDGET_MB, DistStore
@@ -373,6 +376,9 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
     graph = grid_graph(grid.obstacles)
     store = DistStore(graph, DEFAULT_BUDGET_MB if dist_budget_mb is None else dist_budget_mb)
     steps = steps_of(graph.neighbors, cols) if rotations and rule == "actions" else None
+    if prefetch:
+        store.prefetch(e for k in range(min(len(problem.tasks), 10 * store.capacity))
+                       for e in problem.tasks[k])
     n = problem.team_size
     tasks = _Tasks(problem)
     rng = np.random.default_rng(seed)

@@ -35,6 +35,11 @@ def lorr(problem: Annotated[Path, typer.Argument(
          dist_budget_mb: Annotated[float, typer.Option(
              help="MiB the cached distance tables (one per goal cell, shared by all robots) "
                   "may hold; least recently used go first.")] = 1024.0,
+         prefetch_tables: Annotated[bool, typer.Option(
+             "--prefetch-tables",
+             help="Compute the tables of the tasks' errand cells before the first timestep, "
+                  "until the budget is full (set-up time instead of timestep time).")
+                           ] = False,
          json_out: Annotated[bool, typer.Option(
              "--json", help="Print the figures as JSON.")] = False,
          quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")
@@ -71,7 +76,7 @@ def lorr(problem: Annotated[Path, typer.Argument(
             out.absolute().parent.mkdir(parents=True, exist_ok=True)
             trace = tempfile.TemporaryDirectory(prefix="lorr-trace-",
                                                 dir=out.absolute().parent)
-        kw = {"dist_budget_mb": dist_budget_mb,
+        kw = {"dist_budget_mb": dist_budget_mb, "prefetch": prefetch_tables,
               "trace_dir": None if trace is None else trace.name}
         show = not quiet and not json_out and err_console.is_terminal
         if show:
