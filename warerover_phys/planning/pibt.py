@@ -147,8 +147,10 @@ def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndar
         here = config[i]
         d = dists[i]
         near = tables[i][here] if tables is not None else neighbors[here]
+        # Python ints from numpy tables: a numpy scalar plus a float takes 10x longer.
         cands = sorted([v for v in near if d[v] < UNREACHABLE] + [here],
-                       key=lambda v: d[v] + tie[v])
+                       key=(lambda v: d[v] + tie[v]) if type(d) is list
+                       else (lambda v: int(d[v]) + tie[v]))
         if guide is not None:
             first = guide[i].get(here)
             if first is not None and first != cands[0] and first in cands:
