@@ -62,6 +62,7 @@ __all__ = ["LorrProblem", "LorrResult", "read_problem", "run_lifelong", "output_
 HEADINGS = "ESWN"
 """Heading codes 0-3: east (+col), south (+row), west (-col), north (-row)."""
 _STEP = ((0, 1), (1, 0), (0, -1), (-1, 0))
+_MOVE_LETTER = {(0, 1): "R", (1, 0): "D", (0, -1): "L", (-1, 0): "U"}
 RULES = ("actions", "turn-first")
 """How PIBT meets the rotation model (see the module docstring)."""
 MAX_AGENTS = 100_000
@@ -402,9 +403,12 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
         misses0, bfs0 = store.misses, store.bfs_s
         # Errands reached (any heading), then new tasks for free robots.
         done_now = 0
-        for i in range(n):
+        arrived = [i for i, (c, g) in enumerate(zip(config, goal, strict=True)) if c == g]
+        advanced = []
+        for i in arrived:
             k = task_of[i]
-            if k >= 0 and config[i] == goal[i]:
+            if k >= 0:
+                advanced.append(i)
                 errand[i] += 1
                 result.events.append((tick, i, k, errand[i]))
                 if errand[i] == len(tasks._task(k)):
@@ -417,7 +421,8 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
             task_of[i], errand[i] = k, 0
             result.events.append((tick, i, k, 0))
             result.schedule[i].append((tick, k))
-        for i in range(n):
+        # Goals change only for robots that did an errand, took a task or have none.
+        for i in sorted(set(advanced).union(free)):
             k = task_of[i]
             g = config[i] if k < 0 else tasks._task(k)[errand[i]]
             if g != goal[i]:
@@ -447,7 +452,7 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
             for i in range(n):
                 if nxt[i] != config[i]:
                     dr, dc = nxt[i] // cols - config[i] // cols, nxt[i] % cols - config[i] % cols
-                    acts[i] = {(0, 1): "R", (1, 0): "D", (0, -1): "L", (-1, 0): "U"}[(dr, dc)]
+                    acts[i] = _MOVE_LETTER[(dr, dc)]
         result.tick_plan_s.append(time.perf_counter() - p0)
         _check(config, nxt, graph, tick)
         config = nxt
