@@ -50,6 +50,11 @@ def with_agents(problem, n: int, seed: int = 0):
     return dataclasses.replace(problem, starts=tuple(starts))
 
 
+def _rss_mb() -> float:
+    """Peak RSS of this process so far, MB (Linux: ru_maxrss in KiB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("problem", type=Path, nargs="?", default=DEFAULT)
@@ -80,11 +85,12 @@ def main() -> None:
                 problem, args.ticks, rotations=rot, seed=args.seed, rule=args.rule,
                 dist_budget_mb=args.dist_budget_mb, prefetch=args.prefetch,
                 trace_dir=trace if args.stream else None,
-                progress=lambda t, n: print(f"  {t}/{n}", file=sys.stderr)
-                if t % 100 == 0 else None)
+                progress=lambda t, n, t0=t0: print(
+                    f"  {t}/{n} {time.perf_counter() - t0:.0f} s RSS {_rss_mb():.0f} MB",
+                    file=sys.stderr, flush=True) if t % 100 == 0 else None)
         s = result.summary()
         s["whole_run_s"] = time.perf_counter() - t0
-        rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        rss = _rss_mb()
         s.update(peak_rss_mb_so_far=rss, streamed=args.stream,
                  load_average=[load0, os.getloadavg()[0]])
         rows.append(s)
