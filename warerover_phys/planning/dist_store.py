@@ -14,10 +14,10 @@ move count as :meth:`MotionGraph.dist_to`, so plans do not change.
 
 They are filled by scipy's compiled breadth-first search cut into levels (as
 :func:`~warerover_phys.planning.graph.bfs_depths`) over the enterable cells only, the
-compiled search called directly: on the 140 x 500 ``lorr2026_warehouse_fulfill`` map about
-3 ms per table at load average 7-9 on 2 cores (the search 0.9 ms of it, against 1.7 ms
-through ``breadth_first_order``), against 22 ms for ``bfs_depths`` over all 70,000 cells at
-the same load (unloaded, load 1: ``bfs_depths`` 5.2 ms, a numpy frontier search over a
+compiled search called directly: on the 140 x 500 ``lorr2026_warehouse_fulfill`` map 3.0 ms
+per search and its levels plus 0.6 ms to fill the table, at load average 6-9 on 2 cores (the
+compiled search 0.9 ms of it, against 1.7 ms through ``breadth_first_order``), against
+22 ms for ``bfs_depths`` over all 70,000 cells at a like load (unloaded, load 1: ``bfs_depths`` 5.2 ms, a numpy frontier search over a
 neighbour array 16 ms, scipy's unweighted ``shortest_path`` 5.8 ms). A lazy search that
 stops where the robots' cells are reached was not built: scipy's search cannot stop early,
 and a numpy one that can is 16 ms for a whole table, so it would have to stop within the
