@@ -99,7 +99,9 @@ def main() -> None:
               f"{'on (' + args.rule + ')' if rot else 'off'}: {s['ms_per_tick_mean']:.1f} ms/"
               f"timestep mean, {s['ms_per_tick_p99']:.1f} p99, {s['ms_per_tick_max']:.1f} max "
               f"(PIBT {s['pibt_ms_per_tick_mean']:.1f} mean, tables {d['bfs_ms_per_tick_mean']:.1f}"
-              f" mean); set-up {s['setup_s']:.1f} s; {s['tasks_finished']} tasks; tables: "
+              f" mean; CPU {s['cpu_ms_per_tick_mean']:.1f} mean, {s['cpu_ms_per_tick_p99']:.1f}"
+              f" p99, PIBT CPU {s['pibt_cpu_ms_per_tick_mean']:.1f} mean); set-up "
+              f"{s['setup_s']:.1f} s; {s['tasks_finished']} tasks; tables: "
               f"{d['misses']} computed, {d['prefetched']} prefetched, {d['hits']} hits, "
               f"{d['evictions']} evicted; peak RSS {rss:.0f} MB; load average "
               f"{load0:.1f} -> {os.getloadavg()[0]:.1f}")

@@ -248,6 +248,11 @@ class LorrResult:
     """Seconds of breadth-first search in every timestep (part of ``tick_s``)."""
     tick_plan_s: list[float] = field(default_factory=list)
     """Seconds of the PIBT step in every timestep (part of ``tick_s``)."""
+    tick_cpu_s: list[float] = field(default_factory=list)
+    """CPU seconds of this process in every timestep (wall time less waiting for a core on
+    a loaded machine)."""
+    tick_plan_cpu_s: list[float] = field(default_factory=list)
+    """CPU seconds of the PIBT step in every timestep."""
 
     @property
     def ticks(self) -> int:
@@ -275,6 +280,8 @@ class LorrResult:
                 if self.tick_plan_s else 0.0,
                 "pibt_ms_per_tick_p99": float(np.percentile(self.tick_plan_s, 99)) * 1e3
                 if self.tick_plan_s else 0.0,
+                **_ms("cpu_ms_per_tick", self.tick_cpu_s),
+                **_ms("pibt_cpu_ms_per_tick", self.tick_plan_cpu_s),
                 "dist_tables": {**self.dist, "misses_per_tick_mean": float(np.mean(
                     self.tick_misses)) if self.tick_misses else 0.0,
                     "misses_per_tick_max": max(self.tick_misses, default=0),
@@ -284,6 +291,12 @@ class LorrResult:
                     if self.tick_bfs_s else 0.0},
                 "agent_counter_modelled": False if self.problem.agent_counter != 1 else None,
                 "delays_modelled": False if self.problem.delay_config else None}
+
+
+def _ms(name: str, seconds: list[float]) -> dict[str, float]:
+    """``{name_mean, name_p99}`` in ms of ``seconds`` (0 when empty)."""
+    ms = np.asarray(seconds) * 1e3 if seconds else np.zeros(1)
+    return {f"{name}_mean": float(ms.mean()), f"{name}_p99": float(np.percentile(ms, 99))}
 
 
 class _Tasks:
@@ -400,6 +413,7 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
     result.setup_s = time.perf_counter() - t0
     for tick in range(ticks):
         w0 = time.perf_counter()
+        c0 = time.process_time()
         misses0, bfs0 = store.misses, store.bfs_s
         # Errands reached (any heading), then new tasks for free robots.
         done_now = 0
@@ -434,6 +448,7 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
         prio = [tick - s + i / (n + 1) for i, s in enumerate(since)]
         tie = (rng.random(graph.num_nodes) * 0.5).tolist()  # lists: faster single reads
         p0 = time.perf_counter()
+        pc0 = time.process_time()
         if rotations and rule == "actions":  # PIBT over the actions forward / turn / wait
             nxt, heading, acts, escaping = heading_pibt_step(
                 graph.neighbors, cols, config, heading, dists, prio, tie, escaping, steps)
@@ -454,6 +469,7 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
                     dr, dc = nxt[i] // cols - config[i] // cols, nxt[i] % cols - config[i] % cols
                     acts[i] = _MOVE_LETTER[(dr, dc)]
         result.tick_plan_s.append(time.perf_counter() - p0)
+        result.tick_plan_cpu_s.append(time.process_time() - pc0)
         _check(config, nxt, graph, tick)
         config = nxt
         if chunks is not None:
@@ -466,6 +482,7 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
         result.tick_misses.append(store.misses - misses0)
         result.tick_bfs_s.append(store.bfs_s - bfs0)
         result.tick_s.append(time.perf_counter() - w0)
+        result.tick_cpu_s.append(time.process_time() - c0)
         if progress is not None:
             progress(tick + 1, ticks)
     if chunks is not None:
