@@ -3,6 +3,7 @@ back by the plan importer and its finished tasks recounted from the paths alone.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import shutil
 from pathlib import Path
@@ -12,7 +13,7 @@ from typer.testing import CliRunner
 
 from warerover_phys.cli import app
 from warerover_phys.errors import ScenarioError
-from warerover_phys.lorr import output_json, read_problem, run_lifelong
+from warerover_phys.lorr import output_json, read_problem, run_lifelong, write_output_json
 from warerover_phys.plans import read_plan
 
 DATA = Path(__file__).parent / "data" / "lorr2023_warehouse_small"
@@ -103,14 +104,45 @@ def test_same_seed_same_run(problem):
         assert a[key] == b[key]
 
 
+@pytest.mark.parametrize("rotations,rule,finished,digest,kw", [
+    (False, "actions", 143, "2a024375ec081825", {}),
+    (False, "actions", 143, "2a024375ec081825", {"prefetch": True, "dist_budget_mb": 0.2}),
+    (True, "actions", 112, "a4192f130cf52483", {}),
+    (True, "turn-first", 63, "0391383f67c89c71", {})])
+def test_same_plans_as_before_the_table_store(problem, rotations, rule, finished, digest, kw):
+    """The output of 120 timesteps, seed 3, as the code before the distance-table store
+    (commit bcbae05, ``graph.dist_to`` per robot) wrote it: the store (prefetched, or small
+    enough to evict) and the PIBT speed-ups change no plan."""
+    result = run_lifelong(problem, 120, rotations=rotations, rule=rule, seed=3, **kw)
+    doc = output_json(result)
+    doc.pop("plannerTimes")
+    got = hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:16]
+    assert (result.finished, got) == (finished, digest)
+    tables = result.summary()["dist_tables"]
+    assert tables["misses"] == sum(result.tick_misses) > 0 and tables["hits"] > 0
+
+
+def test_streamed_output_is_byte_identical(problem, tmp_path):
+    kept = run_lifelong(problem, 45, seed=2)
+    streamed = run_lifelong(problem, 45, seed=2, trace_dir=tmp_path / "trace", chunk_ticks=7)
+    assert streamed.actions == [] and len(streamed.chunks.files) == 7
+    streamed.tick_s = kept.tick_s  # the only field that differs between two runs
+    write_output_json(streamed, tmp_path / "out.json")
+    assert (tmp_path / "out.json").read_text() == json.dumps(output_json(kept)) + "\n"
+
+
 def test_cli_writes_output_and_refuses_what_it_cannot_do(tmp_path):
     out = tmp_path / "run"
     r = runner.invoke(app, ["lorr", str(PROBLEM), "--ticks", "40", "--out", str(out),
-                            "--json"])
+                            "--json", "--dist-budget-mb", "0.1"])
     assert r.exit_code == 0, r.output
     figures = json.loads(r.stdout[:r.stdout.rindex("}") + 1])
     doc = json.loads((out / "output.json").read_text())
     assert doc["numTaskFinished"] == figures["tasks_finished"]
+    tables = figures["dist_tables"]  # 0.1 MiB: 27 tables of 33 x 57 cells
+    assert tables["capacity_tables"] == 27 and tables["evictions"] > 0
+    assert json.loads((out / "metrics.json").read_text())["output_s"] > 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]  # the trace is gone
     assert figures["ticks"] == 40 and figures["ms_per_tick_p99"] >= figures["ms_per_tick_mean"] > 0
     for args, what in ((["--planner", "cbs"], "--planner"), (["--executor", "physics"],
                        "--executor"), (["--ticks", "0"], "--ticks")):

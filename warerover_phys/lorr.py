@@ -27,6 +27,10 @@ leave it wait too. On ``warehouse_small`` (2023) over 300 timesteps ``actions`` 
 more tasks up to 200 robots and ``turn-first`` more at 400 (``tools/README.md``); both jam
 at high density. Robots start facing east. A robot that stands on its
 current errand's cell has done it (any heading); the task is finished with its last errand.
+Robots' distance tables come from one store per run, one table per goal cell, least
+recently used evicted under a MiB budget (:mod:`.planning.dist_store`); with ``trace_dir``
+the actions go to disk in chunks instead of lists, and :func:`write_output_json` streams
+them into the output, so memory does not grow with the timesteps.
 
 **Output** (:func:`output_json`), the start-kit's 2024 fields: ``actionModel`` (``MAPF_T``;
 without rotations ``MAPF``, a model of ours: ``U`` / ``D`` / ``L`` / ``R`` move one cell up
@@ -57,11 +61,12 @@ from .errors import ScenarioError
 from .movingai import MovingAIMap, read_map
 
 __all__ = ["LorrProblem", "LorrResult", "read_problem", "run_lifelong", "output_json",
-           "HEADINGS", "RULES"]
+           "write_output_json", "ActionChunks", "HEADINGS", "RULES"]
 
 HEADINGS = "ESWN"
 """Heading codes 0-3: east (+col), south (+row), west (-col), north (-row)."""
 _STEP = ((0, 1), (1, 0), (0, -1), (-1, 0))
+_MOVE_LETTER = {(0, 1): "R", (1, 0): "D", (0, -1): "L", (-1, 0): "U"}
 RULES = ("actions", "turn-first")
 """How PIBT meets the rotation model (see the module docstring)."""
 MAX_AGENTS = 100_000
@@ -222,9 +227,10 @@ class LorrResult:
     rule: str
     """How PIBT met the rotation model (:data:`RULES`; ``"none"`` without rotations)."""
     actions: list[list[str]]
-    """Per robot, one action per timestep."""
+    """Per robot, one action per timestep (empty when ``chunks`` holds them)."""
     positions: list[list[int]]
-    """Per robot, its linearised cell at every timestep (0 .. ticks)."""
+    """Per robot, its linearised cell at every timestep (0 .. ticks; empty when the run
+    streamed its actions to ``chunks``)."""
     headings: list[list[int]]
     events: list[tuple[int, int, int, int]] = field(default_factory=list)
     """(timestep, robot, task, errands done)."""
@@ -236,10 +242,34 @@ class LorrResult:
     """Wall seconds of every timestep (assignment, planning and moving)."""
     finished: int = 0
     setup_s: float = 0.0
+    chunks: ActionChunks | None = None
+    """Where a streamed run's actions are (``run_lifelong(trace_dir=...)``)."""
+    dist: dict[str, Any] = field(default_factory=dict)
+    """The distance-table store's counters at the end (:meth:`DistStore.counters`)."""
+    tick_misses: list[int] = field(default_factory=list)
+    """Distance tables computed in every timestep."""
+    tick_bfs_s: list[float] = field(default_factory=list)
+    """Seconds of breadth-first search in every timestep (part of ``tick_s``)."""
+    tick_plan_s: list[float] = field(default_factory=list)
+    """Seconds of the PIBT step in every timestep (part of ``tick_s``)."""
+    tick_cpu_s: list[float] = field(default_factory=list)
+    """CPU seconds of this process in every timestep (wall time less waiting for a core on
+    a loaded machine)."""
+    tick_plan_cpu_s: list[float] = field(default_factory=list)
+    """CPU seconds of the PIBT step in every timestep."""
 
     @property
     def ticks(self) -> int:
         return len(self.tick_s)
+
+    def action_rows(self, block: int = 512):
+        """Every robot's actions as one string (one character per timestep), in robot
+        order, read block by block from ``chunks`` when the run streamed them."""
+        if self.chunks is None:
+            for acts in self.actions:
+                yield "".join(acts)
+        else:
+            yield from self.chunks.rows(block)
 
     def summary(self) -> dict[str, Any]:
         ms = np.asarray(self.tick_s) * 1e3 if self.tick_s else np.zeros(1)
@@ -249,8 +279,28 @@ class LorrResult:
                 "ms_per_tick_mean": float(ms.mean()), "ms_per_tick_p99":
                 float(np.percentile(ms, 99)), "ms_per_tick_max": float(ms.max()),
                 "setup_s": self.setup_s, "wall_s": self.setup_s + float(ms.sum()) / 1e3,
+                "first_tick_s": float(ms[0]) / 1e3,
+                "pibt_ms_per_tick_mean": float(np.mean(self.tick_plan_s)) * 1e3
+                if self.tick_plan_s else 0.0,
+                "pibt_ms_per_tick_p99": float(np.percentile(self.tick_plan_s, 99)) * 1e3
+                if self.tick_plan_s else 0.0,
+                **_ms("cpu_ms_per_tick", self.tick_cpu_s),
+                **_ms("pibt_cpu_ms_per_tick", self.tick_plan_cpu_s),
+                "dist_tables": {**self.dist, "misses_per_tick_mean": float(np.mean(
+                    self.tick_misses)) if self.tick_misses else 0.0,
+                    "misses_per_tick_max": max(self.tick_misses, default=0),
+                    "bfs_ms_per_tick_mean": float(np.mean(self.tick_bfs_s)) * 1e3
+                    if self.tick_bfs_s else 0.0,
+                    "bfs_ms_per_tick_p99": float(np.percentile(self.tick_bfs_s, 99)) * 1e3
+                    if self.tick_bfs_s else 0.0},
                 "agent_counter_modelled": False if self.problem.agent_counter != 1 else None,
                 "delays_modelled": False if self.problem.delay_config else None}
+
+
+def _ms(name: str, seconds: list[float]) -> dict[str, float]:
+    """``{name_mean, name_p99}`` in ms of ``seconds`` (0 when empty)."""
+    ms = np.asarray(seconds) * 1e3 if seconds else np.zeros(1)
+    return {f"{name}_mean": float(ms.mean()), f"{name}_p99": float(np.percentile(ms, 99))}
 
 
 class _Tasks:
@@ -316,20 +366,37 @@ class _Tasks:
 
 def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, seed: int = 0,
                  rule: str = "actions",
-                 progress: Callable[[int, int], None] | None = None) -> LorrResult:
+                 progress: Callable[[int, int], None] | None = None,
+                 dist_budget_mb: float | None = None, trace_dir: str | Path | None = None,
+                 chunk_ticks: int = 100, prefetch: bool = False) -> LorrResult:
     """Run ``problem`` for ``ticks`` timesteps with lifelong PIBT (see the module
     docstring; ``rule``: one of :data:`RULES`, used with ``rotations``); every timestep's
-    configuration is checked (no two robots on a cell, no swaps, no jumps)."""
+    configuration is checked (no two robots on a cell, no swaps, no jumps).
+
+    Distance tables come from one :class:`~.planning.dist_store.DistStore` (MiB budget
+    ``dist_budget_mb``, default :data:`~.planning.dist_store.DEFAULT_BUDGET_MB`) shared by
+    all robots and timesteps. ``trace_dir``: stream the actions to ``.npy`` files there,
+    ``chunk_ticks`` timesteps each (:class:`ActionChunks`), instead of keeping actions,
+    positions and headings in lists, so memory does not grow with ``ticks``. ``prefetch``:
+    before the first timestep, compute the tables of the tasks' errand cells, in the order
+    the tasks come, until the budget is full (set-up time instead of timestep time; the
+    league gives entrants a preprocessing phase); plans do not change."""
     if rule not in RULES:
         raise ValueError(f"rule: expected one of {RULES}, got {rule!r}")
+    from .planning.dist_store import DEFAULT_BUDGET_MB, DistStore
     from .planning.oneshot import grid_graph
     from .planning.pibt import pibt_step
-    from .planning.pibt_heading import heading_pibt_step
+    from .planning.pibt_heading import heading_pibt_step, steps_of
 
     t0 = time.perf_counter()
     grid = problem.grid
     cols = grid.cols
     graph = grid_graph(grid.obstacles)
+    store = DistStore(graph, DEFAULT_BUDGET_MB if dist_budget_mb is None else dist_budget_mb)
+    steps = steps_of(graph.neighbors, cols) if rotations and rule == "actions" else None
+    if prefetch:
+        store.prefetch(e for k in range(min(len(problem.tasks), 10 * store.capacity))
+                       for e in problem.tasks[k])
     n = problem.team_size
     tasks = _Tasks(problem)
     rng = np.random.default_rng(seed)
@@ -338,20 +405,28 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
     task_of = [-1] * n
     errand = [0] * n  # errands of its task done
     goal = [-1] * n  # tables are made once robots have their first errands
-    dists: list[np.ndarray] = [None] * n  # type: ignore[list-item]
+    dists: list[memoryview] = [None] * n  # type: ignore[list-item]
     since = [0] * n
     escaping: frozenset[int] = frozenset()
-    result = LorrResult(problem, rotations, rule if rotations else "none", actions=[[] for _ in range(n)],
-                        positions=[[c] for c in config], headings=[[0] for _ in range(n)],
-                        schedule=[[] for _ in range(n)])
+    chunks = None if trace_dir is None else ActionChunks(Path(trace_dir), n, chunk_ticks)
+    result = LorrResult(problem, rotations, rule if rotations else "none",
+                        actions=[[] for _ in range(n)] if chunks is None else [],
+                        positions=[[c] for c in config] if chunks is None else [],
+                        headings=[[0] for _ in range(n)] if chunks is None else [],
+                        schedule=[[] for _ in range(n)], chunks=chunks)
     result.setup_s = time.perf_counter() - t0
     for tick in range(ticks):
         w0 = time.perf_counter()
+        c0 = time.process_time()
+        misses0, bfs0 = store.misses, store.bfs_s
         # Errands reached (any heading), then new tasks for free robots.
         done_now = 0
-        for i in range(n):
+        arrived = [i for i, (c, g) in enumerate(zip(config, goal, strict=True)) if c == g]
+        advanced = []
+        for i in arrived:
             k = task_of[i]
-            if k >= 0 and config[i] == goal[i]:
+            if k >= 0:
+                advanced.append(i)
                 errand[i] += 1
                 result.events.append((tick, i, k, errand[i]))
                 if errand[i] == len(tasks._task(k)):
@@ -364,18 +439,23 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
             task_of[i], errand[i] = k, 0
             result.events.append((tick, i, k, 0))
             result.schedule[i].append((tick, k))
-        for i in range(n):
+        # Goals change only for robots that did an errand, took a task or have none.
+        for i in sorted(set(advanced).union(free)):
             k = task_of[i]
             g = config[i] if k < 0 else tasks._task(k)[errand[i]]
             if g != goal[i]:
                 goal[i] = g
-                dists[i] = graph.dist_to(divmod(g, cols))
+                # a memoryview reads Python ints: PIBT's single reads run 3-10x faster
+                # than on numpy scalars (uint16 against a float or a large int most)
+                dists[i] = memoryview(store.get(g))  # type: ignore[call-overload]
                 since[i] = tick
         prio = [tick - s + i / (n + 1) for i, s in enumerate(since)]
-        tie = rng.random(graph.num_nodes) * 0.5
+        tie = (rng.random(graph.num_nodes) * 0.5).tolist()  # lists: faster single reads
+        p0 = time.perf_counter()
+        pc0 = time.process_time()
         if rotations and rule == "actions":  # PIBT over the actions forward / turn / wait
             nxt, heading, acts, escaping = heading_pibt_step(
-                graph.neighbors, cols, config, heading, dists, prio, tie, escaping)
+                graph.neighbors, cols, config, heading, dists, prio, tie, escaping, steps)
         elif rotations:  # PIBT over cells, then turn first where a cell is not ahead
             costs = [_Facing(dists[i], config[i], heading[i], cols) for i in range(n)]
             nxt = pibt_step(graph, config, costs, prio, tie, goals=goal)
@@ -391,18 +471,75 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
             for i in range(n):
                 if nxt[i] != config[i]:
                     dr, dc = nxt[i] // cols - config[i] // cols, nxt[i] % cols - config[i] % cols
-                    acts[i] = {(0, 1): "R", (1, 0): "D", (0, -1): "L", (-1, 0): "U"}[(dr, dc)]
+                    acts[i] = _MOVE_LETTER[(dr, dc)]
+        result.tick_plan_s.append(time.perf_counter() - p0)
+        result.tick_plan_cpu_s.append(time.process_time() - pc0)
         _check(config, nxt, graph, tick)
         config = nxt
-        for i in range(n):
-            result.actions[i].append(acts[i])
-            result.positions[i].append(config[i])
-            result.headings[i].append(heading[i])
+        if chunks is not None:
+            chunks.append(acts)
+        else:
+            for i in range(n):
+                result.actions[i].append(acts[i])
+                result.positions[i].append(config[i])
+                result.headings[i].append(heading[i])
+        result.tick_misses.append(store.misses - misses0)
+        result.tick_bfs_s.append(store.bfs_s - bfs0)
         result.tick_s.append(time.perf_counter() - w0)
+        result.tick_cpu_s.append(time.process_time() - c0)
         if progress is not None:
             progress(tick + 1, ticks)
+    if chunks is not None:
+        chunks.flush()
     result.releases = dict(tasks.releases)
+    result.dist = store.counters()
     return result
+
+
+class ActionChunks:
+    """A run's actions on disk: every ``chunk`` timesteps one ``.npy`` array (timesteps x
+    robots, ``uint8`` ASCII codes of the action letters) in ``folder``; read back robot by
+    robot (:meth:`rows`) a block of robots at a time, so neither writing nor reading holds
+    the whole run."""
+
+    def __init__(self, folder: Path, robots: int, chunk: int = 100) -> None:
+        if chunk < 1:
+            raise ValueError(f"chunk: expected a positive number of timesteps, got {chunk}")
+        self.folder = Path(folder)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.robots = robots
+        self.chunk = chunk
+        self.files: list[Path] = []
+        self._buf: list[bytes] = []
+        self.ticks = 0
+
+    def append(self, acts: list[str]) -> None:
+        """One timestep's actions (one letter per robot)."""
+        self._buf.append("".join(acts).encode("ascii"))
+        self.ticks += 1
+        if len(self._buf) >= self.chunk:
+            self.flush()
+
+    def flush(self) -> None:
+        if not self._buf:
+            return
+        arr = np.frombuffer(b"".join(self._buf), dtype=np.uint8).reshape(len(self._buf),
+                                                                         self.robots)
+        path = self.folder / f"actions_{len(self.files):06d}.npy"
+        np.save(path, arr)
+        self.files.append(path)
+        self._buf = []
+
+    def rows(self, block: int = 512):
+        """Every robot's actions as one string, in robot order."""
+        self.flush()
+        arrays = [np.load(f, mmap_mode="r") for f in self.files]
+        for b0 in range(0, self.robots, block):
+            b1 = min(self.robots, b0 + block)
+            part = (np.concatenate([a[:, b0:b1] for a in arrays], axis=0) if arrays
+                    else np.zeros((0, b1 - b0), dtype=np.uint8))
+            for row in np.ascontiguousarray(part.T):
+                yield row.tobytes().decode("ascii")
 
 
 class _Facing:
@@ -469,18 +606,19 @@ def _check(config: list[int], nxt: list[int], graph: Any, tick: int) -> None:
             raise AssertionError(f"robot {i} jumps at timestep {tick + 1}")
 
 
-def output_json(result: LorrResult) -> dict[str, Any]:
-    """The start-kit's output JSON of a run (see the module docstring)."""
+def output_json(result: LorrResult, *, paths: bool = True) -> dict[str, Any]:
+    """The start-kit's output JSON of a run (see the module docstring); without ``paths``,
+    ``actualPaths`` and ``plannerPaths`` are None (:func:`write_output_json` streams
+    them)."""
     p = result.problem
     cols = p.grid.cols
     n = p.team_size
     sum_of_cost = 0
-    for acts in result.actions:
-        end = len(acts)
-        while end > 0 and acts[end - 1] == "W":
-            end -= 1
-        sum_of_cost += end
-    paths = [",".join(a) for a in result.actions]
+    path_list: list[str] | None = [] if paths else None
+    for row in result.action_rows():
+        sum_of_cost += len(row.rstrip("W"))
+        if path_list is not None:
+            path_list.append(",".join(row))
     tasks = []
     for k in sorted(result.releases):
         errs = p.tasks[k % len(p.tasks)]
@@ -496,11 +634,29 @@ def output_json(result: LorrResult) -> dict[str, Any]:
         "numTaskFinished": result.finished,
         "sumOfCost": sum_of_cost,
         "makespan": result.ticks,
-        "actualPaths": paths,
-        "plannerPaths": paths,
+        "actualPaths": path_list,
+        "plannerPaths": path_list,
         "plannerTimes": [round(s, 6) for s in result.tick_s],
         "errors": [],
         "events": [list(e) for e in result.events],
         "tasks": tasks,
         "actualSchedule": ["".join(f"{t}:{k}," for t, k in s) for s in result.schedule],
     }
+
+
+def write_output_json(result: LorrResult, path: str | Path) -> None:
+    """Write :func:`output_json` to ``path`` (the same bytes as ``json.dumps`` of it and a
+    newline) without building the paths in memory: they are streamed robot by robot."""
+    doc = output_json(result, paths=False)
+    with open(path, "w", encoding="utf-8") as f:
+        f.write("{")
+        for k, (key, value) in enumerate(doc.items()):
+            f.write((", " if k else "") + json.dumps(key) + ": ")
+            if key in ("actualPaths", "plannerPaths"):
+                f.write("[")
+                for i, row in enumerate(result.action_rows()):
+                    f.write((", " if i else "") + json.dumps(",".join(row)))
+                f.write("]")
+            else:
+                f.write(json.dumps(value))
+        f.write("}\n")

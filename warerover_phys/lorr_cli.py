@@ -30,8 +30,16 @@ def lorr(problem: Annotated[Path, typer.Argument(
                   "cells, then robots whose cell is not ahead turn instead).")] = "actions",
          seed: Annotated[int, typer.Option(help="Seed of PIBT's tie-breaking.")] = 0,
          out: Annotated[Path | None, typer.Option(
-             help="Output folder: output.json (Robot Runners output) and metrics.json.")
-                        ] = None,
+             help="Output folder: output.json (Robot Runners output) and metrics.json; "
+                  "the actions are streamed to disk while the run goes.")] = None,
+         dist_budget_mb: Annotated[float, typer.Option(
+             help="MiB the cached distance tables (one per goal cell, shared by all robots) "
+                  "may hold; least recently used go first.")] = 1024.0,
+         prefetch_tables: Annotated[bool, typer.Option(
+             "--prefetch-tables",
+             help="Compute the tables of the tasks' errand cells before the first timestep, "
+                  "until the budget is full (set-up time instead of timestep time).")
+                           ] = False,
          json_out: Annotated[bool, typer.Option(
              "--json", help="Print the figures as JSON.")] = False,
          quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")
@@ -41,7 +49,7 @@ def lorr(problem: Annotated[Path, typer.Argument(
     from .console import err_console, fail_os
     from .console import fail as _fail
     from .errors import WareroverError
-    from .lorr import RULES, output_json, read_problem, run_lifelong
+    from .lorr import RULES, read_problem, run_lifelong, write_output_json
 
     try:
         if not 1 <= ticks <= 10_000_000:
@@ -57,7 +65,19 @@ def lorr(problem: Annotated[Path, typer.Argument(
         if rotation_rule not in RULES:
             raise WareroverError(f"--rotation-rule: expected one of {', '.join(RULES)} (got "
                                  f"{rotation_rule!r})")
+        if not dist_budget_mb > 0:
+            raise WareroverError(f"--dist-budget-mb: expected a positive number (got "
+                                 f"{dist_budget_mb})")
         prob = read_problem(problem)
+        trace = None
+        if out is not None:
+            import tempfile
+
+            out.absolute().parent.mkdir(parents=True, exist_ok=True)
+            trace = tempfile.TemporaryDirectory(prefix="lorr-trace-",
+                                                dir=out.absolute().parent)
+        kw = {"dist_budget_mb": dist_budget_mb, "prefetch": prefetch_tables,
+              "trace_dir": None if trace is None else trace.name}
         show = not quiet and not json_out and err_console.is_terminal
         if show:
             from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
@@ -67,24 +87,40 @@ def lorr(problem: Annotated[Path, typer.Argument(
                           transient=True) as bar:
                 task = bar.add_task("lorr", total=ticks)
                 result = run_lifelong(prob, ticks, rotations=rotations, seed=seed,
-                                      rule=rotation_rule,
+                                      rule=rotation_rule, **kw,
                                       progress=lambda t, n: bar.update(task, completed=t))
         else:
             result = run_lifelong(prob, ticks, rotations=rotations, seed=seed,
-                                  rule=rotation_rule)
+                                  rule=rotation_rule, **kw)
         figures = result.summary()
-        rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-        figures["peak_rss_mb"] = rss / 1024 if sys.platform != "darwin" else rss / 2**20
         figures["planner"] = planner
         written = {}
-        if out is not None:
+
+        def finish_figures() -> dict:
+            rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+            figures["peak_rss_mb"] = rss / 1024 if sys.platform != "darwin" else rss / 2**20
+            return figures
+
+        if out is not None and trace is not None:
+            import time
+
             from .atomic import write_set
 
-            doc = output_json(result)
-            written = write_set(out, {
-                "output.json": lambda p: p.write_text(json.dumps(doc) + "\n"),
-                "metrics.json": lambda p: p.write_text(json.dumps(figures, indent=2) + "\n"),
-            }, meta={"problem": str(problem)})
+            t0 = time.perf_counter()
+
+            def metrics(p: Path) -> None:  # written after output.json: its time and memory
+                figures["output_s"] = time.perf_counter() - t0
+                p.write_text(json.dumps(finish_figures(), indent=2) + "\n")
+
+            try:
+                written = write_set(out, {
+                    "output.json": lambda p: write_output_json(result, p),
+                    "metrics.json": metrics,
+                }, meta={"problem": str(problem)})
+            finally:
+                trace.cleanup()
+        else:
+            finish_figures()
     except WareroverError as err:
         _fail(err)
     except OSError as err:

@@ -135,10 +135,15 @@ def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndar
         if j is not None and nxt[j] == -1 and swap_required(i, j, here, best) \
                 and swap_possible(i, best, here):
             return j
+        d = dists[i]
+        d_here, d_best = d[here], d[best]
         for u in (tables[i][here] if tables is not None else neighbors[here]):
             k = occ_now.get(u)
             if k is None or best == config[k]:
                 continue
+            dk = dists[k]
+            if dk[best] >= dk[here] and d_here >= d_best:
+                continue  # what swap_required(k, i, here, best) answers without a walk
             if swap_required(k, i, here, best) and swap_possible(i, best, here):
                 return k
         return -1
@@ -147,8 +152,10 @@ def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndar
         here = config[i]
         d = dists[i]
         near = tables[i][here] if tables is not None else neighbors[here]
+        # Python ints from numpy tables: a numpy scalar plus a float takes 10x longer.
         cands = sorted([v for v in near if d[v] < UNREACHABLE] + [here],
-                       key=lambda v: d[v] + tie[v])
+                       key=(lambda v: int(d[v]) + tie[v]) if isinstance(d, np.ndarray)
+                       else (lambda v: d[v] + tie[v]))
         if guide is not None:
             first = guide[i].get(here)
             if first is not None and first != cands[0] and first in cands:

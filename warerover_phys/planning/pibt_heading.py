@@ -67,6 +67,47 @@ def turns_to_progress(d: np.ndarray, v: int, h: int, neighbors: Sequence[Sequenc
     return best
 
 
+def _turns_by_mask() -> tuple[tuple[int, int, int, int], ...]:
+    """``out[mask][h]``: fewest quarter turns from heading ``h`` to one of the headings in
+    bit set ``mask`` (2 when it is empty), as :func:`turns_to_progress` counts them."""
+    out = []
+    for mask in range(16):
+        row = []
+        for h in range(4):
+            best = 2
+            for w in range(4):
+                if mask >> w & 1:
+                    t = (w - h) % 4
+                    best = min(best, t, 4 - t)
+            row.append(best)
+        out.append(tuple(row))
+    return tuple(out)
+
+
+_TURNS = _turns_by_mask()
+_ON_GOAL = (0, 0, 0, 0)
+
+
+def steps_of(neighbors: Sequence[Sequence[int]], cols: int
+             ) -> tuple[list[tuple[tuple[int, int], ...]], list[tuple[int, int, int, int]]]:
+    """Per cell, its neighbours with the heading pointing at each (``(u, bit)``, bit
+    ``1 << heading``), and the cell ahead for each heading (-1: none). Computed once per
+    map and passed to :func:`heading_pibt_step` (``steps``) to save it every timestep."""
+    nbr: list[tuple[tuple[int, int], ...]] = []
+    ahead: list[tuple[int, int, int, int]] = []
+    for v, near in enumerate(neighbors):
+        r, c = divmod(v, cols)
+        pairs = []
+        row = [-1, -1, -1, -1]
+        for u in near:
+            h = STEP.index((u // cols - r, u % cols - c))
+            pairs.append((u, 1 << h))
+            row[h] = u
+        nbr.append(tuple(pairs))
+        ahead.append(tuple(row))  # type: ignore[arg-type]
+    return nbr, ahead
+
+
 def _turn_towards(h: int, want: int) -> int:
     """The heading after one quarter turn from ``h`` towards ``want`` (clockwise when it is
     behind)."""
@@ -77,6 +118,7 @@ def heading_pibt_step(neighbors: Sequence[Sequence[int]], cols: int, config: Seq
                       heading: Sequence[int], dists: Sequence[np.ndarray],
                       prio: Sequence[float], tie: np.ndarray,
                       escaping: frozenset[int] = frozenset(),
+                      steps: tuple[list, list] | None = None,
                       ) -> tuple[list[int], list[int], list[str], frozenset[int]]:
     """Next cells, next headings and actions (``F`` forward, ``R`` clockwise, ``C``
     counter-clockwise, ``W`` wait) of every robot; see the module docstring.
@@ -86,6 +128,7 @@ def heading_pibt_step(neighbors: Sequence[Sequence[int]], cols: int, config: Seq
     higher goes first; ``tie[v]``: in [0, 1), breaks ties between equally good forward moves.
     ``escaping``: the robots that turned last timestep to make way for another (the last
     return value): they move on forward if they can, rather than turn straight back.
+    ``steps``: :func:`steps_of` of ``neighbors`` (computed here when not given).
     """
     n = len(config)
     nxt = [-1] * n
@@ -95,22 +138,35 @@ def heading_pibt_step(neighbors: Sequence[Sequence[int]], cols: int, config: Seq
     occ_next: dict[int, int] = {}
     escaped: set[int] = set()
 
+    nbr_of, ahead_of = steps if steps is not None else steps_of(neighbors, cols)
+    turns_tab = _TURNS
+
+    def turns_at(d, v: int) -> tuple[int, int, int, int]:
+        """:func:`turns_to_progress` of cell ``v`` for each of the four headings."""
+        dv = d[v]
+        if dv == 0:
+            return _ON_GOAL
+        mask = 0
+        for u, bit in nbr_of[v]:
+            if d[u] < dv:
+                mask |= bit
+        return turns_tab[mask]
+
     def options(i: int) -> list[tuple[float, str, int, int]]:
         v, h, d = config[i], heading[i], dists[i]
-        r, c = divmod(v, cols)
         out: list[tuple[float, str, int, int]] = []
-        dr, dc = STEP[h]
-        ahead = (r + dr) * cols + c + dc
-        if 0 <= c + dc < cols and ahead in neighbors[v] and d[ahead] < _UNREACHABLE:
-            cost = float(d[ahead] + turns_to_progress(d, ahead, h, neighbors, cols))
+        ahead = ahead_of[v][h]
+        if ahead >= 0 and d[ahead] < _UNREACHABLE:
+            cost = float(int(d[ahead]) + turns_at(d, ahead)[h])
             if i in escaping:
                 cost -= 4.0
             out.append((cost + 0.5 * float(tie[ahead]), "F", ahead, h))
         base = float(d[v])
-        for act, nh_ in (("R", (h + 1) % 4), ("C", (h - 1) % 4)):
-            out.append((base + turns_to_progress(d, v, nh_, neighbors, cols) + 0.3, act, v,
-                        nh_))
-        out.append((base + turns_to_progress(d, v, h, neighbors, cols) + 0.27, "W", v, h))
+        here_turns = turns_at(d, v)
+        hr, hc = (h + 1) % 4, (h - 1) % 4
+        out.append((base + here_turns[hr] + 0.3, "R", v, hr))
+        out.append((base + here_turns[hc] + 0.3, "C", v, hc))
+        out.append((base + here_turns[h] + 0.27, "W", v, h))
         out.sort(key=lambda o: o[0])
         return out
 
