@@ -1,5 +1,5 @@
 """Find the swept volumes of two agents that meet: broad phase, two exact filters (one that
-rules pairs out, one that rules them in), then python-fcl's GJK on convex polyhedra.
+rules pairs out, one that rules them in), then python-fcl on trimesh hulls of the rest.
 
 1. **Broad phase** (``broad_phase="grid"``, default): every volume goes into the cells of an
    ``(x, y)`` hash grid its bounding box touches (cell side: the 95th percentile of the
@@ -435,7 +435,7 @@ def validate_spacetime(plan: TimedPlan, *, tolerance_m: float = DEFAULT_TOLERANC
     earliest); ``contact_resolution_s``: find each reported conflict's first contact to
     within this (s) by bisection (None: don't); ``hulls``: how the narrow phase's hulls
     are built (:meth:`Volumes.hulls`: ``numpy``, or ``trimesh``'s ``convex_hull`` per volume,
-    the same hulls ~100x slower); ``narrow``: the fcl objects of the narrow phase,
+    the same hulls ~90x slower); ``narrow``: the fcl objects of the narrow phase,
     ``bvh`` (``BVHModel`` s plus a containment test) or ``convex`` (``fcl.Convex`` solids;
     faster to build, the same answers).
 
