@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 import types
@@ -25,7 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+if not os.environ.get("PYTHONPATH"):  # PYTHONPATH picks the checkout to measure
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from warerover_phys.movingai import read_map, read_scen  # noqa: E402
 from warerover_phys.planning import refine as refine_mod  # noqa: E402
