@@ -6,7 +6,7 @@ say little.
         [--json tools/out/bench_refine.json]
 
 Prints the CPU seconds (``time.process_time``) of the first solution's parts (distance
-tables, guide paths, LaCAM; seed 0, no time limit), then runs the LNS
+tables, guide paths, LaCAM; ``--seed``, no time limit), then runs the LNS
 (:func:`warerover_phys.planning.refine.refine`, generator seeded as ``solve`` does) from that
 first solution with its clock patched to CPU time, for ``--lns-cpu`` seconds (or exactly
 ``--iterations`` neighbourhoods: the same plan on any machine), validates the result with
@@ -46,6 +46,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--lns-cpu", type=float, default=20.0)
     ap.add_argument("--iterations", type=int, default=None)
     ap.add_argument("--scen", type=int, default=1)
+    ap.add_argument("--seed", type=int, default=0, help="as `warerover solve --seed`")
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args(argv)
     cpu = time.process_time
@@ -54,7 +55,8 @@ def main(argv: list[str] | None = None) -> int:
     graph = grid_graph(grid.obstacles)
     starts = [graph.node(a.start) for a in scen]
     goals = [graph.node(a.goal) for a in scen]
-    out: dict = {"agents": args.agents, "scen": args.scen, "code": refine_mod.__file__}
+    out: dict = {"agents": args.agents, "scen": args.scen, "seed": args.seed,
+                 "code": refine_mod.__file__}
     c = cpu()
     tables = [graph.dist_to(a.goal) for a in scen]
     dists = [t.tolist() for t in tables]
@@ -62,11 +64,12 @@ def main(argv: list[str] | None = None) -> int:
     lb = sum(d[s] for d, s in zip(dists, starts, strict=True))
     far = time.monotonic() + 1e9
     c = cpu()
-    rng = np.random.default_rng(np.random.SeedSequence(0).spawn(1)[0])
+    rng = np.random.default_rng(np.random.SeedSequence(args.seed).spawn(1)[0])
     guide = scatter.guide_paths(graph.neighbors, starts, goals, dists, rng)
     out["guide_cpu_s"] = cpu() - c
     c = cpu()
-    configs, _ = lacam_nodes(graph, starts, goals, dists, far, np.random.default_rng(0),
+    configs, _ = lacam_nodes(graph, starts, goals, dists, far,
+                             np.random.default_rng(args.seed),
                              guide=guide.next)
     out["lacam_cpu_s"] = cpu() - c
     cols = graph.cols
@@ -74,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
     out["first_soc"] = sum(len(refine_mod._trim(p, g)) - 1
                            for p, g in zip(nodes, goals, strict=True))
     refine_mod.time = types.SimpleNamespace(monotonic=cpu)  # the LNS's clock: CPU time
-    rng = np.random.default_rng(np.random.SeedSequence(0).spawn(2)[1])
+    rng = np.random.default_rng(np.random.SeedSequence(args.seed).spawn(2)[1])
     c = cpu()
     budget = 1e9 if args.iterations is not None else args.lns_cpu
     res = refine_mod.refine(graph.neighbors, nodes, goals, tables, c + budget, rng,
