@@ -106,6 +106,7 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"--set: expected KEY=VALUE (got {item!r})")
         extra.append((key.strip(), yaml.safe_load(value)))
     seeds = parse_seeds(args.seeds)
+    out = Path(args.json)
     rows: dict = {}
     lines = []
     for path in args.scenarios:
@@ -121,6 +122,13 @@ def main(argv: list[str] | None = None) -> int:
             failed[mode] = bad
             print(f"{sc.name} {mode}: {len(results)} seeds ({len(bad)} failed) in "
                   f"{walls[mode]:.0f} s", file=sys.stderr, flush=True)
+            # every mode's figures on disk as soon as they exist (runs take long)
+            partial = dict(rows, **{Path(path).stem: {"partial": True, "per_mode": per_mode,
+                                                      "wall_s": walls,
+                                                      "overrides": args.overrides}})
+            out.parent.mkdir(parents=True, exist_ok=True)
+            out.write_text(json.dumps(partial, indent=1, default=str) + "\n",
+                           encoding="utf-8")
         common = sorted(set.intersection(*(set(v) for v in per_mode.values())))
         name = Path(path).stem
         rows[name] = {"seeds": common, "per_mode": per_mode, "wall_s": walls,
@@ -138,7 +146,6 @@ def main(argv: list[str] | None = None) -> int:
         lines += ["", "wall: " + ", ".join(f"{m} {w:.0f} s" for m, w in walls.items()), ""]
     text = "\n".join(lines)
     print(text)
-    out = Path(args.json)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(rows, indent=1, default=str) + "\n", encoding="utf-8")
     return 0
