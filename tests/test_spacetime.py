@@ -200,6 +200,44 @@ def test_grid_and_fcl_broad_phases_find_the_same_conflicts(seed):
         [(c.agvs, c.t_start_s, c.t_end_s) for c in tree.conflicts]
 
 
+def test_trimesh_hulls_are_watertight_convex_and_give_the_same_conflicts():
+    """The narrow phase's hulls: built with numpy or with trimesh's convex_hull (qhull), the
+    same solids (trimesh checks both watertight, outward and convex), the same conflicts."""
+    plan = random_plan(4, agents=8, samples=4)
+    vol = build_volumes(plan)
+    idx = np.arange(len(vol))
+    fast, slow = vol.hulls(idx), vol.hulls(idx, method="trimesh")
+    assert fast.is_watertight and slow.is_watertight
+    vf = fast.vertices.reshape(-1, 8, 3)
+    assert np.allclose(np.sort(vf, axis=1), np.sort(slow.vertices.reshape(-1, 8, 3), axis=1))
+    for k in range(0, len(vol), 5):
+        a = fast.submesh([np.arange(12 * k, 12 * k + 12)], append=True)
+        b = slow.submesh([np.arange(12 * k, 12 * k + 12)], append=True)
+        assert a.is_convex and b.is_convex
+        assert a.volume == pytest.approx(b.volume, rel=1e-9) and a.volume > 0
+    numpy_res = validate_spacetime(plan, max_conflicts=10 ** 6)
+    trimesh_res = validate_spacetime(plan, max_conflicts=10 ** 6, hulls="trimesh")
+    assert numpy_res.conflicts and numpy_res.conflicts == trimesh_res.conflicts
+
+
+def test_narrow_phase_finds_a_volume_wholly_inside_another():
+    """fcl's BVH models are surfaces: a hull inside another is found by the containment
+    test, both ways round, and a hull beside another is not."""
+    from warerover_phys.spacetime.check import _narrow
+    from warerover_phys.spacetime.volumes import Volumes
+
+    def vol(x, t0, t1, half):
+        n = len(x)
+        z = np.zeros(n)
+        return Volumes(np.arange(n), np.zeros(n, np.int8), np.array(t0, float),
+                       np.array(t1, float), np.array(x, float), z, z, np.array(x, float), z,
+                       z, np.array(half, float), np.array(half, float), inner=z)
+
+    v = vol([0.0, 0.2, 3.0], [0.0, 2.0, 2.0], [10.0, 3.0, 3.0], [1.0, 0.1, 0.1])
+    assert _narrow(v, np.array([0, 1, 0]), np.array([1, 0, 2])).tolist() == \
+        [True, True, False]
+
+
 # --- what a per-tick check misses ----------------------------------------------------------
 
 def test_bodies_that_cut_a_corner_conflict_though_every_tick_is_valid():

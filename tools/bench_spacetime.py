@@ -35,6 +35,7 @@ import numpy as np
 from warerover_phys.movingai import read_map
 from warerover_phys.plans.model import HEADING_STEPS, Plan
 from warerover_phys.spacetime import from_plan, validate_spacetime
+from warerover_phys.spacetime.volumes import build_volumes
 from warerover_phys.validate import validate_states
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -91,7 +92,9 @@ def per_tick(plan: Plan, obstacles: np.ndarray) -> tuple[float, int]:
 
 def run(name: str, plan: Plan, obstacles: np.ndarray, body: tuple[float, float]) -> dict:
     tp = from_plan(plan, body_m=body)
+    c0 = time.process_time()
     res = validate_spacetime(tp, max_conflicts=10 ** 9, contact_resolution_s=None)
+    cpu_s = time.process_time() - c0
     tick_s, tick_conflicts = per_tick(plan, obstacles)
     actions = sum(len(p) - 1 for p in plan.paths)
     row = {"workload": name, "agents": plan.num_agents, "actions": actions,
@@ -100,7 +103,7 @@ def run(name: str, plan: Plan, obstacles: np.ndarray, body: tuple[float, float])
            "colliding_pairs": res.colliding_pairs,
            "conflicts": len(res.conflicts), "per_tick_vertex_swap": tick_conflicts,
            "timings_s": {k: round(v, 4) for k, v in res.timings_s.items()},
-           "per_tick_validator_s": round(tick_s, 4),
+           "per_tick_validator_s": round(tick_s, 4), "cpu_s": round(cpu_s, 4),
            "rotation_bound_m": round(res.max_rotation_bound_m, 5)}
     tm = res.timings_s
     print(f"{name:>9}: {row['agents']} AGVs x {actions // max(1, row['agents'])} actions, "
@@ -110,7 +113,19 @@ def run(name: str, plan: Plan, obstacles: np.ndarray, body: tuple[float, float])
           f"(per-tick: {tick_conflicts} vertex/swap)")
     print(f"{'':>9}  total {tm['total']:.2f} s = build {tm['build']:.2f} + broad "
           f"{tm['broad']:.2f} + circles {tm['circle']:.2f} + fcl {tm['narrow']:.2f} + merge "
-          f"{tm['merge']:.2f}; per-tick validator {tick_s:.2f} s")
+          f"{tm['merge']:.2f} (CPU {cpu_s:.2f} s); per-tick validator {tick_s:.2f} s")
+    if res.fcl_pairs:  # the narrow phase on fcl.Convex solids instead of BVH models
+        c0 = time.process_time()
+        solid = validate_spacetime(tp, max_conflicts=10 ** 9, contact_resolution_s=None,
+                                   narrow="convex")
+        solid_cpu = time.process_time() - c0
+        same = solid.conflicts == res.conflicts
+        row["narrow_convex"] = {"fcl_s": round(solid.timings_s["narrow"], 4),
+                                "total_s": round(solid.timings_s["total"], 4),
+                                "cpu_s": round(solid_cpu, 4), "same_conflicts": same}
+        print(f"{'':>9}  narrow=convex (fcl.Convex solids): fcl {solid.timings_s['narrow']:.2f}"
+              f" s, total {solid.timings_s['total']:.2f} s (CPU {solid_cpu:.2f} s); same "
+              f"conflicts: {same}")
     if res.conflicts:  # the default report: the 100 earliest, first contacts to 1 ms
         rep = validate_spacetime(tp)
         row["report_100_s"] = round(rep.timings_s["total"], 4)
@@ -131,6 +146,9 @@ def main() -> int:
     ap.add_argument("--json", type=Path, default=ROOT / "tools" / "out" / "bench_spacetime.json")
     args = ap.parse_args()
     obstacles = read_map(MAP).obstacles
+    t0 = time.perf_counter()
+    import trimesh  # noqa: F401  (the narrow phase's hulls; imported once, not timed there)
+    print(f"import trimesh: {time.perf_counter() - t0:.2f} s")
     body = (args.body[0], args.body[1])
     rows = []
     for name, reserved in (("reserved", True), ("free", False)):
@@ -138,6 +156,17 @@ def main() -> int:
         plan = walk(obstacles, args.agents, args.ticks, reserved, args.seed)
         print(f"{name:>9}: plan made in {time.perf_counter() - t0:.1f} s")
         rows.append(run(name, plan, obstacles, body))
+    # building hulls: numpy faces against trimesh.convex.convex_hull (qhull) per volume
+    vol = build_volumes(from_plan(plan, body_m=body))
+    idx = np.arange(min(2000, len(vol)))
+    hull_us = {}
+    for method in ("numpy", "trimesh"):
+        vol.hulls(idx[:10], method=method)  # imports
+        c0 = time.process_time()
+        vol.hulls(idx, method=method)
+        hull_us[method] = round((time.process_time() - c0) / len(idx) * 1e6, 1)
+    print(f"hulls of {len(idx)} volumes, CPU us per volume (checks included): "
+          f"numpy faces {hull_us['numpy']}, trimesh convex_hull {hull_us['trimesh']}")
     # fcl's broad phase against the grid on a smaller plan
     plan = walk(obstacles, args.fcl_agents, args.ticks, False, args.seed)
     tp = from_plan(plan, body_m=body)
@@ -155,7 +184,7 @@ def main() -> int:
           f"{cmp['conflicts']} conflicts, same: {same}")
     out = {"map": MAP.name, "ticks": args.ticks, "body_m": body, "seed": args.seed,
            "python": sys.version.split()[0], "machine": platform.machine(),
-           "workloads": rows, "fcl_broad_phase": cmp}
+           "workloads": rows, "hull_cpu_us": hull_us, "fcl_broad_phase": cmp}
     args.json.parent.mkdir(parents=True, exist_ok=True)
     args.json.write_text(json.dumps(out, indent=2))
     print(f"wrote {args.json}")

@@ -15,7 +15,12 @@ After a first solution (LaCAM or PIBT), the time left is spent lowering its sum 
    already stands on its goal for good). The search runs over safe intervals (SIPP,
    :func:`_sipp`: waiting folded into intervals) and finds the same costs as the plain
    search over (cell, tick) states (:func:`_astar`, kept as the reference the tests compare
-   it with; on these warehouse plans the two took about the same time);
+   it with). Both order states by ``f = max(t + h, earliest)``, ``earliest`` the tick from
+   which the goal stays free for good (no path ends before it; the bound stays admissible
+   and consistent): when the goal is busy until late, the search heads for it and waits
+   instead of trying every detour that arrives no later (at 700 agents on
+   warehouse-10-20-10-2-1, about 4x less CPU per neighbourhood than with the bound applied
+   at the goal alone, as ``_sipp`` had it);
 3. keep the new paths if their sum of costs is lower, else put the old ones back. A search
    may not exceed the cost that would make the neighbourhood's total no better
    (``old - 1 - new so far - shortest lengths of those still to plan``), which prunes it.
@@ -36,6 +41,7 @@ from __future__ import annotations
 
 import heapq
 import time
+from bisect import bisect_left
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -85,6 +91,9 @@ class _Plan:
         self.visits: dict[int, list[int]] = {}
         self.safe: dict[int, list[tuple[int, int]]] = {}
         """Safe intervals per node (:func:`_intervals`), dropped when a path there changes."""
+        self.safe_hi: dict[int, list[int]] = {}
+        """The ends of ``safe[v]``'s intervals (ascending: a bisection finds the first
+        interval still open at a tick); valid while ``safe[v]`` is there."""
         for i, p in enumerate(paths):
             self.add(i, p)
 
@@ -196,16 +205,18 @@ def _sipp(neighbors: Sequence[Sequence[int]], plan: _Plan, start: int, goal: int
     if work is None:
         work = [0]
     n, occ = plan.n, plan.occ
-    cache = plan.safe
+    cache, his = plan.safe, plan.safe_hi
     goal_iv = cache.get(goal)
     if goal_iv is None:
         goal_iv = cache[goal] = _intervals(plan, goal)
+        his[goal] = [iv[1] for iv in goal_iv]
     if not goal_iv or goal_iv[-1][1] != _INF:
         return None
     earliest = goal_iv[-1][0]
     s_iv = cache.get(start)
     if s_iv is None:
         s_iv = cache[start] = _intervals(plan, start)
+        his[start] = [iv[1] for iv in s_iv]
     if not s_iv or s_iv[0][0] != 0:
         return None
     f0 = max(dist[start], earliest)
@@ -237,14 +248,17 @@ def _sipp(neighbors: Sequence[Sequence[int]], plan: _Plan, start: int, goal: int
             ivs = cache.get(u)
             if ivs is None:
                 ivs = cache[u] = _intervals(plan, u)
+                hs = his[u] = [iv[1] for iv in ivs]
+            else:
+                hs = his[u]
             h = dist[u]
             ukey = u << 16
-            k2 = -1
-            for lo, hi in ivs:
-                k2 += 1
+            # the intervals that end before t1 cannot be entered: start after them
+            for k2 in range(bisect_left(hs, t1), len(ivs)):
+                lo, hi = ivs[k2]
                 if lo > last:
                     break
-                if hi < t1 or (ukey | k2) in closed:
+                if (ukey | k2) in closed:
                     continue
                 t2 = lo if lo > t1 else t1
                 f = t2 + h
@@ -259,8 +273,8 @@ def _sipp(neighbors: Sequence[Sequence[int]], plan: _Plan, start: int, goal: int
                 if t2 > hi or t2 > last:
                     continue
                 f = t2 + h
-                if u == goal and hi == _INF and f < earliest:
-                    f = earliest
+                if f < earliest:
+                    f = earliest  # nobody finishes before the goal is free for good
                 if f > ub:
                     continue
                 push(heap, (f, h, -t2, u, k2, key))

@@ -1,21 +1,24 @@
 """Find the swept volumes of two agents that meet: broad phase, two exact filters (one that
-rules pairs out, one that rules them in), then python-fcl's GJK on convex polyhedra.
+rules pairs out, one that rules them in), then python-fcl on trimesh hulls of the rest.
 
 1. **Broad phase** (``broad_phase="grid"``, default): every volume goes into the cells of an
    ``(x, y)`` hash grid its bounding box touches (cell side: the 95th percentile of the
    boxes' sides); within a cell, volumes sorted by start time pair with every later one
    that starts before they end (sort and sweep over time, numpy throughout). Pairs of one
    agent are dropped, duplicates removed, then boxes compared on all three axes.
-   ``broad_phase="fcl"`` registers every volume as an ``fcl.Convex`` in one
+   ``broad_phase="fcl"`` registers every volume as an ``fcl.Convex`` (a solid) in one
    ``DynamicAABBTreeCollisionManager`` instead (slower: a Python object per volume; kept to
-   cross-check the grid).
+   cross-check the grid and the narrow phase's BVH models).
 2. **Bounding circles**: over the two volumes' common time span, each slice lies within its
    half-diagonal of its linearly moving centre; a pair whose centres never come closer than
    the two half-diagonals cannot meet (closed form, vectorised).
 3. **Sure hits**: every slice also holds a disk round its centre (the smaller half extent);
    a pair whose centres come closer than the two disks' radii meets for certain.
-4. **Narrow phase**: ``fcl.collide`` on the two hulls as ``fcl.Convex`` (solids: a volume
-   inside another counts, unlike a ``BVHModel`` surface) for the rest.
+4. **Narrow phase**: for the rest, the volumes become ``trimesh.Trimesh`` hulls
+   (:meth:`Volumes.hulls`: checked watertight, outward and convex) whose vertices and
+   triangles feed python-fcl ``BVHModel`` s; ``fcl.collide`` finds hulls whose surfaces
+   meet, and a vertex-in-hull test (face planes) the pairs where one hull lies wholly
+   inside the other, which a surface model does not see.
 
 Colliding volume pairs of the same two agents whose time spans touch or overlap are merged
 into one :class:`SpacetimeConflict`.
@@ -216,17 +219,75 @@ def _fcl_geoms(vol: Volumes, idx: np.ndarray) -> dict[int, object]:
     return out
 
 
-def _narrow(vol: Volumes, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """fcl.collide on every pair; a boolean mask of the colliding ones."""
-    import fcl
+class _Hulls:
+    """Volumes as trimesh hulls (:meth:`Volumes.hulls`, checked watertight and convex) fed
+    to python-fcl, one collision object per volume, made at once for all ``idx``.
 
-    objs = {i: fcl.CollisionObject(g)
-            for i, g in _fcl_geoms(vol, np.unique(np.concatenate([a, b]))).items()}
-    req = fcl.CollisionRequest()
-    hit = np.zeros(len(a), dtype=bool)
-    for k, (i, j) in enumerate(zip(a.tolist(), b.tolist(), strict=True)):
-        hit[k] = fcl.collide(objs[i], objs[j], req, fcl.CollisionResult()) > 0
-    return hit
+    ``narrow="bvh"``: a ``BVHModel`` of the hull's triangles (an OBBRSS tree; ~45 us a
+    volume to build). A BVH model is a surface: fcl finds two colliding when their
+    triangles intersect, not when one hull lies wholly inside the other. Two convex bodies
+    whose surfaces do not meet are disjoint or one holds the other, so :meth:`meet` also
+    tests one vertex of each against the other's face planes (with trimesh's outward face
+    normals). ``narrow="convex"``: an ``fcl.Convex`` of the same vertices and faces (a
+    solid, GJK; ~25 us a volume)."""
+
+    def __init__(self, vol: Volumes, idx: np.ndarray, method: str = "numpy",
+                 narrow: str = "bvh") -> None:
+        import fcl
+
+        self.row = {i: k for k, i in enumerate(idx.tolist())}
+        mesh = vol.hulls(idx, method=method)
+        m = len(idx)
+        self.verts = np.ascontiguousarray(mesh.vertices, dtype=np.float64).reshape(m, 8, 3)
+        faces = (np.asarray(mesh.faces).reshape(m, 12, 3)
+                 - (8 * np.arange(m))[:, None, None]).astype(np.int32)
+        self.normals = np.asarray(mesh.face_normals).reshape(m, 12, 3)
+        self.anchor = self.verts[np.arange(m)[:, None], faces[:, :, 0]]  # a point per face
+        self.solid = narrow == "convex"
+        objs = self.objs = []
+        verts = self.verts
+        if self.solid:
+            flat = np.concatenate([np.full((m, 12, 1), 3, dtype=np.int64), faces],
+                                  axis=2).reshape(m, -1)
+            for k in range(m):
+                objs.append(fcl.CollisionObject(fcl.Convex(verts[k], 12, flat[k])))
+            return
+        bvh, obj = fcl.BVHModel, fcl.CollisionObject
+        for k in range(m):
+            model = bvh()
+            model.beginModel(8, 12)
+            model.addSubModel(verts[k], faces[k])
+            model.endModel()
+            objs.append(obj(model))
+
+    def inside(self, p: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """Does the first vertex of hull ``p[k]`` lie inside hull ``q[k]`` (rows)?"""
+        pts = self.verts[p, 0]
+        side = np.einsum("mfk,mfk->mf", self.normals[q], pts[:, None, :] - self.anchor[q])
+        return (side <= 0).all(axis=1)
+
+    def meet(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """For volume pairs ``(a[k], b[k])``: a boolean mask of those whose hulls meet."""
+        import fcl
+
+        row = self.row
+        p = np.array([row[i] for i in a.tolist()], dtype=np.int64)
+        q = np.array([row[j] for j in b.tolist()], dtype=np.int64)
+        hit = np.zeros(len(p), dtype=bool) if self.solid else \
+            self.inside(p, q) | self.inside(q, p)
+        req, res, collide = fcl.CollisionRequest(), fcl.CollisionResult, fcl.collide
+        objs = self.objs
+        for k in np.flatnonzero(~hit).tolist():
+            hit[k] = collide(objs[p[k]], objs[q[k]], req, res()) > 0
+        return hit
+
+
+def _narrow(vol: Volumes, a: np.ndarray, b: np.ndarray, method: str = "numpy",
+            narrow: str = "bvh") -> np.ndarray:
+    """fcl on every pair (see :class:`_Hulls`); a boolean mask of the colliding ones."""
+    if not len(a):
+        return np.zeros(0, dtype=bool)
+    return _Hulls(vol, np.unique(np.concatenate([a, b])), method, narrow).meet(a, b)
 
 
 def _fcl_broad(vol: Volumes) -> tuple[np.ndarray, np.ndarray]:
@@ -324,6 +385,9 @@ def _restricted(vol: Volumes, idx: list[int], spans: list[tuple[float, float]]) 
 
 
 def _meet(vol: Volumes, i: int, j: int, lo: float, hi: float) -> bool:
+    """Do volumes i and j, cut to ``[lo, hi]``, meet? (A probe of the first-contact
+    bisection: fcl.Convex solids of the numpy hulls, the same answer as the narrow phase's
+    BVH models without a trimesh mesh per probe, which costs milliseconds.)"""
     import fcl
 
     sub = _restricted(vol, [i, j], [(lo, hi), (lo, hi)])
@@ -358,7 +422,8 @@ def validate_spacetime(plan: TimedPlan, *, tolerance_m: float = DEFAULT_TOLERANC
                        margin_m: float = 0.0, max_turn_rad: float = DEFAULT_MAX_TURN_RAD,
                        shelves: bool = True, broad_phase: str = "grid",
                        max_conflicts: int = 100,
-                       contact_resolution_s: float | None = 1e-3) -> SpacetimeResult:
+                       contact_resolution_s: float | None = 1e-3,
+                       hulls: str = "numpy", narrow: str = "bvh") -> SpacetimeResult:
     """Check that no two agents' swept volumes in ``(x, y, t)`` meet.
 
     ``tolerance_m``: outlines may touch or overlap by this much (m); ``margin_m``: grow every
@@ -368,7 +433,11 @@ def validate_spacetime(plan: TimedPlan, *, tolerance_m: float = DEFAULT_TOLERANC
     ``broad_phase``: ``grid`` (numpy hash grid + time sweep) or ``fcl`` (fcl's dynamic AABB
     tree over all volumes; slower); ``max_conflicts``: conflicts reported at most (the
     earliest); ``contact_resolution_s``: find each reported conflict's first contact to
-    within this (s) by bisection (None: don't).
+    within this (s) by bisection (None: don't); ``hulls``: how the narrow phase's hulls
+    are built (:meth:`Volumes.hulls`: ``numpy``, or ``trimesh``'s ``convex_hull`` per volume,
+    the same hulls ~90x slower); ``narrow``: the fcl objects of the narrow phase,
+    ``bvh`` (``BVHModel`` s plus a containment test) or ``convex`` (``fcl.Convex`` solids;
+    faster to build, the same answers).
 
     >>> from warerover_phys.spacetime import from_schedule
     >>> swap = from_schedule({0: [((0, 0), 0.0), ((0, 1), 1.0)],
@@ -385,6 +454,10 @@ def validate_spacetime(plan: TimedPlan, *, tolerance_m: float = DEFAULT_TOLERANC
         raise ValueError(f"contact_resolution_s must be > 0 (got {contact_resolution_s})")
     if broad_phase not in ("grid", "fcl"):
         raise ValueError(f"broad_phase must be 'grid' or 'fcl' (got {broad_phase!r})")
+    if hulls not in ("numpy", "trimesh"):
+        raise ValueError(f"hulls must be 'numpy' or 'trimesh' (got {hulls!r})")
+    if narrow not in ("bvh", "convex"):
+        raise ValueError(f"narrow must be 'bvh' or 'convex' (got {narrow!r})")
     clock = time.perf_counter
     t_start = clock()
     vol = build_volumes(plan, tolerance_m=tolerance_m, margin_m=margin_m,
@@ -404,7 +477,7 @@ def validate_spacetime(plan: TimedPlan, *, tolerance_m: float = DEFAULT_TOLERANC
         t_circle = clock()
         fcl_pairs = int((~sure).sum())
         hit = sure.copy()
-        hit[~sure] = _narrow(vol, a[~sure], b[~sure])
+        hit[~sure] = _narrow(vol, a[~sure], b[~sure], hulls, narrow)
         a, b = a[hit], b[hit]
     else:
         a, b = _fcl_broad(vol)
