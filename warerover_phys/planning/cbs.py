@@ -86,7 +86,7 @@ from .base import (
     footprint_nodes,
     occupancy,
 )
-from .frontier import ConflictFrontier, move_conflicts, swaps
+from .frontier import ConflictFrontier, avoidance_hits, free_check, move_conflicts, swaps
 from .graph import UNREACHABLE, MotionGraph
 from .reservation import FOREVER, ReservationTable
 from .sweep import Sweep, lock_keys, sweep_cells, turn_aware, turn_sweeps
@@ -171,7 +171,6 @@ def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentReq
                              else Constraints(), avoid, max_expansions, cbs=True)
     cols, k, m, me = graph.cols, agent.k, agent.ticks_per_move, agent.agv
     start, goal = agent.start, agent.goal
-    occ, rest = res._occ, res._rest
     cons = constraints if constraints is not None else Constraints()
     vertex, edge, never = cons.vertex, cons.edge, cons.never
     cat, cat_rest = avoid if avoid is not None else ({}, {})
@@ -179,34 +178,8 @@ def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentReq
     def fp(node: int) -> tuple[int, ...]:
         return footprint_nodes(node, k, cols)
 
-    def ok(cells: Sequence[int], t: int) -> bool:
-        banned = vertex.get(t)
-        for c in cells:
-            slot = occ.get(c)
-            if slot is not None:
-                a = slot.get(t)
-                if a is not None and a != me:
-                    return False
-            r = rest.get(c)
-            if r is not None and t >= r[0] and r[1] != me:
-                return False
-            if banned is not None and c in banned:
-                return False
-            if never and t >= never.get(c, FOREVER):
-                return False
-        return True
-
-    def hits(cells: Sequence[int], t: int) -> int:
-        row = cat.get(t)
-        n = 0
-        for c in cells:
-            if row is not None and c in row:
-                n += row[c]
-            else:
-                r = cat_rest.get(c)
-                if r is not None and t >= r:
-                    n += 1
-        return n
+    ok = free_check(res, me, vertex, never)
+    hits = avoidance_hits(cat, cat_rest)
 
     goal_cells = fp(goal)
     if any(c in never for c in goal_cells):

@@ -12,12 +12,12 @@ the reservations and constraints and counts the conflicts of its inner ticks.
 from __future__ import annotations
 
 import heapq
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 from .graph import UNREACHABLE
-from .reservation import ReservationTable
+from .reservation import FOREVER, ReservationTable
 
-__all__ = ["ConflictFrontier", "move_conflicts", "swaps"]
+__all__ = ["ConflictFrontier", "avoidance_hits", "free_check", "move_conflicts", "swaps"]
 
 Key = tuple[int, int]
 """A search state ``(sid, tick)``."""
@@ -100,3 +100,53 @@ def move_conflicts(res: ReservationTable, node: int, nxt: int, here: tuple[int, 
     if edge and (t + m, (node, node), (nxt, nxt)) in edge:
         return None
     return 0
+
+
+def free_check(res: ReservationTable, me: int, vertex: dict[int, set[int]],
+               never: dict[int, int]) -> Callable[[Sequence[int], int], bool]:
+    """``ok(cells, tick)`` for AGV ``me``: no other AGV holds one of the cells then (planned
+    or resting for good in ``res``), no CBS vertex constraint ``vertex`` (tick -> cells) bans
+    one, and none is closed to it for good from ``never`` (cell -> first tick)."""
+    occ, rest = res._occ, res._rest
+
+    def ok(cells: Sequence[int], t: int) -> bool:
+        banned = vertex.get(t)
+        for c in cells:
+            slot = occ.get(c)
+            if slot is not None:
+                a = slot.get(t)
+                if a is not None and a != me:
+                    return False
+            r = rest.get(c)
+            if r is not None and t >= r[0] and r[1] != me:
+                return False
+            if banned is not None and c in banned:
+                return False
+            if never and t >= never.get(c, FOREVER):
+                return False
+        return True
+
+    return ok
+
+
+def avoidance_hits(cat: dict[int, dict[int, int]], cat_rest: dict[int, int],
+                   ) -> Callable[[Sequence[int], int], int]:
+    """``hits(cells, tick)``: how many other planned AGVs of a conflict-avoidance table use
+    the cells at that tick (``cat``: tick -> cell -> count; ``cat_rest``: cell -> tick from
+    which an AGV rests there for good)."""
+    if not cat and not cat_rest:
+        return lambda cells, t: 0
+
+    def hits(cells: Sequence[int], t: int) -> int:
+        row = cat.get(t)
+        n = 0
+        for c in cells:
+            if row is not None and c in row:
+                n += row[c]
+            else:
+                r = cat_rest.get(c)
+                if r is not None and t >= r:
+                    n += 1
+        return n
+
+    return hits

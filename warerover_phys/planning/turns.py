@@ -34,10 +34,8 @@ turn_aware`): for the default 0.7 m bodies on 1 m cells nothing changes.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 from .base import AgentRequest, State, TimedPath, footprint_nodes
-from .frontier import ConflictFrontier, move_conflicts
+from .frontier import ConflictFrontier, avoidance_hits, free_check, move_conflicts
 from .graph import UNREACHABLE, MotionGraph
 from .reservation import FOREVER, ReservationTable
 from .rotation import UNREACHABLE_T, graph_rotation_dist
@@ -100,7 +98,6 @@ def turning_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest
     expansions)."""
     cols, rows, k, m, me = graph.cols, graph.rows, agent.k, agent.ticks_per_move, agent.agv
     start, goal = agent.start, agent.goal
-    occ, rest = res._occ, res._rest
     cap = max_expansions
     vertex = constraints.vertex if constraints is not None else {}
     edge = constraints.edge if constraints is not None else set()
@@ -116,36 +113,8 @@ def turning_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest
     def fp(node: int) -> tuple[int, ...]:
         return footprint_nodes(node, k, cols)
 
-    def ok(cells: Sequence[int], t: int) -> bool:
-        banned = vertex.get(t)
-        for c in cells:
-            slot = occ.get(c)
-            if slot is not None:
-                a = slot.get(t)
-                if a is not None and a != me:
-                    return False
-            r = rest.get(c)
-            if r is not None and t >= r[0] and r[1] != me:
-                return False
-            if banned is not None and c in banned:
-                return False
-            if never and t >= never.get(c, FOREVER):
-                return False
-        return True
-
-    def hits(cells: Sequence[int], t: int) -> int:
-        if not cat and not cat_rest:
-            return 0
-        row = cat.get(t)
-        n = 0
-        for c in cells:
-            if row is not None and c in row:
-                n += row[c]
-            else:
-                r = cat_rest.get(c)
-                if r is not None and t >= r:
-                    n += 1
-        return n
+    ok = free_check(res, me, vertex, never)
+    hits = avoidance_hits(cat, cat_rest)
 
     def can_turn(node: int, t: int) -> bool:
         if node in no_turn or (noturn and (node, t) in noturn):
