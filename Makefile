@@ -18,7 +18,7 @@ demo: $(STAMP)
 		--video videos/demo.mp4
 
 test: $(STAMP)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n auto --dist loadfile
 
 lint: $(STAMP)
 	$(BIN)/ruff check warerover_phys tests tools

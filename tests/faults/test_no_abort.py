@@ -31,8 +31,11 @@ ABORT_CMD = ["run", "layouts/paper_fault.yaml", "--executor", "physics", "--plan
              "--set", "faults.random.prob_per_tick=0.02", "--seed", "2"]
 
 
+@pytest.mark.slow
 def test_issue_13_abort_command_runs_to_the_end(tmp_path):
-    """The exact command of issue 13 (exit 134 inside python-fcl before the fix)."""
+    """The exact command of issue 13 (exit 134 inside python-fcl before the fix). Slow (a
+    whole physics episode, ~30 s); the aborting geometry itself is the next test, and the
+    fuzz test in test_fuzz_physics.py runs random delay/failure episodes in the default set."""
     r = subprocess.run([str(EXE), *ABORT_CMD, "--out", str(tmp_path / "run"), "--quiet"],
                        capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert r.returncode == 0, (r.returncode, r.stderr[-2000:])

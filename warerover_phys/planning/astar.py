@@ -17,6 +17,7 @@ import numpy as np
 
 from ..layout import CellType
 from .base import AgentRequest, PlanRequest, PlanResult, State, TimedPath, footprint_nodes
+from .frontier import swaps
 from .graph import UNREACHABLE, MotionGraph
 from .reservation import FOREVER, ReservationTable
 from .sweep import turn_aware
@@ -116,7 +117,7 @@ def space_time_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequ
                 both = set(here) | set(there)
                 if not all(free(c, t + i, me) for i in range(1, m) for c in both):
                     continue
-            elif _swaps(res, here, there, t, me):
+            elif swaps(res, here, there, t, me):
                 continue
             parent[(nxt, t_arr)] = (node, t)
             heapq.heappush(open_heap, (t_arr + hn, -t_arr, nxt, t_arr))
@@ -158,18 +159,6 @@ def nearest_free_anchor(graph: MotionGraph, res: ReservationTable, agent: AgentR
                 seen.add(nxt)
                 frontier.append((nxt, d + 1))
     return None
-
-
-def _swaps(res: ReservationTable, here: tuple[int, ...], there: tuple[int, ...], t: int,
-           me: int) -> bool:
-    """True if an AGV now in ``there`` moves into ``here`` during the same tick."""
-    for c in there:
-        other = res.owner(c, t)
-        if other is not None and other != me:
-            for c2 in here:
-                if res.owner(c2, t + 1) == other:
-                    return True
-    return False
 
 
 def _reconstruct(parent: dict, node: int, t: int, agv: int) -> TimedPath:

@@ -76,7 +76,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
-from .astar import AStarPlanner, _reconstruct, _swaps, goal_held, nearest_free_anchor
+from .astar import AStarPlanner, _reconstruct, goal_held, nearest_free_anchor
 from .base import (
     AgentRequest,
     PlanRequest,
@@ -86,6 +86,7 @@ from .base import (
     footprint_nodes,
     occupancy,
 )
+from .frontier import ConflictFrontier, avoidance_hits, free_check, move_conflicts, swaps
 from .graph import UNREACHABLE, MotionGraph
 from .reservation import FOREVER, ReservationTable
 from .sweep import Sweep, lock_keys, sweep_cells, turn_aware, turn_sweeps
@@ -170,7 +171,6 @@ def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentReq
                              else Constraints(), avoid, max_expansions, cbs=True)
     cols, k, m, me = graph.cols, agent.k, agent.ticks_per_move, agent.agv
     start, goal = agent.start, agent.goal
-    occ, rest = res._occ, res._rest
     cons = constraints if constraints is not None else Constraints()
     vertex, edge, never = cons.vertex, cons.edge, cons.never
     cat, cat_rest = avoid if avoid is not None else ({}, {})
@@ -178,34 +178,8 @@ def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentReq
     def fp(node: int) -> tuple[int, ...]:
         return footprint_nodes(node, k, cols)
 
-    def ok(cells: Sequence[int], t: int) -> bool:
-        banned = vertex.get(t)
-        for c in cells:
-            slot = occ.get(c)
-            if slot is not None:
-                a = slot.get(t)
-                if a is not None and a != me:
-                    return False
-            r = rest.get(c)
-            if r is not None and t >= r[0] and r[1] != me:
-                return False
-            if banned is not None and c in banned:
-                return False
-            if never and t >= never.get(c, FOREVER):
-                return False
-        return True
-
-    def hits(cells: Sequence[int], t: int) -> int:
-        row = cat.get(t)
-        n = 0
-        for c in cells:
-            if row is not None and c in row:
-                n += row[c]
-            else:
-                r = cat_rest.get(c)
-                if r is not None and t >= r:
-                    n += 1
-        return n
+    ok = free_check(res, me, vertex, never)
+    hits = avoidance_hits(cat, cat_rest)
 
     goal_cells = fp(goal)
     if any(c in never for c in goal_cells):
@@ -235,30 +209,15 @@ def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentReq
     loaded_sinks = graph.has_sinks
     expandable = graph.expandable_flat
     neighbors = graph.neighbors
-    # Entries (f, conflicts, -t, node, t): lexicographic (f, conflicts) never decreases
-    # along a path, so a state is closed with its fewest conflicts among shortest routes.
-    open_heap: list[tuple[int, int, int, int, int]] = [(t0 + h(start), 0, -t0, start, t0)]
-    parent: dict[tuple[int, int], tuple[int, int] | None] = {(start, t0): None}
-    best: dict[tuple[int, int], int] = {(start, t0): 0}
-    closed: set[tuple[int, int]] = set()
-
-    def push(node: int, t: int, conf: int, hn: int, frm: tuple[int, int]) -> None:
-        key = (node, t)
-        if key in closed or conf >= best.get(key, UNREACHABLE) or t + hn > t_max:
-            return
-        best[key] = conf
-        parent[key] = frm
-        heapq.heappush(open_heap, (t + hn, conf, -t, node, t))
-
+    # (f, conflicts) ordered: see planning.frontier.
+    open_ = ConflictFrontier(start, t0, t0 + h(start), t_max)
+    closed, push = open_.closed, open_.push
     expansions = 0
-    while open_heap:
-        _, conf, _, node, t = heapq.heappop(open_heap)
+    while (top := open_.pop()) is not None:
+        node, t, conf = top
         key = (node, t)
-        if key in closed or conf > best[key]:
-            continue
-        closed.add(key)
         if node == goal and t >= t_free:
-            return _reconstruct(parent, node, t, me), expansions
+            return _reconstruct(open_.parent, node, t, me), expansions
         expansions += 1
         if expansions > max_expansions:
             break
@@ -279,21 +238,9 @@ def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentReq
             there = fp(nxt)
             if not ok(there, t_arr):
                 continue
-            if m > 1:
-                both = tuple(dict.fromkeys(here + there))
-                if not all(ok(both, t + i) for i in range(1, m)):
-                    continue
-                if edge and ((t + 1, (node, node), (node, nxt)) in edge
-                             or (t_arr, (node, nxt), (nxt, nxt)) in edge):
-                    continue
-                extra = sum(hits(both, t + i) for i in range(1, m))
-            else:
-                if _swaps(res, here, there, t, me):
-                    continue
-                if edge and (t_arr, (node, node), (nxt, nxt)) in edge:
-                    continue
-                extra = 0
-            push(nxt, t_arr, conf + extra + hits(there, t_arr), hn, key)
+            extra = move_conflicts(res, node, nxt, here, there, t, m, ok, hits, edge, me)
+            if extra is not None:
+                push(nxt, t_arr, conf + extra + hits(there, t_arr), hn, key)
     return None, expansions
 
 
@@ -445,7 +392,7 @@ def path_fits(res: ReservationTable, path: TimedPath, k: int,
         if not all(res.free(c, t, me) for c in cells):
             return False
         if prev is not None and state != path.states[i - 1] \
-                and _swaps(res, prev, cells, t - 1, me):
+                and swaps(res, prev, cells, t - 1, me):
             return False
         prev = cells
     return all(res.last_use(c, me) < path.end_tick

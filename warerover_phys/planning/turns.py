@@ -34,10 +34,8 @@ turn_aware`): for the default 0.7 m bodies on 1 m cells nothing changes.
 
 from __future__ import annotations
 
-import heapq
-from collections.abc import Sequence
-
 from .base import AgentRequest, State, TimedPath, footprint_nodes
+from .frontier import ConflictFrontier, avoidance_hits, free_check, move_conflicts
 from .graph import UNREACHABLE, MotionGraph
 from .reservation import FOREVER, ReservationTable
 from .rotation import UNREACHABLE_T, graph_rotation_dist
@@ -100,7 +98,6 @@ def turning_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest
     expansions)."""
     cols, rows, k, m, me = graph.cols, graph.rows, agent.k, agent.ticks_per_move, agent.agv
     start, goal = agent.start, agent.goal
-    occ, rest = res._occ, res._rest
     cap = max_expansions
     vertex = constraints.vertex if constraints is not None else {}
     edge = constraints.edge if constraints is not None else set()
@@ -116,36 +113,8 @@ def turning_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest
     def fp(node: int) -> tuple[int, ...]:
         return footprint_nodes(node, k, cols)
 
-    def ok(cells: Sequence[int], t: int) -> bool:
-        banned = vertex.get(t)
-        for c in cells:
-            slot = occ.get(c)
-            if slot is not None:
-                a = slot.get(t)
-                if a is not None and a != me:
-                    return False
-            r = rest.get(c)
-            if r is not None and t >= r[0] and r[1] != me:
-                return False
-            if banned is not None and c in banned:
-                return False
-            if never and t >= never.get(c, FOREVER):
-                return False
-        return True
-
-    def hits(cells: Sequence[int], t: int) -> int:
-        if not cat and not cat_rest:
-            return 0
-        row = cat.get(t)
-        n = 0
-        for c in cells:
-            if row is not None and c in row:
-                n += row[c]
-            else:
-                r = cat_rest.get(c)
-                if r is not None and t >= r:
-                    n += 1
-        return n
+    ok = free_check(res, me, vertex, never)
+    hits = avoidance_hits(cat, cat_rest)
 
     def can_turn(node: int, t: int) -> bool:
         if node in no_turn or (noturn and (node, t) in noturn):
@@ -215,29 +184,15 @@ def turning_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest
     if rot is not None:
         return _rotating_search(graph, agent, t0, s0, t_free, t_max, t_limit, max_expansions,
                                 hr, ok, hits, can_turn, edge, dead, fp, m, res, me)
-    open_heap: list[tuple[int, int, int, int, int]] = [(t0 + h(start), 0, -t0, s0, t0)]
-    parent: dict[tuple[int, int], tuple[int, int] | None] = {(s0, t0): None}
-    best: dict[tuple[int, int], int] = {(s0, t0): 0}
-    closed: set[tuple[int, int]] = set()
-
-    def push(sid: int, t: int, conf: int, hn: int, frm: tuple[int, int]) -> None:
-        key = (sid, t)
-        if key in closed or conf >= best.get(key, UNREACHABLE) or t + hn > t_max:
-            return
-        best[key] = conf
-        parent[key] = frm
-        heapq.heappush(open_heap, (t + hn, conf, -t, sid, t))
-
+    open_ = ConflictFrontier(s0, t0, t0 + h(start), t_max)
+    closed, push = open_.closed, open_.push
     expansions = 0
-    while open_heap:
-        _, conf, _, sid, t = heapq.heappop(open_heap)
+    while (top := open_.pop()) is not None:
+        sid, t, conf = top
         key = (sid, t)
-        if key in closed or conf > best[key]:
-            continue
-        closed.add(key)
         node, hd = divmod(sid, 5)
         if node == goal and t >= t_free and (goal_dead is None or hd not in goal_dead):
-            return _reconstruct(parent, key, me), expansions
+            return _reconstruct(open_.parent, key, me), expansions
         expansions += 1
         if expansions > max_expansions:
             break
@@ -265,35 +220,11 @@ def turning_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest
             there = fp(nxt)
             if not ok(there, t_arr):
                 continue
-            if m > 1:
-                both = tuple(dict.fromkeys(here + there))
-                if not all(ok(both, t + i) for i in range(1, m)):
-                    continue
-                if edge and ((t + 1, (node, node), (node, nxt)) in edge
-                             or (t_arr, (node, nxt), (nxt, nxt)) in edge):
-                    continue
-                extra = sum(hits(both, t + i) for i in range(1, m))
-            else:
-                if _swaps(res, here, there, t, me):
-                    continue
-                if edge and (t_arr, (node, node), (nxt, nxt)) in edge:
-                    continue
-                extra = 0
-            if d != hd and not can_turn(node, t):
+            extra = move_conflicts(res, node, nxt, here, there, t, m, ok, hits, edge, me)
+            if extra is None or (d != hd and not can_turn(node, t)):
                 continue
             push(nsid, t_arr, conf + extra + hits(there, t_arr), hn, key)
     return None, expansions
-
-
-def _swaps(res: ReservationTable, here: tuple[int, ...], there: tuple[int, ...], t: int,
-           me: int) -> bool:
-    for c in there:
-        other = res.owner(c, t)
-        if other is not None and other != me:
-            for c2 in here:
-                if res.owner(c2, t + 1) == other:
-                    return True
-    return False
 
 
 def _reconstruct(parent: dict, key: tuple[int, int], agv: int,
@@ -338,30 +269,15 @@ def _rotating_search(graph: MotionGraph, agent: AgentRequest, t0: int, s0: int, 
     loaded_sinks = graph.has_sinks
     expandable = graph.expandable_flat
     neighbors = graph.neighbors
-    open_heap: list[tuple[int, int, int, int, int]] = [
-        (t0 + hr(start, s0 % 5), 0, -t0, s0, t0)]
-    parent: dict[tuple[int, int], tuple[int, int] | None] = {(s0, t0): None}
-    best: dict[tuple[int, int], int] = {(s0, t0): 0}
-    closed: set[tuple[int, int]] = set()
-
-    def push(sid: int, t: int, conf: int, hn: int, frm: tuple[int, int]) -> None:
-        key = (sid, t)
-        if key in closed or conf >= best.get(key, UNREACHABLE) or t + hn > t_max:
-            return
-        best[key] = conf
-        parent[key] = frm
-        heapq.heappush(open_heap, (t + hn, conf, -t, sid, t))
-
+    open_ = ConflictFrontier(s0, t0, t0 + hr(start, s0 % 5), t_max)
+    closed, push = open_.closed, open_.push
     expansions = 0
-    while open_heap:
-        _, conf, _, sid, t = heapq.heappop(open_heap)
+    while (top := open_.pop()) is not None:
+        sid, t, conf = top
         key = (sid, t)
-        if key in closed or conf > best[key]:
-            continue
-        closed.add(key)
         node, hd = divmod(sid, 5)
         if node == goal and t >= t_free and (goal_dead is None or hd not in goal_dead):
-            return _reconstruct(parent, key, me, rotations=True), expansions
+            return _reconstruct(open_.parent, key, me, rotations=True), expansions
         expansions += 1
         if expansions > max_expansions:
             break
@@ -399,21 +315,8 @@ def _rotating_search(graph: MotionGraph, agent: AgentRequest, t0: int, s0: int, 
             there = fp(nxt)
             if not ok(there, t_arr):
                 continue
-            if m > 1:
-                both = tuple(dict.fromkeys(here + there))
-                if not all(ok(both, t + i) for i in range(1, m)):
-                    continue
-                if edge and ((t + 1, (node, node), (node, nxt)) in edge
-                             or (t_arr, (node, nxt), (nxt, nxt)) in edge):
-                    continue
-                extra = sum(hits(both, t + i) for i in range(1, m))
-            else:
-                if _swaps(res, here, there, t, me):
-                    continue
-                if edge and (t_arr, (node, node), (nxt, nxt)) in edge:
-                    continue
-                extra = 0
-            if hd == 4 and not can_turn(node, t):
+            extra = move_conflicts(res, node, nxt, here, there, t, m, ok, hits, edge, me)
+            if extra is None or (hd == 4 and not can_turn(node, t)):
                 continue
             push(nsid, t_arr, conf + extra + hits(there, t_arr), hn, key)
     return None, expansions
