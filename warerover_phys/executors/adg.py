@@ -515,6 +515,36 @@ class ActionGraph:
         rec = self._rec(agv)
         return rec.running is None and not rec.pending
 
+    def progress(self, n: int, tick: int) -> tuple[list[State], list[bool], list[bool],
+                                                   list[bool]]:
+        """For AGVs ``0 .. n-1`` in one pass (the executor's write-back at the end of a
+        tick): each one's :meth:`state`, whether it is late at ``tick`` (its next action,
+        with none running, was planned to start before ``tick``, or its running action to
+        end before it), whether it has an upcoming action and whether one runs. Raises
+        ``KeyError`` for an AGV without a plan, as :meth:`state` does."""
+        states: list[State] = []
+        late: list[bool] = []
+        pending: list[bool] = []
+        running: list[bool] = []
+        agents = self._agents
+        for i in range(n):
+            rec = agents.get(i)
+            if rec is None:
+                self._rec(i)
+            run = rec.running
+            nxt = rec.pending[0].action if rec.pending else None
+            if run is not None:
+                a = run.action
+                states.append((a.src, a.dst))
+                late.append(a.tick + a.ticks < tick)
+                running.append(True)
+            else:
+                states.append((rec.node, rec.node))
+                late.append(nxt is not None and nxt.tick < tick)
+                running.append(False)
+            pending.append(nxt is not None)
+        return states, late, pending, running
+
     def upcoming(self, agv: int, limit: int | None = None) -> list[Action]:
         """The not-started actions in order (at most ``limit``)."""
         return [s.action for s in islice(self._rec(agv).pending, limit)]
