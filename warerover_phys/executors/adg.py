@@ -615,6 +615,11 @@ class ActionGraph:
                            v.leave.seq if v.leave is not None else None, v.tick, v.entered)
                      for v in self._queues.get(cell, ()))
 
+    def head(self, cell: int) -> int | None:
+        """The AGV whose visit heads ``cell``'s queue (entered or not), if any."""
+        q = self._queues.get(cell)
+        return q[0].agv if q else None
+
     def holder(self, cell: int) -> int | None:
         """The AGV that physically holds ``cell`` (its visit is entered), if any."""
         q = self._queues.get(cell)
@@ -686,7 +691,7 @@ class ActionGraph:
     def deadlock_cycles(self, max_cycles: int = 64) -> list[list[int]]:
         """Elementary cycles of :meth:`waiting_for`, each once, rotated to start at its
         smallest AGV id, sorted; at most ``max_cycles``."""
-        graph = {a: sorted(b) for a, b in self.waiting_for().items()}
+        graph = _prune_acyclic({a: sorted(b) for a, b in self.waiting_for().items()})
         cycles: list[list[int]] = []
         for comp in _sccs(graph):
             if len(comp) < 2:
@@ -783,6 +788,31 @@ class ActionGraph:
         raise ADGCycleError(f"the action dependency graph has a cycle through AGVs "
                             f"{list(agvs)} and cells {list(cells)}: " + "; ".join(parts),
                             agvs, cells)
+
+
+def _prune_acyclic(graph: dict[int, list[int]]) -> dict[int, list[int]]:
+    """``graph`` without the nodes that reach no cycle (an AGV that waits on no waiting
+    AGV, then those that wait only on such AGVs, and so on): in a jammed fleet most
+    waiting AGVs are in such chains, which end at an AGV that still drives. The nodes
+    left and the order of their edges are kept, so the cycles found do not change."""
+    waits_on = {a: sum(1 for b in bs if b in graph) for a, bs in graph.items()}
+    if all(waits_on.values()):
+        return graph
+    waited_by: dict[int, list[int]] = {}
+    for a, bs in graph.items():
+        for b in bs:
+            if b in graph:
+                waited_by.setdefault(b, []).append(a)
+    free = [a for a, d in waits_on.items() if d == 0]
+    gone = set(free)
+    while free:
+        b = free.pop()
+        for a in waited_by.get(b, ()):
+            waits_on[a] -= 1
+            if waits_on[a] == 0:
+                gone.add(a)
+                free.append(a)
+    return {a: [b for b in bs if b not in gone] for a, bs in graph.items() if a not in gone}
 
 
 def _sccs(graph: Mapping[int, list[int]]) -> Iterator[list[int]]:
