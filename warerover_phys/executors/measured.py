@@ -127,6 +127,8 @@ class ClearanceMonitor:
         self._built_at: np.ndarray | None = None
         self._radius = np.zeros(self.n)
         self._t = -math.inf
+        self._prev: tuple[np.ndarray, np.ndarray] | None = None
+        """Poses at the last measured time."""
 
     def set_shelves(self, shelf_half: np.ndarray) -> None:
         """Half sizes (N, 2) of the shelves carried now (zeros: none)."""
@@ -140,15 +142,28 @@ class ClearanceMonitor:
         if self.n < 2 or t <= self._t:
             return
         self._t = t
+        prev = self._prev
+        self._prev = (pos.copy(), ang.copy())
+        pairs, ends = self._pairs, self._ends
         if self._built_at is None or float(
                 np.abs(pos - self._built_at).max()) > SKIN_M / 2:
             self._build(pos)
-        p = len(self._pairs)
+            pairs, ends = self._pairs, self._ends
+        elif prev is not None and len(pairs):
+            # The list has not changed since the last poses, all of whose pairs were
+            # checked then: a pair neither of whose AGVs has moved since (parked AGVs do
+            # not move at all) keeps its clearance, which cannot be below the minimum.
+            moved = (pos != prev[0]).any(axis=1) | (ang != prev[1])
+            keep = np.flatnonzero(moved[pairs[:, 0]] | moved[pairs[:, 1]])
+            if len(keep) < len(pairs):
+                pairs = pairs[keep]
+                ends = np.concatenate([pairs[:, 0], pairs[:, 1]])
+        p = len(pairs)
         if p == 0:
             return
         # One gather per array for both ends of every pair (rows 0..p-1: i, p..2p-1: j).
         ext = np.maximum(_aabb_half(ang, self.body_half), self.shelf_half)
-        x, e = pos[self._ends], ext[self._ends]
+        x, e = pos[ends], ext[ends]
         g = np.abs(x[:p] - x[p:])
         g -= e[:p]
         g -= e[p:]
@@ -161,7 +176,7 @@ class ClearanceMonitor:
         k = np.flatnonzero(near)
         if len(k) == 0:
             return
-        i, j = self._pairs[k, 0], self._pairs[k, 1]
+        i, j = pairs[k, 0], pairs[k, 1]
         d = self._exact(pos, ang, i, j)
         m = int(np.argmin(d))
         if d[m] < self.min_m:
