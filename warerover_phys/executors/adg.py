@@ -435,7 +435,7 @@ class ActionGraph:
         """The AGV's next action is not ready: register it on the first cell whose queue
         head is not its own visit, so that :attr:`woken` names it once that head changes.
         Returns False (nothing registered) if it is not waiting on a queue."""
-        rec = self._rec(agv)
+        rec = self._agents.get(agv) or self._rec(agv)
         if rec.running is not None or not rec.pending:
             return False
         for v in rec.pending[0].enter_visits:
@@ -447,6 +447,8 @@ class ActionGraph:
     # ----------------------------------------------------------------- queries
 
     def _rec(self, agv: int) -> _Agent:
+        """The AGV's record; ``KeyError`` if it has no plan. (The hot queries inline the
+        look-up as ``self._agents.get(agv) or self._rec(agv)``: one call fewer.)"""
         rec = self._agents.get(agv)
         if rec is None:
             raise KeyError(f"AGV {agv} has no plan (call set_plan first)")
@@ -455,7 +457,7 @@ class ActionGraph:
     def cut_node(self, agv: int) -> int:
         """Where the AGV will stand after its running and claimed actions: a new plan
         (:meth:`set_plan`) must start there."""
-        rec = self._rec(agv)
+        rec = self._agents.get(agv) or self._rec(agv)
         for step in reversed(rec.pending):
             if step.claimed:
                 return step.action.dst
@@ -467,7 +469,7 @@ class ActionGraph:
         and a new plan keeps them. The executor claims what it drives through without
         stopping, so it never has to stop inside a braking distance. Returns the claimed
         actions (already claimed ones included)."""
-        rec = self._rec(agv)
+        rec = self._agents.get(agv) or self._rec(agv)
         out = self.released(agv, limit)
         for step in islice(rec.pending, len(out)):
             step.claimed = True
@@ -495,24 +497,24 @@ class ActionGraph:
 
     def next_action(self, agv: int) -> Action | None:
         """The first not-started action, if any."""
-        rec = self._rec(agv)
+        rec = self._agents.get(agv) or self._rec(agv)
         return rec.pending[0].action if rec.pending else None
 
     def current(self, agv: int) -> Action | None:
         """The started, not yet finished action, if any."""
-        rec = self._rec(agv)
+        rec = self._agents.get(agv) or self._rec(agv)
         return rec.running.action if rec.running is not None else None
 
     def state(self, agv: int) -> State:
         """``(src, dst)`` while an action runs, else ``(node, node)``."""
-        rec = self._rec(agv)
+        rec = self._agents.get(agv) or self._rec(agv)
         if rec.running is not None:
             return (rec.running.action.src, rec.running.action.dst)
         return (rec.node, rec.node)
 
     def done(self, agv: int) -> bool:
         """No started and no upcoming actions."""
-        rec = self._rec(agv)
+        rec = self._agents.get(agv) or self._rec(agv)
         return rec.running is None and not rec.pending
 
     def progress(self, n: int, tick: int) -> tuple[list[State], list[bool], list[bool],
@@ -547,13 +549,13 @@ class ActionGraph:
 
     def upcoming(self, agv: int, limit: int | None = None) -> list[Action]:
         """The not-started actions in order (at most ``limit``)."""
-        return [s.action for s in islice(self._rec(agv).pending, limit)]
+        return [s.action for s in islice((self._agents.get(agv) or self._rec(agv)).pending, limit)]
 
     def ready(self, agv: int) -> bool:
         """The next action exists, no action runs, for every cell it enters the AGV's visit
         is at the head of the queue, and (with a latency) it has heard that the AGVs before
         it left those cells."""
-        rec = self._rec(agv)
+        rec = self._agents.get(agv) or self._rec(agv)
         if rec.running is not None or not rec.pending:
             return False
         step = rec.pending[0]
@@ -574,7 +576,7 @@ class ActionGraph:
     def listening(self, agv: int) -> bool:
         """The next action's cells are free (its visits head their queues) but the AGV has
         not yet heard so: another AGV left one of them less than ``latency_s`` ago."""
-        rec = self._rec(agv)
+        rec = self._agents.get(agv) or self._rec(agv)
         if rec.running is not None or not rec.pending or not self._heard_at:
             return False
         step = rec.pending[0]
@@ -585,7 +587,7 @@ class ActionGraph:
         are done: only the AGV's own visits are ahead of them. The AGV may drive through all
         of them without stopping; no other AGV can take these cells before it."""
         out: list[Action] = []
-        for step in islice(self._rec(agv).pending, limit):
+        for step in islice((self._agents.get(agv) or self._rec(agv)).pending, limit):
             for v in step.enter_visits:
                 for w in self._queues[v.cell]:
                     if w is v:
@@ -644,7 +646,7 @@ class ActionGraph:
     def finish(self, agv: int) -> Action:
         """Mark the running action finished (the AGV stands at ``dst``); the visits it leaves
         leave their queues. Raises ``RuntimeError`` if no action runs."""
-        rec = self._rec(agv)
+        rec = self._agents.get(agv) or self._rec(agv)
         step = rec.running
         if step is None:
             raise RuntimeError(f"AGV {agv} has no running action to finish")
