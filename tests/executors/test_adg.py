@@ -602,3 +602,40 @@ def test_valid_plans_are_acyclic_and_never_deadlock(instance, seed, p, max_delay
 
     hook(ex)
     ex.run(bound_for(graph, p, max_delay), hook)
+
+
+def test_progress_and_head_match_the_per_agv_queries():
+    """``progress`` (the executor's write-back in one pass) says what ``state``,
+    ``next_action`` and ``current`` say, AGV by AGV; ``head`` names a queue's first AGV."""
+    g = build({0: TimedPath(0, 0, ((1, 1), (2, 2), (3, 3))),
+               1: TimedPath(1, 0, ((0, 0), (1, 1), (2, 2)))}, {0: 1, 1: 1}, cols=4)
+
+    def expected(tick):
+        out = ([], [], [], [])
+        for i in (0, 1):
+            nxt, cur = g.next_action(i), g.current(i)
+            out[0].append(g.state(i))
+            out[1].append((cur is None and nxt is not None and nxt.tick < tick)
+                          or (cur is not None and cur.tick + cur.ticks < tick))
+            out[2].append(nxt is not None)
+            out[3].append(cur is not None)
+        return out
+
+    for tick in (0, 1, 3):
+        assert g.progress(2, tick) == expected(tick)
+    assert g.head(1) == 0 and g.head(0) == 1 and g.head(3) == 0
+    g.start(0)
+    assert g.progress(2, 2) == expected(2) and g.progress(2, 2)[0] == [(1, 2), (0, 0)]
+    g.finish(0)
+    assert g.head(1) == 1 and g.progress(2, 1) == expected(1)
+    with pytest.raises(KeyError):
+        g.progress(3, 0)
+
+
+def test_prune_keeps_every_node_that_reaches_a_cycle():
+    """Before the cycle search, waiting AGVs that reach no cycle are dropped; those that
+    wait on a cycle (and the cycle) stay with their edges in order."""
+    graph = {0: [1], 1: [2], 2: [0], 3: [0, 4], 4: [5], 5: [9], 6: [3]}
+    assert adg_module._prune_acyclic(graph) == {0: [1], 1: [2], 2: [0], 3: [0], 6: [3]}
+    assert adg_module._prune_acyclic({0: [1], 1: [0]}) == {0: [1], 1: [0]}
+    assert adg_module._prune_acyclic({0: [1], 1: [2]}) == {}

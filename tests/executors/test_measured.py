@@ -277,3 +277,66 @@ def test_makespan_agrees_across_physics_steps():
         ticks[dt] = run_episode(sc, seed=0).metrics["ticks"]
     assert abs(ticks[0.02] - ticks[0.01]) <= 0.02 * ticks[0.01], ticks
     assert abs(ticks[0.05] - ticks[0.01]) <= 0.05 * ticks[0.01], ticks
+
+
+def test_monitors_skip_agvs_that_stand_still_without_changing_a_figure():
+    """Clearance and limits look only at AGVs whose pose changed (parked AGVs do not move
+    at all); fed poses in which most AGVs stand still for long runs, they agree with a
+    brute-force recomputation over every pair and every AGV at every step."""
+    from warerover_phys.executors.measured import (
+        CLEARANCE_HORIZON_M,
+        LIMIT_TOLERANCE,
+        ClearanceMonitor,
+        LimitMonitor,
+        rect_distance,
+    )
+
+    rng = np.random.default_rng(5)
+    n, steps, dt = 12, 120, 0.05
+    half = np.full((n, 2), 0.4)
+    pos = np.column_stack([np.arange(n) % 4 * 1.1, np.arange(n) // 4 * 1.1]).astype(float)
+    ang = np.zeros(n)
+    vmax, amax, wmax = np.full(n, 1.0), np.full(n, 1.0), np.full(n, 1.0)
+    clear, lim = ClearanceMonitor(half), LimitMonitor(vmax, amax, wmax)
+    i, j = np.triu_indices(n, 1)
+    best, peak_v, peak_a, peak_w = math.inf, np.zeros(n), np.zeros(n), np.zeros(n)
+    prev = prev_v = None
+    events = 0
+    was_over = {k: np.zeros(n, dtype=bool) for k in ("v", "a", "w")}
+    violations = 0
+
+    def over(kind: str, value: np.ndarray) -> None:
+        nonlocal violations
+        now = value > 1.0 * (1 + LIMIT_TOLERANCE)
+        violations += int(np.count_nonzero(now & ~was_over[kind]))
+        was_over[kind] = now
+    for s in range(steps):
+        moving = rng.random(n) < 0.2  # the rest keep their pose exactly
+        pos = pos + moving[:, None] * rng.normal(0, 0.06, (n, 2))
+        ang = ang + moving * rng.normal(0, 0.08, n)
+        t = s * dt
+        clear.measure(pos, ang, t)
+        events += len(lim.measure(pos, ang, t))
+        d = rect_distance(pos[i], ang[i], half[i], pos[j], ang[j], half[j])
+        near = d < CLEARANCE_HORIZON_M
+        if near.any():
+            best = min(best, float(d[near].min()))
+        if prev is not None:
+            v = (pos - prev[0]) / dt
+            speed = np.hypot(v[:, 0], v[:, 1])
+            turn = np.abs((ang - prev[1] + math.pi) % (2 * math.pi) - math.pi) / dt
+            peak_v, peak_w = np.maximum(peak_v, speed), np.maximum(peak_w, turn)
+            over("v", speed)
+            over("w", turn)
+            if prev_v is not None:
+                acc = np.hypot(*(v - prev_v).T) / dt
+                peak_a = np.maximum(peak_a, acc)
+                over("a", acc)
+            prev_v = v
+        prev = (pos.copy(), ang.copy())
+    assert clear.min_m == pytest.approx(best, abs=1e-12)
+    assert np.allclose(lim.peak["speed"], peak_v, rtol=1e-12, atol=0)
+    assert np.allclose(lim.peak["accel"], peak_a, rtol=1e-12, atol=0)
+    assert np.allclose(lim.peak["turn_rate"], peak_w, rtol=1e-12, atol=0)
+    assert lim.violations == events == violations > 0
+    assert (peak_v > 1 + LIMIT_TOLERANCE).any()

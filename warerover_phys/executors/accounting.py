@@ -86,6 +86,12 @@ class Accounting:
         # trajectories
         self._traj_every = max(1, round(1.0 / (trajectory_hz * st.dt)))
         self._traj = TrajectoryStore(n)
+        self._due: tuple[float, np.ndarray, np.ndarray, np.ndarray] | None = None
+        """A sample due (time, task states, loaded flags, shelf sizes), recorded with the
+        poses of that time at the next :meth:`measure` (the poses before the next step,
+        or at the end of the tick): no extra read of the bodies."""
+        self._task_state = np.zeros(n, dtype=np.int8)
+        self._loaded = np.zeros(n, dtype=bool)
         self.causes = CauseRecorder(st, adg)
         """Per-step labels of every AGV's time, per action (:mod:`.causes`)."""
         self._install_handlers()
@@ -130,6 +136,8 @@ class Accounting:
                 shelf[i] = self._shelf_side.get(c, 0.0)
         self.shelf_m = shelf
         self.clearance.set_shelves(shelf / 2)
+        self._task_state = np.array(view.task_state, dtype=np.int8)
+        self._loaded = np.array(view.loaded, dtype=bool)
 
     def sync_corridors(self, corridors: dict) -> None:
         """Open corridors go to the fcl checker (built on the first one)."""
@@ -177,7 +185,7 @@ class Accounting:
         if self._corridor_keys:
             self._check_corridors(raw, raw_ang)
         if self.steps % self._traj_every == 0:
-            self._record()
+            self._due = (st.sim_s, self._task_state, self._loaded, self.shelf_m)
 
     def _swept_check(self, prev: np.ndarray) -> None:
         """Bodies that moved farther than half their width in one step: look along the
@@ -210,19 +218,25 @@ class Accounting:
 
     def measure(self, pos: np.ndarray, ang: np.ndarray, t: float) -> None:
         """Clearance and peak speed / acceleration / turn rate at the poses of simulated
-        time ``t`` (each time is taken once, whoever calls first)."""
+        time ``t`` (each time is taken once, whoever calls first); records the pose sample
+        due at ``t``."""
+        due = self._due
+        if due is not None and due[0] == t:
+            self._due = None
+            self._traj.append(t, pos, ang, due[1], due[2], due[3])
         self.clearance.measure(pos, ang, t)
         self.events.extend(self.limits.measure(pos, ang, t))
 
     def _record(self) -> None:
+        """Record the bodies' poses now (a sample still due first, at its own time)."""
         pos, ang, _, _ = self.io.read()
-        view, n = self.view, self.st.n
-        if view is None:
-            state, loaded = np.zeros(n, dtype=np.int8), np.zeros(n, dtype=bool)
-        else:
-            state = np.array(view.task_state, dtype=np.int8)
-            loaded = np.array(view.loaded, dtype=bool)
-        self._traj.append(self.st.sim_s, pos, ang, state, loaded, self.shelf_m)
+        due = self._due
+        if due is not None:
+            self._due = None
+            self._traj.append(due[0], pos, ang, due[1], due[2], due[3])
+            return
+        self._traj.append(self.st.sim_s, pos, ang, self._task_state, self._loaded,
+                          self.shelf_m)
 
     # ------------------------------------------------------------------------- results
 
@@ -263,7 +277,7 @@ class Accounting:
     def trajectory(self) -> dict[str, np.ndarray]:
         """Recorded poses (see :meth:`.physics.PhysicsExecutor.trajectory`); long recordings
         come back as read-only memory maps of the files they were streamed to."""
-        if len(self._traj) == 0:
+        if len(self._traj) == 0 or self._due is not None:
             self._record()
         out = self._traj.arrays()
         st = self.st

@@ -435,7 +435,7 @@ class ActionGraph:
         """The AGV's next action is not ready: register it on the first cell whose queue
         head is not its own visit, so that :attr:`woken` names it once that head changes.
         Returns False (nothing registered) if it is not waiting on a queue."""
-        rec = self._rec(agv)
+        rec = self._agents.get(agv) or self._rec(agv)
         if rec.running is not None or not rec.pending:
             return False
         for v in rec.pending[0].enter_visits:
@@ -447,6 +447,8 @@ class ActionGraph:
     # ----------------------------------------------------------------- queries
 
     def _rec(self, agv: int) -> _Agent:
+        """The AGV's record; ``KeyError`` if it has no plan. (The hot queries inline the
+        look-up as ``self._agents.get(agv) or self._rec(agv)``: one call fewer.)"""
         rec = self._agents.get(agv)
         if rec is None:
             raise KeyError(f"AGV {agv} has no plan (call set_plan first)")
@@ -455,7 +457,7 @@ class ActionGraph:
     def cut_node(self, agv: int) -> int:
         """Where the AGV will stand after its running and claimed actions: a new plan
         (:meth:`set_plan`) must start there."""
-        rec = self._rec(agv)
+        rec = self._agents.get(agv) or self._rec(agv)
         for step in reversed(rec.pending):
             if step.claimed:
                 return step.action.dst
@@ -467,7 +469,7 @@ class ActionGraph:
         and a new plan keeps them. The executor claims what it drives through without
         stopping, so it never has to stop inside a braking distance. Returns the claimed
         actions (already claimed ones included)."""
-        rec = self._rec(agv)
+        rec = self._agents.get(agv) or self._rec(agv)
         out = self.released(agv, limit)
         for step in islice(rec.pending, len(out)):
             step.claimed = True
@@ -495,35 +497,65 @@ class ActionGraph:
 
     def next_action(self, agv: int) -> Action | None:
         """The first not-started action, if any."""
-        rec = self._rec(agv)
+        rec = self._agents.get(agv) or self._rec(agv)
         return rec.pending[0].action if rec.pending else None
 
     def current(self, agv: int) -> Action | None:
         """The started, not yet finished action, if any."""
-        rec = self._rec(agv)
+        rec = self._agents.get(agv) or self._rec(agv)
         return rec.running.action if rec.running is not None else None
 
     def state(self, agv: int) -> State:
         """``(src, dst)`` while an action runs, else ``(node, node)``."""
-        rec = self._rec(agv)
+        rec = self._agents.get(agv) or self._rec(agv)
         if rec.running is not None:
             return (rec.running.action.src, rec.running.action.dst)
         return (rec.node, rec.node)
 
     def done(self, agv: int) -> bool:
         """No started and no upcoming actions."""
-        rec = self._rec(agv)
+        rec = self._agents.get(agv) or self._rec(agv)
         return rec.running is None and not rec.pending
+
+    def progress(self, n: int, tick: int) -> tuple[list[State], list[bool], list[bool],
+                                                   list[bool]]:
+        """For AGVs ``0 .. n-1`` in one pass (the executor's write-back at the end of a
+        tick): each one's :meth:`state`, whether it is late at ``tick`` (its next action,
+        with none running, was planned to start before ``tick``, or its running action to
+        end before it), whether it has an upcoming action and whether one runs. Raises
+        ``KeyError`` for an AGV without a plan, as :meth:`state` does."""
+        states: list[State] = []
+        late: list[bool] = []
+        pending: list[bool] = []
+        running: list[bool] = []
+        agents = self._agents
+        for i in range(n):
+            rec = agents.get(i)
+            if rec is None:
+                self._rec(i)
+            run = rec.running
+            nxt = rec.pending[0].action if rec.pending else None
+            if run is not None:
+                a = run.action
+                states.append((a.src, a.dst))
+                late.append(a.tick + a.ticks < tick)
+                running.append(True)
+            else:
+                states.append((rec.node, rec.node))
+                late.append(nxt is not None and nxt.tick < tick)
+                running.append(False)
+            pending.append(nxt is not None)
+        return states, late, pending, running
 
     def upcoming(self, agv: int, limit: int | None = None) -> list[Action]:
         """The not-started actions in order (at most ``limit``)."""
-        return [s.action for s in islice(self._rec(agv).pending, limit)]
+        return [s.action for s in islice((self._agents.get(agv) or self._rec(agv)).pending, limit)]
 
     def ready(self, agv: int) -> bool:
         """The next action exists, no action runs, for every cell it enters the AGV's visit
         is at the head of the queue, and (with a latency) it has heard that the AGVs before
         it left those cells."""
-        rec = self._rec(agv)
+        rec = self._agents.get(agv) or self._rec(agv)
         if rec.running is not None or not rec.pending:
             return False
         step = rec.pending[0]
@@ -544,7 +576,7 @@ class ActionGraph:
     def listening(self, agv: int) -> bool:
         """The next action's cells are free (its visits head their queues) but the AGV has
         not yet heard so: another AGV left one of them less than ``latency_s`` ago."""
-        rec = self._rec(agv)
+        rec = self._agents.get(agv) or self._rec(agv)
         if rec.running is not None or not rec.pending or not self._heard_at:
             return False
         step = rec.pending[0]
@@ -555,7 +587,7 @@ class ActionGraph:
         are done: only the AGV's own visits are ahead of them. The AGV may drive through all
         of them without stopping; no other AGV can take these cells before it."""
         out: list[Action] = []
-        for step in islice(self._rec(agv).pending, limit):
+        for step in islice((self._agents.get(agv) or self._rec(agv)).pending, limit):
             for v in step.enter_visits:
                 for w in self._queues[v.cell]:
                     if w is v:
@@ -585,6 +617,11 @@ class ActionGraph:
                            v.leave.seq if v.leave is not None else None, v.tick, v.entered)
                      for v in self._queues.get(cell, ()))
 
+    def head(self, cell: int) -> int | None:
+        """The AGV whose visit heads ``cell``'s queue (entered or not), if any."""
+        q = self._queues.get(cell)
+        return q[0].agv if q else None
+
     def holder(self, cell: int) -> int | None:
         """The AGV that physically holds ``cell`` (its visit is entered), if any."""
         q = self._queues.get(cell)
@@ -609,7 +646,7 @@ class ActionGraph:
     def finish(self, agv: int) -> Action:
         """Mark the running action finished (the AGV stands at ``dst``); the visits it leaves
         leave their queues. Raises ``RuntimeError`` if no action runs."""
-        rec = self._rec(agv)
+        rec = self._agents.get(agv) or self._rec(agv)
         step = rec.running
         if step is None:
             raise RuntimeError(f"AGV {agv} has no running action to finish")
@@ -656,7 +693,7 @@ class ActionGraph:
     def deadlock_cycles(self, max_cycles: int = 64) -> list[list[int]]:
         """Elementary cycles of :meth:`waiting_for`, each once, rotated to start at its
         smallest AGV id, sorted; at most ``max_cycles``."""
-        graph = {a: sorted(b) for a, b in self.waiting_for().items()}
+        graph = _prune_acyclic({a: sorted(b) for a, b in self.waiting_for().items()})
         cycles: list[list[int]] = []
         for comp in _sccs(graph):
             if len(comp) < 2:
@@ -753,6 +790,31 @@ class ActionGraph:
         raise ADGCycleError(f"the action dependency graph has a cycle through AGVs "
                             f"{list(agvs)} and cells {list(cells)}: " + "; ".join(parts),
                             agvs, cells)
+
+
+def _prune_acyclic(graph: dict[int, list[int]]) -> dict[int, list[int]]:
+    """``graph`` without the nodes that reach no cycle (an AGV that waits on no waiting
+    AGV, then those that wait only on such AGVs, and so on): in a jammed fleet most
+    waiting AGVs are in such chains, which end at an AGV that still drives. The nodes
+    left and the order of their edges are kept, so the cycles found do not change."""
+    waits_on = {a: sum(1 for b in bs if b in graph) for a, bs in graph.items()}
+    if all(waits_on.values()):
+        return graph
+    waited_by: dict[int, list[int]] = {}
+    for a, bs in graph.items():
+        for b in bs:
+            if b in graph:
+                waited_by.setdefault(b, []).append(a)
+    free = [a for a, d in waits_on.items() if d == 0]
+    gone = set(free)
+    while free:
+        b = free.pop()
+        for a in waited_by.get(b, ()):
+            waits_on[a] -= 1
+            if waits_on[a] == 0:
+                gone.add(a)
+                free.append(a)
+    return {a: [b for b in bs if b not in gone] for a, bs in graph.items() if a not in gone}
 
 
 def _sccs(graph: Mapping[int, list[int]]) -> Iterator[list[int]]:

@@ -263,14 +263,16 @@ class BodyIO:
     """Read every AGV's pose and velocity, and set every control body's velocity, in one
     batch call each."""
 
-    _GET = (batch.BodyFields.BODY_ID | batch.BodyFields.POSITION | batch.BodyFields.ANGLE
+    _GET = (batch.BodyFields.POSITION | batch.BodyFields.ANGLE
             | batch.BodyFields.VELOCITY | batch.BodyFields.ANGULAR_VELOCITY)
+    """Read per step; the body ids (which row is which body) are read once, at set-up: the
+    space's bodies keep their order."""
     _SET = batch.BodyFields.VELOCITY | batch.BodyFields.ANGULAR_VELOCITY
 
     def __init__(self, space: pymunk.Space, fleet: PhysicalFleet) -> None:
         self.space = space
         self.buf = batch.Buffer()
-        batch.get_space_bodies(space, self._GET, self.buf)
+        batch.get_space_bodies(space, self._GET | batch.BodyFields.BODY_ID, self.buf)
         ids = np.frombuffer(self.buf.int_buf(), dtype=np.uintp).copy()
         row = {int(i): r for r, i in enumerate(ids)}
         self.n_rows = len(ids)
@@ -292,8 +294,7 @@ class BodyIO:
     def write(self, velocity: np.ndarray, angular: np.ndarray) -> None:
         """Set the control bodies' velocities (every other body keeps what :meth:`read` saw)."""
         out = self.out
-        out[:, 0:2] = self._all[:, 3:5]
-        out[:, 2] = self._all[:, 5]
+        out[:] = self._all[:, 3:6]  # velocity (2) and angular velocity, as read
         out[self.ctrl_rows, 0:2] = velocity
         out[self.ctrl_rows, 2] = angular
         self.set_buf.set_float_buf(out.ravel())

@@ -149,12 +149,9 @@ class CauseRecorder:
         if nxt is None:
             return -1
         for c in nxt.enters:
-            h = adg.holder(c)
+            h = adg.head(c)  # the holder if the head is entered, else the next in line
             if h is not None and h != i:
                 return h
-            q = adg.visits(c)
-            if q and q[0].agv != i:
-                return q[0].agv
         return -1
 
     def _flush_wait(self, i: int) -> None:

@@ -323,25 +323,19 @@ class PlanFollower:
         to replan (deviation from the path line, stale plans, dependency deadlocks)."""
         st, acc = self.st, self.acc
         tick_next = view.tick + 1
-        pending = np.zeros(st.n, dtype=bool)
-        for i in range(st.n):
-            report.states[i] = self.adg.state(i)
-            nxt = self.adg.next_action(i)
-            cur = self.adg.current(i)
-            pending[i] = nxt is not None
-            late = (nxt is not None and cur is None and nxt.tick < tick_next) or (
-                cur is not None and cur.tick + cur.ticks < tick_next)
-            report.behind[i] = 1 if late else 0
-            if st.waiting[i]:
-                report.blocked.append(i)
-            if st.mode[i] == DRIVE:
-                rel = pos[i] - st.origin[i]
-                normal = (-st.direction[i, 1], st.direction[i, 0])
-                if abs(rel[0] * normal[0] + rel[1] * normal[1]) > self.spec.deviation_m:
-                    acc.deviations += 1
-                    report.replan.append(i)
+        states, late, has_next, running = self.adg.progress(st.n, tick_next)
+        report.states.update(enumerate(states))
+        report.behind.update(enumerate(map(int, late)))
+        report.blocked.extend(np.flatnonzero(st.waiting).tolist())
+        # Distance of driving bodies from their path line (across the move direction).
+        rel = pos - st.origin
+        off = np.abs(rel[:, 0] * -st.direction[:, 1] + rel[:, 1] * st.direction[:, 0])
+        deviated = np.flatnonzero((st.mode == DRIVE) & (off > self.spec.deviation_m))
+        acc.deviations += len(deviated)
+        report.replan.extend(deviated.tolist())
+        pending = np.array(has_next, dtype=bool)
         st.pending = pending
-        report.settled = self.settled(pending, report.poses)
+        report.settled = self.settled(pending, report.poses, np.array(running, dtype=bool))
         for i in sorted(self._resync):
             if i not in report.replan:
                 report.replan.append(i)
@@ -384,16 +378,21 @@ class PlanFollower:
                     waits.setdefault(i, set()).add(j)
         return waits
 
-    def settled(self, pending: np.ndarray, poses: np.ndarray | None) -> frozenset[int]:
+    def settled(self, pending: np.ndarray, poses: np.ndarray | None,
+                running: np.ndarray | None = None) -> frozenset[int]:
         """AGVs at rest: standing with no action running or left, not failed, within
         :data:`~warerover_phys.validate.DWELL_POS_TOL_M` of the cell centre they hold and
         :data:`~warerover_phys.validate.DWELL_HEADING_TOL_RAD` of the heading they hold
-        (``poses``: (N, 3) x, y, heading at the end of the tick)."""
+        (``poses``: (N, 3) x, y, heading at the end of the tick; ``running``: (N,) bool,
+        whether an action runs, if known; else the ADG is asked)."""
         st = self.st
         if poses is None:
             return frozenset()
         idle = (st.mode == HOLD) & ~pending & ~st.failed
-        idle &= np.array([self.adg.current(i) is None for i in range(st.n)], dtype=bool)
+        if running is None:
+            running = np.array([self.adg.current(i) is not None for i in range(st.n)],
+                               dtype=bool)
+        idle &= ~running
         off = np.hypot(poses[:, 0] - st.hold_xy[:, 0], poses[:, 1] - st.hold_xy[:, 1])
         turn = np.abs(wrap(poses[:, 2] - st.heading))
         ok = idle & (off <= DWELL_POS_TOL_M) & (turn <= DWELL_HEADING_TOL_RAD)

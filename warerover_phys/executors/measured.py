@@ -127,6 +127,8 @@ class ClearanceMonitor:
         self._built_at: np.ndarray | None = None
         self._radius = np.zeros(self.n)
         self._t = -math.inf
+        self._prev: tuple[np.ndarray, np.ndarray] | None = None
+        """Poses at the last measured time."""
 
     def set_shelves(self, shelf_half: np.ndarray) -> None:
         """Half sizes (N, 2) of the shelves carried now (zeros: none)."""
@@ -140,15 +142,28 @@ class ClearanceMonitor:
         if self.n < 2 or t <= self._t:
             return
         self._t = t
+        prev = self._prev
+        self._prev = (pos.copy(), ang.copy())
+        pairs, ends = self._pairs, self._ends
         if self._built_at is None or float(
                 np.abs(pos - self._built_at).max()) > SKIN_M / 2:
             self._build(pos)
-        p = len(self._pairs)
+            pairs, ends = self._pairs, self._ends
+        elif prev is not None and len(pairs):
+            # The list has not changed since the last poses, all of whose pairs were
+            # checked then: a pair neither of whose AGVs has moved since (parked AGVs do
+            # not move at all) keeps its clearance, which cannot be below the minimum.
+            moved = (pos != prev[0]).any(axis=1) | (ang != prev[1])
+            keep = np.flatnonzero(moved[pairs[:, 0]] | moved[pairs[:, 1]])
+            if len(keep) < len(pairs):
+                pairs = pairs[keep]
+                ends = np.concatenate([pairs[:, 0], pairs[:, 1]])
+        p = len(pairs)
         if p == 0:
             return
         # One gather per array for both ends of every pair (rows 0..p-1: i, p..2p-1: j).
         ext = np.maximum(_aabb_half(ang, self.body_half), self.shelf_half)
-        x, e = pos[self._ends], ext[self._ends]
+        x, e = pos[ends], ext[ends]
         g = np.abs(x[:p] - x[p:])
         g -= e[:p]
         g -= e[p:]
@@ -161,7 +176,7 @@ class ClearanceMonitor:
         k = np.flatnonzero(near)
         if len(k) == 0:
             return
-        i, j = self._pairs[k, 0], self._pairs[k, 1]
+        i, j = pairs[k, 0], pairs[k, 1]
         d = self._exact(pos, ang, i, j)
         m = int(np.argmin(d))
         if d[m] < self.min_m:
@@ -230,6 +245,8 @@ class LimitMonitor:
         self._pos: np.ndarray | None = None
         self._ang: np.ndarray | None = None
         self._vel: np.ndarray | None = None
+        self._moved = np.zeros(n, dtype=bool)
+        """AGVs whose pose changed between the last two measured times."""
         self._t = -math.inf
 
     def set_limit(self, kind: str, limit: np.ndarray) -> None:
@@ -258,36 +275,55 @@ class LimitMonitor:
             return []
         vel = (pos - prev_pos) / dt
         self._vel = vel
+        # Only AGVs whose pose changed in this step or the one before: the others measure
+        # zero speed, acceleration, turn rate and lateral speed, which lowers no peak and
+        # is over no limit (parked AGVs do not move at all).
+        moved = (pos != prev_pos).any(axis=1) | (ang != prev_ang)
+        act = moved | self._moved if prev_vel is not None else np.ones_like(moved)
+        self._moved = moved
+        idx = np.flatnonzero(act)
+        if len(idx) == 0:
+            for kind in self.KINDS:
+                if self._any_over[kind]:
+                    self._over[kind] = np.zeros_like(moved)
+                    self._any_over[kind] = False
+            return []
+        v, a1, a0 = vel[idx], ang[idx], prev_ang[idx]
         # Squared speed and acceleration: no square roots per step (peaks are kept squared).
-        now = {"speed": np.einsum("ij,ij->i", vel, vel),
-               "turn_rate": np.abs((ang - prev_ang + math.pi) % (2 * math.pi) - math.pi) / dt}
+        now = {"speed": np.einsum("ij,ij->i", v, v),
+               "turn_rate": np.abs((a1 - a0 + math.pi) % (2 * math.pi) - math.pi) / dt}
         if prev_vel is not None:
-            dv = vel - prev_vel
+            dv = v - prev_vel[idx]
             now["accel"] = np.einsum("ij,ij->i", dv, dv) / (dt * dt)
         # Lateral speed: the velocity across the heading at the middle of the step (the
         # direction of the chord a body turning while it drives moves along).
-        mid = prev_ang + 0.5 * ((ang - prev_ang + math.pi) % (2 * math.pi) - math.pi)
-        lat = np.abs(vel[:, 1] * np.cos(mid) - vel[:, 0] * np.sin(mid))
-        np.maximum(self.lateral, lat, out=self.lateral)
+        mid = a0 + 0.5 * ((a1 - a0 + math.pi) % (2 * math.pi) - math.pi)
+        lat = np.abs(v[:, 1] * np.cos(mid) - v[:, 0] * np.sin(mid))
+        self.lateral[idx] = np.maximum(self.lateral[idx], lat)
         events: list[tuple[str, dict]] = []
         for kind, value in now.items():
-            np.maximum(self._peak[kind], value, out=self._peak[kind])
+            peak = self._peak[kind]
+            peak[idx] = np.maximum(peak[idx], value)
             if kind in self._ratio:
-                lim = self.limits[kind] ** (1 if kind == "turn_rate" else 2)
-                np.maximum(self._ratio[kind], np.divide(value, lim, out=np.zeros_like(value),
-                                                        where=lim > 0), out=self._ratio[kind])
-            over = value > self._bound[kind]
-            if not over.any() and not self._any_over[kind]:
+                lim = self.limits[kind][idx] ** (1 if kind == "turn_rate" else 2)
+                ratio = self._ratio[kind]
+                ratio[idx] = np.maximum(ratio[idx], np.divide(
+                    value, lim, out=np.zeros_like(value), where=lim > 0))
+            over_now = value > self._bound[kind][idx]
+            if not over_now.any() and not self._any_over[kind]:
                 continue
-            new = over & ~self._over[kind]
+            over = np.zeros_like(moved)
+            over[idx] = over_now
+            new = over_now & ~self._over[kind][idx]
             self._over[kind] = over
-            self._any_over[kind] = bool(over.any())
+            self._any_over[kind] = bool(over_now.any())
             if new.any():
                 value = np.sqrt(value) if kind != "turn_rate" else value
-                for i in np.flatnonzero(new):
+                for r in np.flatnonzero(new):
+                    i = int(idx[r])
                     self.violations += 1
                     events.append(("limit_violation", {
-                        "agv": int(i), "kind": kind, "value": round(float(value[i]), 4),
+                        "agv": i, "kind": kind, "value": round(float(value[r]), 4),
                         "limit": float(self.limits[kind][i]), "t_s": round(t, 4)}))
         return events
 
