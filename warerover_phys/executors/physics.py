@@ -41,7 +41,7 @@ from .accounting import Accounting
 from .adg import ActionGraph
 from .base import ExecutorSetup, StepReport, TickView
 from .bodies import BodyIO, PhysicalFleet, build_space, cell_centre, unsolved_agv_contacts
-from .control import steer, wrap
+from .control import OFF_REFERENCE_M, steer, wrap
 from .fleet_state import HOLD, FleetState
 from .follow import DECIDE_S, PlanFollower
 
@@ -125,6 +125,10 @@ class PhysicsExecutor:
         self.parked_steps = 0
         """AGV-steps spent parked (``executor.park``)."""
         self._n_parked = 0
+        self._off = np.zeros(n, dtype=bool)
+        self._all_bodies = np.ones(n, dtype=bool)
+        self.off_reference = 0
+        """Times a body was found off its reference (:meth:`_off_reference`)."""
         self._bound = True
 
     def _contact(self, a: int, b: int, point: tuple[float, float]) -> None:
@@ -191,24 +195,40 @@ class PhysicsExecutor:
         st = self.state
         raw, raw_ang, v_now, w_now = self.io.read()
         raw, raw_ang = raw.copy(), raw_ang.copy()
-        # pymunk moves bodies with the velocity of the previous step before it solves the
-        # joints: decide and steer on the pose the body has after this step's move.
-        pos = raw + v_now * st.dt
-        ang = raw_ang + w_now * st.dt
         t = st.sim_s
         injected = st.delayed_until > t
         delayed = injected | st.failed | (self.contact_until > t)
-        self.follow.advance(pos, ang, delayed, decide)
+        delayed |= self._off_reference(raw)
+        self.follow.advance(raw, raw_ang, delayed, decide)
         self._comm_wait_s += float(np.count_nonzero(st.listening)) * st.dt
-        vel, w = steer(st, pos, ang, delayed, v_now)
+        vel, w = steer(st, raw, raw_ang, v_now)
         if self._shelf_contacts:
-            self.fleet.orient_shelves(ang)
-        self.io.write(vel, w)
+            self.fleet.orient_shelves(raw_ang)
+        # Kinematic drive: the bodies get the step's velocities directly (pymunk moves
+        # them with their present velocity before it solves joints and contacts), their
+        # control bodies the same, so the drive joints exert nothing unless a contact
+        # changed a body's velocity.
+        self.io.write(vel, w, bodies=self._all_bodies)
         if self._park:
             self._update_parking(raw, raw_ang, v_now, w_now, decide)
         self.space.step(st.dt)
         st.sim_s = t + st.dt
         self.acc.after_step(raw, raw_ang, injected, t)
+
+    def _off_reference(self, pos: np.ndarray) -> np.ndarray:
+        """Bodies farther than :data:`~.control.OFF_REFERENCE_M` from their reference
+        points (held back by a contact or an obstacle): their references brake until the
+        bodies are back. Each new such episode is an ``off_reference`` event."""
+        st = self.state
+        err = st.ref_xy() - pos
+        off = np.einsum("ij,ij->i", err, err) > OFF_REFERENCE_M ** 2
+        for i in np.flatnonzero(off & ~self._off):
+            self.off_reference += 1
+            self.acc.events.append(("off_reference", {
+                "tick": self._tick, "agv": int(i), "t_s": round(st.sim_s, 3),
+                "m": round(float(np.sqrt(err[i] @ err[i])), 3)}))
+        self._off = off
+        return off
 
     def _update_parking(self, pos: np.ndarray, ang: np.ndarray, v: np.ndarray,
                         w: np.ndarray, look: bool) -> None:
@@ -296,6 +316,7 @@ class PhysicsExecutor:
             "comm_latency_s": float(getattr(spec, "comm_latency_s", 0.0)),
             "delay_comm_latency_s": self._comm_wait_s,
             "parked_agv_s": self.parked_steps * self.dt,
+            "off_reference": self.off_reference,
         })
         return out
 
