@@ -54,6 +54,9 @@ OFF_REFERENCE_M = 0.05
 """Sanity check: a body this far (metres) from its reference at a step's start was held
 back (a contact, an obstacle): its reference brakes at the limit until the body is back,
 and the executor reports it (``off_reference`` events)."""
+EVENT_EPS_S = 1e-9
+"""An event this close after a step's end (seconds; float error) belongs to that step, so
+that an action that ends on a step boundary ends in the step before it, whatever ``dt``."""
 LATERAL_GAIN = 3.0
 """1/s: no-slip drive, steering back onto the path line."""
 ALONG_GAIN = 4.0
@@ -187,10 +190,10 @@ def run_references(st: FleetState, idx: np.ndarray, h: np.ndarray, braking: np.n
         j = idx[turn]
         left = st.heading[j] - st.ang_ref[j]  # both unwrapped (see follow._decide)
         need = np.abs(left) / st.wmax[j]
-        done = need <= h[turn]
+        done = need <= h[turn] + EVENT_EPS_S
         st.ang_ref[j] = np.where(done, st.heading[j],
                                  st.ang_ref[j] + np.sign(left) * st.wmax[j] * h[turn])
-        used[turn] = np.where(done, need, h[turn])
+        used[turn] = np.where(done, np.minimum(need, h[turn]), h[turn])
         event[turn] = done
     drive = mode == DRIVE
     if drive.any():
@@ -205,8 +208,8 @@ def run_references(st: FleetState, idx: np.ndarray, h: np.ndarray, braking: np.n
         t_stop = _time_to(ph, a, st.stop_s[j] - s0)
         at_stop = st.cur_end[j] >= st.stop_s[j] - 1e-12
         t_end = np.where(at_stop, np.minimum(t_end, t_stop), t_end)
-        done = t_end <= hj
-        tau = np.where(done, t_end, hj)
+        done = t_end <= hj + EVENT_EPS_S
+        tau = np.where(done, np.minimum(t_end, hj), hj)
         s, v = _eval(ph, a, tau)
         s = np.minimum(s0 + s, np.maximum(st.stop_s[j], s0))
         s = np.where(done, st.cur_end[j], s)
