@@ -5,10 +5,13 @@ Each tick (``tick_s`` seconds) the executor
 1. hands every new or changed plan to the :class:`~.adg.ActionGraph` (commit cut: the AGV
    keeps the action it is driving, the rest is replaced);
 2. draws the tick's random delays (seeded, ``executor.delays``);
-3. steps the pymunk world ``tick_s / dt_s`` times. Per step, the plan follower finishes,
-   extends and starts actions as the ADG allows (or, with ``adg: false``, at their planned
-   ticks: naive time-indexed following, for comparison), and a vectorised control law sets
-   every control body's velocity along its current straight run;
+3. steps the pymunk world ``tick_s / dt_s`` times. Per step, the plan follower extends
+   and starts actions as the ADG allows (or, with ``adg: false``, at their planned ticks:
+   naive time-indexed following, for comparison), every AGV's continuous-time reference
+   runs through the step (actions and turns end at their exact times inside it), and a
+   vectorised control law gives every body the velocity that puts it on its reference at
+   the step's end (kinematic drive: the body and its control body get it directly, so with
+   no contact the poses at the step ends common to two ``dt_s`` are the same);
 4. reports each AGV's discrete state (standing at a cell, or moving between two) for the
    loop to write into the world, blocked AGVs (waiting on a dependency) and AGVs to replan
    (dependency deadlock, deviation from the path). It never touches the world itself.
