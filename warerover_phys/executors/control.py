@@ -51,9 +51,9 @@ ALIGN_EPS_RAD = 0.03
 deadbeat tracking the body is on the reference at every step end, so a turn ends exactly
 when its reference heading arrives."""
 OFF_REFERENCE_M = 0.05
-"""Sanity check: a body this far (metres) from its reference at a step's start was held
-back (a contact, an obstacle): its reference brakes at the limit until the body is back,
-and the executor reports it (``off_reference`` events)."""
+"""Sanity check: a driving body this far (metres) behind its reference point along the
+run at a step's start was held back (a contact, an obstacle): its reference brakes at the
+limit until the body is back, and the executor reports it (``off_reference`` events)."""
 EVENT_EPS_S = 1e-9
 """An event this close after a step's end (seconds; float error) belongs to that step, so
 that an action that ends on a step boundary ends in the step before it, whatever ``dt``."""
@@ -224,22 +224,26 @@ def run_references(st: FleetState, idx: np.ndarray, h: np.ndarray, braking: np.n
 # ----------------------------------------------------------------------------- the body
 
 
-def steer(st: FleetState, pos: np.ndarray, ang: np.ndarray, v_now: np.ndarray
-          ) -> tuple[np.ndarray, np.ndarray]:
+def steer(st: FleetState, pos: np.ndarray, ang: np.ndarray, v_now: np.ndarray,
+          ref0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Velocities ``(N, 2)`` and turn rates ``(N,)`` that take bodies at ``pos`` / ``ang``
     (moving at ``v_now``, (N, 2)) onto their references at the end of this step (the
-    references already advanced by :func:`run_references`)."""
+    references already advanced by :func:`run_references`; ``ref0``: the reference points
+    at the step's start). The reference's own velocity over the step plus a pull onto it:
+    the whole error in one step (deadbeat) when that is within braking reach, else on the
+    braking curve ``sqrt(2 a e)`` (a body put off its reference does not overshoot it and
+    swing around it); standing bodies approach at most :data:`HOLD_SPEED`."""
     dt, a = st.dt, st.amax
     target = st.ref_xy()
-    err = target - pos
-    vel = err / dt
-    hold = st.mode != DRIVE
-    # Standing: deadbeat near the hold point, on the braking curve farther out.
+    err = ref0 - pos
     dist = np.sqrt(np.einsum("ij,ij->i", err, err))
-    cap = np.minimum(HOLD_SPEED, np.sqrt(2 * a * dist))
-    far = hold & (dist / dt > cap)
+    hold = st.mode != DRIVE
+    cap = np.sqrt(2 * a * dist)
+    cap = np.where(hold, np.minimum(cap, HOLD_SPEED), cap)
+    far = dist / dt > cap
+    vel = (target - pos) / dt
     if far.any():
-        vel[far] = err[far] * (cap[far] / dist[far])[:, None]
+        vel[far] = (target[far] - ref0[far]) / dt + err[far] * (cap[far] / dist[far])[:, None]
     drive = ~hold
     want = np.where(st.mode == TURN, st.ang_ref, st.heading)
     w = np.clip(wrap(want - ang) / dt, -st.wmax, st.wmax)
@@ -291,5 +295,22 @@ def _no_slip(st: FleetState, ns: np.ndarray, pos: np.ndarray, ang: np.ndarray,
         room = np.sqrt(np.maximum(a * a - (u_now * w) ** 2, (0.1 * a) ** 2)) * dt
         u_steer = np.clip(np.clip(u_want, u_now - room, u_now + room), -vmax, vmax)
         u = np.where(steer_rows, u_steer, u)
-        mid = ang + 0.5 * w * dt
-    return np.column_stack([u * np.cos(mid), u * np.sin(mid)]), w
+    rest = ~steer_rows
+    if rest.any():
+        # Every other row as when steering: the turn rate and the speed change share the
+        # acceleration limit (nothing changes for a body on its path at rest or driving
+        # straight; a body that still moves while it turns, or leaves a steering
+        # correction, turns its velocity no faster than the limit allows).
+        cap = np.minimum(st.wmax[ns], STEER_ACCEL_SHARE * a / np.maximum(np.abs(u_now), 1e-6))
+        w = np.where(rest, np.clip(w, -cap, cap), w)
+        room = np.sqrt(np.maximum(a * a - (u_now * w) ** 2, (0.1 * a) ** 2)) * dt
+        u = np.where(rest, np.clip(u, u_now - room, u_now + room), u)
+    mid = ang + 0.5 * w * dt
+    # The velocity vector (speed along the turning heading) at most a dt from the present
+    # one: the speed nearest the wanted one for which |u h - v_now| <= a dt.
+    hx, hy = np.cos(mid), np.sin(mid)
+    hv = v_now[:, 0] * hx + v_now[:, 1] * hy
+    disc = hv * hv - np.einsum("ij,ij->i", v_now, v_now) + (a * dt) ** 2
+    r = np.sqrt(np.maximum(disc, 0.0))
+    u = np.where(disc > 0, np.clip(u, hv - r, hv + r), hv)
+    return np.column_stack([u * hx, u * hy]), w
