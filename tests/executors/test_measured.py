@@ -265,18 +265,19 @@ def test_trajectory_hz_records_every_nth_physics_step(dt_s, hz, every):
 
 # --------------------------------------------------------------------------- dt convergence
 
+@pytest.mark.slow
 def test_makespan_agrees_across_physics_steps():
-    """paper_homogeneous, seed 0: on main the makespan was 136 / 117 / 119 ticks at dt
+    """paper_homogeneous, seed 0: once the makespan was 136 / 117 / 119 ticks at dt
     0.01 / 0.02 / 0.05 s (decisions every 5 steps, a reference that ran up to dt / 2 ahead of
-    its continuous profile and stopped with a 2a step). Now 0.01 and 0.02 agree within 2%
-    and 0.05 within 5% (turns and arrivals still end on whole steps: up to dt per action)."""
+    its continuous profile and stopped with a 2a step). With exact references and deadbeat
+    tracking all three agree within 2% (the fast check: ``test_dt_exact.py``)."""
     ticks = {}
     for dt in (0.01, 0.02, 0.05):
         sc = load_scenario("layouts/paper_homogeneous.yaml",
                            [("executor.name", "physics"), ("executor.dt_s", dt)])
         ticks[dt] = run_episode(sc, seed=0).metrics["ticks"]
     assert abs(ticks[0.02] - ticks[0.01]) <= 0.02 * ticks[0.01], ticks
-    assert abs(ticks[0.05] - ticks[0.01]) <= 0.05 * ticks[0.01], ticks
+    assert abs(ticks[0.05] - ticks[0.01]) <= 0.02 * ticks[0.01], ticks
 
 
 def test_monitors_skip_agvs_that_stand_still_without_changing_a_figure():

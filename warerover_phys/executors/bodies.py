@@ -291,11 +291,17 @@ class BodyIO:
         b = data[self.body_rows]
         return b[:, 0:2], b[:, 2], b[:, 3:5], b[:, 5]
 
-    def write(self, velocity: np.ndarray, angular: np.ndarray) -> None:
-        """Set the control bodies' velocities (every other body keeps what :meth:`read` saw)."""
+    def write(self, velocity: np.ndarray, angular: np.ndarray,
+              bodies: np.ndarray | None = None) -> None:
+        """Set the control bodies' velocities, and those of the AGV bodies where ``bodies``
+        ((N,) bool) is set (every other body keeps what :meth:`read` saw)."""
         out = self.out
         out[:] = self._all[:, 3:6]  # velocity (2) and angular velocity, as read
         out[self.ctrl_rows, 0:2] = velocity
         out[self.ctrl_rows, 2] = angular
+        if bodies is not None:
+            rows = self.body_rows[bodies]
+            out[rows, 0:2] = velocity[bodies]
+            out[rows, 2] = angular[bodies]
         self.set_buf.set_float_buf(out.ravel())
         batch.set_space_bodies(self.space, self._SET, self.set_buf)

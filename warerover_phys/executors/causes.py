@@ -116,14 +116,17 @@ class CauseRecorder:
     def step(self, injected: np.ndarray) -> None:
         """Label the physics step that has just run (modes as the follower left them)."""
         st = self.st
-        t = st.sim_s - st.dt  # the step's start time: what the follower decided on
         lab = np.full(st.n, CONTROL, dtype=np.int64)
         lab[st.waiting] = DEPENDENCY
         lab[st.mode == TURN] = TURN_L
         lab[st.mode == DRIVE] = DRIVE_L
         lab[injected & ((st.mode != HOLD) | st.has_next)] = INJECTED
         lab[st.failed] = FAILED
-        lab[st.hold_until > t + 1e-9] = DWELL
+        # A dwell runs from the AGV's last arrival (an exact time inside a step) to
+        # hold_until: the steps whose midpoints fall in it are its steps (one per dt of
+        # the dwell, whatever the arrival's offset in its step).
+        mid = st.sim_s - 0.5 * st.dt
+        lab[(st.hold_until > mid) & (st.last_finish <= mid)] = DWELL
         self._cur[self._rows, lab] += 1
         waiting = lab == DEPENDENCY
         if waiting.any():

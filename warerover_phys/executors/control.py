@@ -1,25 +1,32 @@
-"""The physics executor's control law: control-body velocities from the AGVs' references.
+"""The physics executor's control law: exact references and deadbeat tracking.
 
-Vectorised over the fleet, once per physics step. Along the current straight run a
-reference point runs a trapezoid to the stop point that is exact *in steps of dt*:
-``v = min(v_max * scale, v_prev + a dt, v_stop)`` with the position integrated by the
-trapezoidal rule, ``s += (v_prev + v) / 2 dt``, and ``v_stop`` the speed from which braking
-at ``a`` ends exactly at the stop point (:func:`stop_speed`): it covers the
-distance of the continuous profile whatever ``dt`` and never brakes harder than ``a`` (the
-former ``d / dt`` term and ``s += v dt`` stopped with one step of up to ``2 a``, and ran
-up to ``dt / 2`` ahead of the continuous profile). The body follows the reference
-through its pivot joint with a small proportional pull on the along-track and lateral
-errors; a delayed or failed AGV brakes at its limit. Standing AGVs hold their cell centre.
-Differential-drive AGVs hold their heading, and turn in place behind a reference heading
-that turns at ``max_turn_rate``; omnidirectional AGVs never turn. With
-``executor.no_slip`` a differential-drive body gets velocity only along its heading and
-steers back onto the path line instead of being pulled sideways (:func:`_no_slip`).
+Every AGV has a continuous-time reference, advanced once per physics step by
+:func:`run_references` and evaluated analytically, so it is the same at every step end
+whatever ``dt``:
 
-Whatever the mode, the commanded velocity finally goes through :func:`limit_command`: at
-most ``v_max`` and at most ``a dt`` away from the body's present velocity. The pivot joint
-(force headroom 2x) then gives the body exactly that velocity, so neither switching modes
-(drive -> hold at the end of an action) nor the corrective pulls can accelerate a body
-beyond its limits; only contacts can.
+- along the current straight run a reference point runs the time-optimal trapezoid to the
+  stop point (accelerate at ``a`` to ``v_max``, cruise, brake at ``a`` to stand exactly on
+  it; a triangle when the run is too short), recomputed from its present position and speed
+  whenever the stop point moves (:func:`_phases`, :func:`_eval`); a delayed or failed AGV's
+  reference brakes at ``a`` from where it is;
+- a turning AGV's reference heading turns at ``max_turn_rate``.
+
+An action that ends inside a step is an *event* at its exact time (:func:`_time_to`): the
+follower finishes it there and the time left in the step goes to the next action (a move
+starts at the exact end of its turn; a run goes on into its next cell without a pause).
+Events are defined on the reference, not on the body.
+
+The body tracks the reference deadbeat (:func:`steer`): the velocity commanded for the step
+is ``(ref(t + dt) - pos(t)) / dt`` (and the same for the angle), which obeys the limits
+because the reference does; the executor gives it to the body directly (and to its control
+body, so the drive joints exert nothing), so an unobstructed body ends every step on the
+reference up to float error. The command still goes through :func:`limit_command` (at most
+``v_max``, at most ``a dt`` away from the body's present velocity): a body that was put off
+its reference (a contact, a blocked move) cannot exceed its limits catching up. Standing
+AGVs hold their cell centre (deadbeat within a few millimetres, on the braking curve farther
+out). With ``executor.no_slip`` a differential-drive body that is off its path gets velocity
+only along its heading and steers back onto the path line (:func:`_no_slip`); on the path
+the deadbeat command is projected onto the heading.
 """
 
 from __future__ import annotations
@@ -30,28 +37,44 @@ import numpy as np
 
 from .fleet_state import DRIVE, TURN, FleetState
 
-__all__ = ["ARRIVE_EPS_M", "TURN_EPS_RAD", "ALIGN_EPS_RAD", "LATERAL_GAIN", "ALONG_GAIN",
-           "HEADING_GAIN", "limit_command", "steer", "stop_speed", "wrap"]
+__all__ = ["ARRIVE_EPS_M", "TURN_EPS_RAD", "ALIGN_EPS_RAD", "OFF_REFERENCE_M", "LATERAL_GAIN", "ALONG_GAIN",
+           "HEADING_GAIN", "HOLD_SPEED", "limit_command", "run_references", "steer",
+           "stop_speed", "wrap"]
 
 ARRIVE_EPS_M = 0.02
-"""An action is done when its reference point has reached the target centre and the body's
-centre is this close to it (or past it)."""
+"""A run continues into its next action without stopping only if its stop point lies more
+than this beyond the end of the running action (metres)."""
 TURN_EPS_RAD = 0.01
 """A move needs a turn first if the heading is off by more than this."""
 ALIGN_EPS_RAD = 0.03
-"""A turn is done when its reference heading has arrived and the body is this close."""
+"""Largest heading error of a body that follows its turning reference (radians): with
+deadbeat tracking the body is on the reference at every step end, so a turn ends exactly
+when its reference heading arrives."""
+OFF_REFERENCE_M = 0.05
+"""Sanity check: a driving body this far (metres) behind its reference point along the
+run at a step's start was held back (a contact, an obstacle): its reference brakes at the
+limit until the body is back, and the executor reports it (``off_reference`` events)."""
+EVENT_EPS_S = 1e-9
+"""An event this close after a step's end (seconds; float error) belongs to that step, so
+that an action that ends on a step boundary ends in the step before it, whatever ``dt``."""
 LATERAL_GAIN = 3.0
-"""1/s: pull back onto the path line."""
+"""1/s: no-slip drive, steering back onto the path line."""
 ALONG_GAIN = 4.0
-"""1/s: pull towards the reference point along the path."""
+"""1/s: no-slip drive, pull towards the reference point along the path while steering."""
 HEADING_GAIN = 6.0
-"""1/s: heading hold while driving or standing."""
+"""1/s: no-slip drive, heading pull while steering."""
+HOLD_SPEED = 0.3
+"""m/s: fastest approach of a standing body that is off its hold point."""
 MAX_STEER_RAD = 0.35
 """No-slip drive (``executor.no_slip``): largest heading offset used to steer back onto the
 path line."""
 STEER_ACCEL_SHARE = 0.6
 """No-slip drive: share of the acceleration limit the centripetal acceleration of a
 steering correction may take (the rest is left to speed changes)."""
+NO_SLIP_EXACT_MPS = 0.01
+"""No-slip drive: a deadbeat command whose sideways part (across the body's heading) is
+below this (m/s) is projected onto the heading; a larger one means the body is off its
+path, and it steers back."""
 
 
 def wrap(a: np.ndarray | float) -> np.ndarray | float:
@@ -61,15 +84,13 @@ def wrap(a: np.ndarray | float) -> np.ndarray | float:
 
 def stop_speed(d: np.ndarray, a: np.ndarray, dt: float, v_prev: np.ndarray) -> np.ndarray:
     """Highest speed (m/s) at the end of this step from which braking at ``a`` still stops
-    within the distance ``d`` (metres) left at its start, for a reference integrated by the
-    trapezoidal rule (``s += (v_prev + v) / 2 dt``).
+    within the distance ``d`` (metres) left at its start, for a speed profile integrated by
+    the trapezoidal rule (``s += (v_prev + v) / 2 dt``).
 
     Solves ``v^2 / (2 a) = d - (v_prev + v) / 2 dt`` (what is left after the step is the
     braking distance from ``v``): ``v = sqrt(a^2 dt^2 / 4 + 2 a d - a dt v_prev) - a dt / 2``.
-    From ``v_prev = sqrt(2 a d)`` this gives exactly ``v_prev - a dt``: the reference brakes
-    at exactly ``a`` and covers the distance of the continuous profile, whatever ``dt``
-    (``v = sqrt(2 a d)`` with ``s += v dt``, as before, ran ahead of it by up to ``dt / 2``,
-    and its ``d / dt`` last step braked at up to ``2 a``).
+    From ``v_prev = sqrt(2 a d)`` this gives exactly ``v_prev - a dt``. Used by the no-slip
+    law to keep a body that steers back onto its path from braking too late.
 
     >>> one = np.array([1.0])
     >>> float(stop_speed(np.array([0.0]), one, 0.02, np.array([0.0]))[0])
@@ -86,16 +107,17 @@ def stop_speed(d: np.ndarray, a: np.ndarray, dt: float, v_prev: np.ndarray) -> n
 def limit_command(cmd: np.ndarray, v_now: np.ndarray, vmax: np.ndarray, amax: np.ndarray,
                   dt: float) -> np.ndarray:
     """``cmd`` (N, 2) capped at speed ``vmax`` and moved to within ``amax dt`` of the
-    bodies' present velocities ``v_now`` (both as vectors)."""
+    bodies' present velocities ``v_now`` (both as vectors). A tolerance of 1e-9 relative
+    leaves commands that obey the limits up to float error untouched."""
     speed2 = np.einsum("ij,ij->i", cmd, cmd)
-    over = speed2 > vmax * vmax
+    over = speed2 > (vmax * (1 + 1e-9)) ** 2
     if over.any():
         cmd = cmd.copy()
         cmd[over] *= (vmax[over] / np.sqrt(speed2[over]))[:, None]
     dv = cmd - v_now
     step2 = np.einsum("ij,ij->i", dv, dv)
     room = amax * dt
-    far = step2 > room * room
+    far = step2 > (room * (1 + 1e-9)) ** 2
     if not far.any():
         return cmd
     out = cmd.copy()
@@ -103,91 +125,192 @@ def limit_command(cmd: np.ndarray, v_now: np.ndarray, vmax: np.ndarray, amax: np
     return out
 
 
-def steer(st: FleetState, pos: np.ndarray, ang: np.ndarray, delayed: np.ndarray,
-          v_now: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Control-body velocities ``(N, 2)`` and turn rates ``(N,)`` for bodies at ``pos`` /
-    ``ang`` moving at ``v_now`` (N, 2); advances the references (``speed``, ``s_ref``,
-    ``heading``, ``ang_ref``)."""
+# ----------------------------------------------------------------------------- the reference
+
+
+def _phases(d: np.ndarray, v: np.ndarray, vmax: np.ndarray, a: np.ndarray,
+            braking: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The time-optimal profile from speed ``v`` (m/s) to standing still ``d`` metres ahead:
+    ``(vc, t1, t2, t3, d1, d2)``: accelerate at ``a`` to ``vc`` in ``t1`` s over ``d1`` m,
+    cruise at ``vc`` for ``t2`` s over ``d2`` m, brake at ``a`` to 0 in ``t3`` s. Braking
+    (``braking``: delayed or failed), or on or above the braking curve
+    (``v^2 >= 2 a d``), it brakes at once (and may then end past ``d``: callers stop it
+    there)."""
+    v = np.clip(v, 0.0, vmax)
+    d = np.maximum(d, 0.0)
+    now = braking | (v * v >= 2.0 * a * d)
+    vc = np.where(now, v, np.maximum(np.minimum(np.sqrt(a * d + 0.5 * v * v), vmax), v))
+    t1 = (vc - v) / a
+    d1 = 0.5 * (vc * vc - v * v) / a
+    d2 = np.where(now, 0.0, np.maximum(d - d1 - 0.5 * vc * vc / a, 0.0))
+    t2 = np.where(vc > 0, d2 / np.maximum(vc, 1e-300), 0.0)
+    return v, vc, t1, t2, vc / a, d1, d2
+
+
+def _eval(ph: tuple[np.ndarray, ...], a: np.ndarray, tau: np.ndarray
+          ) -> tuple[np.ndarray, np.ndarray]:
+    """Distance covered (m) and speed (m/s) of the profile ``ph`` after ``tau`` seconds."""
+    v, vc, t1, t2, t3, d1, d2 = ph
+    u1 = np.minimum(tau, t1)
+    u2 = np.clip(tau - t1, 0.0, t2)
+    u3 = np.clip(tau - t1 - t2, 0.0, t3)
+    s = v * u1 + 0.5 * a * u1 * u1 + vc * u2 + vc * u3 - 0.5 * a * u3 * u3
+    speed = np.where(tau < t1, v + a * u1, np.where(tau < t1 + t2, vc, vc - a * u3))
+    return s, np.maximum(speed, 0.0)
+
+
+def _time_to(ph: tuple[np.ndarray, ...], a: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Seconds until the profile ``ph`` has covered ``x`` metres (inf if it stops short)."""
+    v, vc, t1, t2, t3, d1, d2 = ph
+    x = np.maximum(x, 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r1 = np.sqrt(v * v + 2.0 * a * x)
+        ta = np.where(r1 + v > 0, 2.0 * x / (r1 + v), 0.0)
+        tb = t1 + (x - d1) / vc
+        x3 = x - d1 - d2
+        disc = vc * vc - 2.0 * a * x3
+        r3 = np.sqrt(np.maximum(disc, 0.0))
+        tc = t1 + t2 + np.where(vc + r3 > 0, 2.0 * x3 / (vc + r3), 0.0)
+    out = np.where(x <= d1, ta, np.where(x <= d1 + d2, tb, tc))
+    return np.where((x > d1 + d2) & (disc < -1e-12 * np.maximum(vc * vc, 1.0)), np.inf, out)
+
+
+def run_references(st: FleetState, idx: np.ndarray, h: np.ndarray, braking: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Advance the references of AGVs ``idx`` by ``h`` seconds each, or up to their next
+    event (a turn's reference heading arrives; a run's reference point reaches the end of
+    the running action); ``braking``: their references brake at the limit (delayed or
+    failed). Returns the seconds used and which of them stopped at an event (the
+    follower finishes their actions there and gives them what is left)."""
+    used = h.copy()
+    event = np.zeros(len(idx), dtype=bool)
+    mode = st.mode[idx]
+    turn = mode == TURN
+    if turn.any():
+        j = idx[turn]
+        left = st.heading[j] - st.ang_ref[j]  # both unwrapped (see follow._decide)
+        need = np.abs(left) / st.wmax[j]
+        done = need <= h[turn] + EVENT_EPS_S
+        st.ang_ref[j] = np.where(done, st.heading[j],
+                                 st.ang_ref[j] + np.sign(left) * st.wmax[j] * h[turn])
+        used[turn] = np.where(done, np.minimum(need, h[turn]), h[turn])
+        event[turn] = done
+    drive = mode == DRIVE
+    if drive.any():
+        j = idx[drive]
+        a, s0 = st.amax[j], st.s_ref[j]
+        ph = _phases(st.stop_s[j] - s0, st.speed[j], st.vmax[j], a, braking[drive])
+        hj = h[drive]
+        # The event: the end of the running action (at the stop point, where the profile
+        # ends: a braking reference that overshoots it is stopped there).
+        x_end = st.cur_end[j] - s0
+        t_end = _time_to(ph, a, x_end)
+        t_stop = _time_to(ph, a, st.stop_s[j] - s0)
+        at_stop = st.cur_end[j] >= st.stop_s[j] - 1e-12
+        t_end = np.where(at_stop, np.minimum(t_end, t_stop), t_end)
+        done = t_end <= hj + EVENT_EPS_S
+        tau = np.where(done, np.minimum(t_end, hj), hj)
+        s, v = _eval(ph, a, tau)
+        s = np.minimum(s0 + s, np.maximum(st.stop_s[j], s0))
+        s = np.where(done, st.cur_end[j], s)
+        v = np.where(done & at_stop, 0.0, v)
+        st.s_ref[j] = s
+        st.speed[j] = v
+        used[drive] = tau
+        event[drive] = done
+    return used, event
+
+
+# ----------------------------------------------------------------------------- the body
+
+
+def steer(st: FleetState, pos: np.ndarray, ang: np.ndarray, v_now: np.ndarray,
+          ref0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Velocities ``(N, 2)`` and turn rates ``(N,)`` that take bodies at ``pos`` / ``ang``
+    (moving at ``v_now``, (N, 2)) onto their references at the end of this step (the
+    references already advanced by :func:`run_references`; ``ref0``: the reference points
+    at the step's start). The reference's own velocity over the step plus a pull onto it:
+    the whole error in one step (deadbeat) when that is within braking reach, else on the
+    braking curve ``sqrt(2 a e)`` (a body put off its reference does not overshoot it and
+    swing around it); standing bodies approach at most :data:`HOLD_SPEED`."""
     dt, a = st.dt, st.amax
-    along = st.along(pos)
-    vel = np.zeros((st.n, 2))
-    drive = st.mode == DRIVE
-    # The reference runs on its own kinematic state (s_ref, speed): a trapezoid to the
-    # stop point, exact in steps of dt; the body follows it through the joint, with a
-    # small pull on the along-track and lateral errors.
-    d = np.maximum(st.stop_s - st.s_ref, 0.0)
-    v = np.minimum.reduce([st.vmax, stop_speed(d, a, dt, st.speed), st.speed + a * dt])
-    v = np.where(delayed, np.maximum(st.speed - a * dt, 0.0), v)
-    v = np.where(drive, v, 0.0)
-    v_prev = st.speed
-    st.speed = v
-    v_along = v + np.clip(ALONG_GAIN * (st.s_ref - along), -0.2, 0.2)
-    # Trapezoidal integration: the reference covers exactly the distance of the continuous
-    # profile, whatever dt. The last step of a stop may reach a little past the stop point
-    # (less than a dt^2 / 2): the reference stops on it.
-    ds = 0.5 * (v_prev + v) * dt
-    st.s_ref = np.where(drive, np.minimum(st.s_ref + ds, np.maximum(st.stop_s, st.s_ref)),
-                        st.s_ref)
-    rel = pos - st.origin
-    normal = np.stack([-st.direction[:, 1], st.direction[:, 0]], axis=1)
-    lateral = (rel * normal).sum(axis=1)
-    v_lat = np.clip(-LATERAL_GAIN * lateral, -0.3, 0.3)
-    vel[drive] = (st.direction * v_along[:, None] + normal * v_lat[:, None])[drive]
-    # Standing: hold the cell centre.
-    hold = ~drive
-    err = st.hold_xy - pos
-    dist = np.linalg.norm(err, axis=1)
-    cap = np.minimum(0.3, np.sqrt(2 * a * dist))
-    gain = np.where(dist > 1e-9, np.minimum(2.0 * dist, cap) / np.maximum(dist, 1e-9), 0.0)
-    vel[hold] = (err * gain[:, None])[hold]
-    # Heading: turn at the limit, else hold.
-    target = np.where(drive & ~st.omni,
-                      np.arctan2(st.direction[:, 1], st.direction[:, 0]), st.heading)
-    st.heading = np.where(drive & ~st.omni, target, st.heading)
-    herr = wrap(target - ang)
-    turning = st.mode == TURN
-    # Turning: a reference heading turns at the limit; the body follows it.
-    left = wrap(st.heading - st.ang_ref)
-    turn_step = np.sign(left) * np.minimum(st.wmax * dt, np.abs(left))
-    w_turn = np.clip(wrap(st.ang_ref + turn_step - ang) / dt, -st.wmax, st.wmax)
-    st.ang_ref = np.where(turning, np.where(np.abs(left) <= st.wmax * dt, st.heading,
-                                            st.ang_ref + turn_step), ang)
-    w_hold = np.clip(HEADING_GAIN * herr, -st.wmax, st.wmax)
-    w = np.where(turning, w_turn, w_hold)
+    target = st.ref_xy()
+    err = ref0 - pos
+    dist = np.sqrt(np.einsum("ij,ij->i", err, err))
+    hold = st.mode != DRIVE
+    cap = np.sqrt(2 * a * dist)
+    cap = np.where(hold, np.minimum(cap, HOLD_SPEED), cap)
+    far = dist / dt > cap
+    vel = (target - pos) / dt
+    if far.any():
+        vel[far] = (target[far] - ref0[far]) / dt + err[far] * (cap[far] / dist[far])[:, None]
+    drive = ~hold
+    want = np.where(st.mode == TURN, st.ang_ref, st.heading)
+    w = np.clip(wrap(want - ang) / dt, -st.wmax, st.wmax)
     cmd = limit_command(vel, v_now, st.vmax, a, dt)
     if st.no_slip is not None and st.no_slip.any():
         ns = np.flatnonzero(st.no_slip)
-        cmd[ns], w[ns] = _no_slip(st, ns, ang[ns], v_now[ns], vel[ns], w[ns],
-                                  v_along[ns], lateral[ns], along[ns], drive[ns])
+        cmd[ns], w[ns] = _no_slip(st, ns, pos[ns], ang[ns], v_now[ns], cmd[ns], w[ns],
+                                  drive[ns])
     return cmd, w
 
 
-def _no_slip(st: FleetState, ns: np.ndarray, ang: np.ndarray, v_now: np.ndarray,
-             vel: np.ndarray, w: np.ndarray, v_along: np.ndarray, lateral: np.ndarray,
-             along: np.ndarray, drive: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _no_slip(st: FleetState, ns: np.ndarray, pos: np.ndarray, ang: np.ndarray,
+             v_now: np.ndarray, cmd: np.ndarray, w: np.ndarray, drive: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
     """Commands for bodies that cannot move sideways (rows ``ns``): a speed along the
-    heading only. Driving, the lateral error is corrected by steering (a heading offset
-    ``atan(-LATERAL_GAIN x lateral / speed)``, at most :data:`MAX_STEER_RAD`), with the turn
-    rate capped so that the centripetal acceleration ``speed x turn rate`` takes at most
-    :data:`STEER_ACCEL_SHARE` of the acceleration limit; the speed then changes by at most
-    what is left, so the velocity vector changes by at most ``max_accel dt`` per step.
-    The speed is also kept to what still stops the *body* at the stop point (a body that
-    steered back onto the line lags its reference and would otherwise catch up and brake
-    too late). Standing or turning, the hold pull is projected onto the heading."""
+    heading only. A deadbeat command with less than :data:`NO_SLIP_EXACT_MPS` across the
+    heading (the body is on its path) is projected onto it. Otherwise, driving, the lateral
+    error is corrected by steering (a heading offset ``atan(-LATERAL_GAIN x lateral /
+    speed)``, at most :data:`MAX_STEER_RAD`), with the turn rate capped so that the
+    centripetal acceleration ``speed x turn rate`` takes at most :data:`STEER_ACCEL_SHARE`
+    of the acceleration limit; the speed then changes by at most what is left, so the
+    velocity vector changes by at most ``max_accel dt`` per step. The speed is also kept to
+    what still stops the *body* at the stop point. Standing or turning, the hold pull is
+    projected onto the heading."""
     dt, a, vmax = st.dt, st.amax[ns], st.vmax[ns]
-    hx, hy = np.cos(ang), np.sin(ang)
-    u_now = v_now[:, 0] * hx + v_now[:, 1] * hy
-    ref = np.maximum(np.abs(st.speed[ns]), np.abs(u_now))
-    steer_off = np.clip(np.arctan2(-LATERAL_GAIN * lateral, np.maximum(ref, 0.2)),
-                        -MAX_STEER_RAD, MAX_STEER_RAD)
-    path = np.arctan2(st.direction[ns, 1], st.direction[ns, 0])
-    cap = np.minimum(st.wmax[ns], STEER_ACCEL_SHARE * a / np.maximum(np.abs(u_now), 1e-6))
-    w_drive = np.clip(HEADING_GAIN * wrap(path + steer_off - ang), -cap, cap)
-    w = np.where(drive, w_drive, w)
-    stop = stop_speed(st.stop_s[ns] - along, a, dt, np.maximum(u_now, 0.0))
-    u_want = np.where(drive, np.minimum(v_along, stop), vel[:, 0] * hx + vel[:, 1] * hy)
-    room = np.sqrt(np.maximum(a * a - (u_now * w) ** 2, (0.1 * a) ** 2)) * dt
-    u = np.clip(np.clip(u_want, u_now - room, u_now + room), -vmax, vmax)
-    # Along the heading the body will have in the middle of the next move.
     mid = ang + 0.5 * w * dt
-    return np.column_stack([u * np.cos(mid), u * np.sin(mid)]), w
+    hx, hy = np.cos(mid), np.sin(mid)
+    side = np.abs(-cmd[:, 0] * hy + cmd[:, 1] * hx)
+    u_cmd = cmd[:, 0] * hx + cmd[:, 1] * hy
+    exact = side < NO_SLIP_EXACT_MPS
+    steer_rows = drive & ~exact
+    u_now = v_now[:, 0] * np.cos(ang) + v_now[:, 1] * np.sin(ang)
+    u = u_cmd
+    if steer_rows.any():
+        rel = pos - st.origin[ns]
+        d = st.direction[ns]
+        lateral = rel[:, 0] * -d[:, 1] + rel[:, 1] * d[:, 0]
+        along = (rel * d).sum(axis=1)
+        ref = np.maximum(np.abs(st.speed[ns]), np.abs(u_now))
+        steer_off = np.clip(np.arctan2(-LATERAL_GAIN * lateral, np.maximum(ref, 0.2)),
+                            -MAX_STEER_RAD, MAX_STEER_RAD)
+        path = np.arctan2(d[:, 1], d[:, 0])
+        cap = np.minimum(st.wmax[ns], STEER_ACCEL_SHARE * a / np.maximum(np.abs(u_now), 1e-6))
+        w_drive = np.clip(HEADING_GAIN * wrap(path + steer_off - ang), -cap, cap)
+        w = np.where(steer_rows, w_drive, w)
+        stop = stop_speed(st.stop_s[ns] - along, a, dt, np.maximum(u_now, 0.0))
+        v_along = st.speed[ns] + np.clip(ALONG_GAIN * (st.s_ref[ns] - along), -0.2, 0.2)
+        u_want = np.minimum(v_along, stop)
+        room = np.sqrt(np.maximum(a * a - (u_now * w) ** 2, (0.1 * a) ** 2)) * dt
+        u_steer = np.clip(np.clip(u_want, u_now - room, u_now + room), -vmax, vmax)
+        u = np.where(steer_rows, u_steer, u)
+    rest = ~steer_rows
+    if rest.any():
+        # Every other row as when steering: the turn rate and the speed change share the
+        # acceleration limit (nothing changes for a body on its path at rest or driving
+        # straight; a body that still moves while it turns, or leaves a steering
+        # correction, turns its velocity no faster than the limit allows).
+        cap = np.minimum(st.wmax[ns], STEER_ACCEL_SHARE * a / np.maximum(np.abs(u_now), 1e-6))
+        w = np.where(rest, np.clip(w, -cap, cap), w)
+        room = np.sqrt(np.maximum(a * a - (u_now * w) ** 2, (0.1 * a) ** 2)) * dt
+        u = np.where(rest, np.clip(u, u_now - room, u_now + room), u)
+    mid = ang + 0.5 * w * dt
+    # The velocity vector (speed along the turning heading) at most a dt from the present
+    # one: the speed nearest the wanted one for which |u h - v_now| <= a dt.
+    hx, hy = np.cos(mid), np.sin(mid)
+    hv = v_now[:, 0] * hx + v_now[:, 1] * hy
+    disc = hv * hv - np.einsum("ij,ij->i", v_now, v_now) + (a * dt) ** 2
+    r = np.sqrt(np.maximum(disc, 0.0))
+    u = np.where(disc > 0, np.clip(u, hv - r, hv + r), hv)
+    return np.column_stack([u * hx, u * hy]), w

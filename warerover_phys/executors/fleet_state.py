@@ -54,7 +54,7 @@ class FleetState:
     heading: np.ndarray = field(init=False)
     """Heading to hold (radians)."""
     ang_ref: np.ndarray = field(init=False)
-    """Reference heading while turning."""
+    """Reference heading while turning (radians)."""
     cur_end: np.ndarray = field(init=False)
     """End of the running action along the run (metres from its origin)."""
     stop_s: np.ndarray = field(init=False)
@@ -103,6 +103,12 @@ class FleetState:
     @property
     def n(self) -> int:
         return len(self.k)
+
+    def ref_xy(self) -> np.ndarray:
+        """(N, 2) reference points (metres): along the run while driving, the hold point
+        (cell centre) while standing or turning."""
+        run = self.origin + self.direction * self.s_ref[:, None]
+        return np.where((self.mode == DRIVE)[:, None], run, self.hold_xy)
 
     def along(self, pos: np.ndarray) -> np.ndarray:
         """Distance of each body (N, 2 positions) along its current run from its origin."""

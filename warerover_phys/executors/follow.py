@@ -4,7 +4,8 @@
 :class:`~.adg.ActionGraph` (commit cut: the AGV keeps the action it is driving, the rest is
 replaced), draws the tick's random delays, and per physics step
 
-- finishes actions whose reference and body have reached the target cell;
+- runs the references through the step and finishes turns and actions at the exact times
+  their references end them (the rest of the step goes to the next action);
 - looks ahead of driving AGVs and pushes their stop point to the end of the released
   collinear run (claiming those actions in the ADG);
 - turns standing differential-drive AGVs towards their next move, and starts it once the
@@ -28,7 +29,7 @@ from ..planning.base import TimedPath
 from ..planning.paths import footprint_nodes, occupancy
 from ..validate import DWELL_HEADING_TOL_RAD, DWELL_POS_TOL_M
 from .bodies import cell_centre
-from .control import ALIGN_EPS_RAD, ARRIVE_EPS_M, TURN_EPS_RAD, wrap
+from .control import ARRIVE_EPS_M, TURN_EPS_RAD, run_references, wrap
 from .fleet_state import DRIVE, HOLD, TURN, FleetState
 
 if TYPE_CHECKING:
@@ -41,6 +42,8 @@ __all__ = ["LOOKAHEAD", "DECIDE_S", "PlanFollower"]
 
 LOOKAHEAD = 8
 """Actions looked at (and claimed) ahead of a driving AGV."""
+MAX_EVENTS = 6
+"""Most events (turn done, action done) one AGV's reference passes in one physics step."""
 DECIDE_S = 0.1
 """Simulated seconds between checks of standing AGVs (may they start their next action?):
 every ``FleetState.decide_every = round(DECIDE_S / dt)`` physics steps, so that decisions
@@ -162,25 +165,21 @@ class PlanFollower:
 
     def advance(self, pos: np.ndarray, ang: np.ndarray, delayed: np.ndarray,
                 decide: bool) -> None:
-        """Finish, extend, turn and start actions for bodies at ``pos`` / ``ang`` (the poses
-        they will have after this step's move); ``decide`` on every
-        ``st.decide_every`` th step (every :data:`DECIDE_S` seconds)."""
+        """One physics step from ``st.sim_s`` for bodies at ``pos`` / ``ang`` (their poses
+        now): extend runs and decide for standing AGVs (on every ``st.decide_every`` th
+        step, every :data:`DECIDE_S` seconds, when ``decide``), then run the references
+        through the step (:func:`~.control.run_references`), finishing turns and actions at
+        the exact times their references get there and giving the rest of the step to what
+        follows (a move after its turn, the next cell of a run)."""
         st = self.st
         t = st.sim_s
         self.adg.now = t
-        along = st.along(pos)
-        driving = st.mode == DRIVE
-        # Arrived at the action's target: the reference has reached it and the body is
-        # within ARRIVE_EPS_M of it (or past it).
-        for i in np.flatnonzero(driving & (st.s_ref >= st.cur_end - 1e-9)
-                                & (along >= st.cur_end - ARRIVE_EPS_M)):
-            self._arrive(int(i), t)
         if decide:
             # Look further ahead for AGVs that would otherwise start braking before the
             # next look (the margin covers two decision intervals).
             driving = st.mode == DRIVE
             brake = st.speed ** 2 / (2 * st.amax) + 2 * st.vmax * st.dt * st.decide_every
-            for i in np.flatnonzero(driving & ~delayed & (st.stop_s - along < brake + 0.05)):
+            for i in np.flatnonzero(driving & ~delayed & (st.stop_s - st.s_ref < brake + 0.05)):
                 self._extend(int(i))
             st.waiting[:] = False
             st.listening[:] = False
@@ -196,13 +195,26 @@ class PlanFollower:
                 asleep[i] = False
                 self._decide(i, t, bool(delayed[i]), float(ang[i]))
             woken.clear()
-        turning = st.mode == TURN
-        if turning.any():
-            aligned = turning & (st.ang_ref == st.heading) & (
-                np.abs(wrap(st.heading - ang)) < ALIGN_EPS_RAD)
-            for i in np.flatnonzero(aligned):
-                st.mode[i] = HOLD
-                self._decide(int(i), t, bool(delayed[i]), float(ang[i]))
+        left = np.full(st.n, st.dt)
+        busy = st.mode != HOLD
+        for _ in range(MAX_EVENTS):
+            idx = np.flatnonzero(busy)
+            if len(idx) == 0:
+                break
+            used, event = run_references(st, idx, left[idx], delayed[idx])
+            left[idx] -= used
+            busy[:] = False
+            for i in idx[event]:
+                i = int(i)
+                t_ev = t + st.dt - left[i]
+                self.adg.now = t_ev
+                if st.mode[i] == TURN:
+                    st.mode[i] = HOLD
+                    self._decide(i, t_ev, bool(delayed[i]), float(st.heading[i]))
+                else:
+                    self._arrive(i, t_ev)
+                busy[i] = st.mode[i] != HOLD and left[i] > 0
+        self.adg.now = t
 
     def _decide(self, i: int, t: float, delayed: bool, angle: float) -> None:
         """A standing (or turning) AGV: turn towards its next move, then start it once the
@@ -226,7 +238,14 @@ class PlanFollower:
                         return
                     if nxt.sweeps and self.spec.adg:
                         self.adg.claim(i, 1)  # no AGV may go ahead of it mid-turn
-                    st.heading[i] = want
+                    # The heading is kept unwrapped so the turn's direction is fixed at
+                    # its start; a half turn always goes counter-clockwise (its direction
+                    # must not depend on float noise in the body's angle).
+                    turn = float(wrap(want - angle))
+                    if turn < -math.pi + 1e-6:
+                        turn += 2 * math.pi
+                    st.ang_ref[i] = angle
+                    st.heading[i] = angle + turn
                     st.mode[i] = TURN
                     self.adg.set_heading(i, nxt.direction)
                 else:
@@ -261,6 +280,8 @@ class PlanFollower:
         st.mode[i] = DRIVE
         st.speed[i] = 0.0
         st.s_ref[i] = 0.0
+        if not st.omni[i]:
+            st.heading[i] = math.atan2(a.direction[0], a.direction[1])
         self._begin_action(i, a, t)
         self._extend(i)
 

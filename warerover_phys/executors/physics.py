@@ -5,10 +5,13 @@ Each tick (``tick_s`` seconds) the executor
 1. hands every new or changed plan to the :class:`~.adg.ActionGraph` (commit cut: the AGV
    keeps the action it is driving, the rest is replaced);
 2. draws the tick's random delays (seeded, ``executor.delays``);
-3. steps the pymunk world ``tick_s / dt_s`` times. Per step, the plan follower finishes,
-   extends and starts actions as the ADG allows (or, with ``adg: false``, at their planned
-   ticks: naive time-indexed following, for comparison), and a vectorised control law sets
-   every control body's velocity along its current straight run;
+3. steps the pymunk world ``tick_s / dt_s`` times. Per step, the plan follower extends
+   and starts actions as the ADG allows (or, with ``adg: false``, at their planned ticks:
+   naive time-indexed following, for comparison), every AGV's continuous-time reference
+   runs through the step (actions and turns end at their exact times inside it), and a
+   vectorised control law gives every body the velocity that puts it on its reference at
+   the step's end (kinematic drive: the body and its control body get it directly, so with
+   no contact the poses at the step ends common to two ``dt_s`` are the same);
 4. reports each AGV's discrete state (standing at a cell, or moving between two) for the
    loop to write into the world, blocked AGVs (waiting on a dependency) and AGVs to replan
    (dependency deadlock, deviation from the path). It never touches the world itself.
@@ -41,8 +44,8 @@ from .accounting import Accounting
 from .adg import ActionGraph
 from .base import ExecutorSetup, StepReport, TickView
 from .bodies import BodyIO, PhysicalFleet, build_space, cell_centre, unsolved_agv_contacts
-from .control import steer, wrap
-from .fleet_state import HOLD, FleetState
+from .control import OFF_REFERENCE_M, steer, wrap
+from .fleet_state import DRIVE, HOLD, FleetState
 from .follow import DECIDE_S, PlanFollower
 
 if TYPE_CHECKING:
@@ -125,6 +128,10 @@ class PhysicsExecutor:
         self.parked_steps = 0
         """AGV-steps spent parked (``executor.park``)."""
         self._n_parked = 0
+        self._off = np.zeros(n, dtype=bool)
+        self._all_bodies = np.ones(n, dtype=bool)
+        self.off_reference = 0
+        """Times a body was found off its reference (:meth:`_off_reference`)."""
         self._bound = True
 
     def _contact(self, a: int, b: int, point: tuple[float, float]) -> None:
@@ -191,24 +198,43 @@ class PhysicsExecutor:
         st = self.state
         raw, raw_ang, v_now, w_now = self.io.read()
         raw, raw_ang = raw.copy(), raw_ang.copy()
-        # pymunk moves bodies with the velocity of the previous step before it solves the
-        # joints: decide and steer on the pose the body has after this step's move.
-        pos = raw + v_now * st.dt
-        ang = raw_ang + w_now * st.dt
         t = st.sim_s
         injected = st.delayed_until > t
         delayed = injected | st.failed | (self.contact_until > t)
-        self.follow.advance(pos, ang, delayed, decide)
+        delayed |= self._off_reference(raw)
+        ref0 = st.ref_xy()
+        self.follow.advance(raw, raw_ang, delayed, decide)
         self._comm_wait_s += float(np.count_nonzero(st.listening)) * st.dt
-        vel, w = steer(st, pos, ang, delayed, v_now)
+        vel, w = steer(st, raw, raw_ang, v_now, ref0)
         if self._shelf_contacts:
-            self.fleet.orient_shelves(ang)
-        self.io.write(vel, w)
+            self.fleet.orient_shelves(raw_ang)
+        # Kinematic drive: the bodies get the step's velocities directly (pymunk moves
+        # them with their present velocity before it solves joints and contacts), their
+        # control bodies the same, so the drive joints exert nothing unless a contact
+        # changed a body's velocity.
+        self.io.write(vel, w, bodies=self._all_bodies)
         if self._park:
             self._update_parking(raw, raw_ang, v_now, w_now, decide)
         self.space.step(st.dt)
         st.sim_s = t + st.dt
         self.acc.after_step(raw, raw_ang, injected, t)
+
+    def _off_reference(self, pos: np.ndarray) -> np.ndarray:
+        """Driving bodies more than :data:`~.control.OFF_REFERENCE_M` behind their
+        reference points along the run (held back by a contact or an obstacle): their
+        references brake until the bodies are back. Each new such episode is an
+        ``off_reference`` event. (A sideways offset is no hold-up: the control law steers
+        it out, and a large one is a deviation the follower replans.)"""
+        st = self.state
+        lag = st.s_ref - st.along(pos)
+        off = (st.mode == DRIVE) & (lag > OFF_REFERENCE_M)
+        for i in np.flatnonzero(off & ~self._off):
+            self.off_reference += 1
+            self.acc.events.append(("off_reference", {
+                "tick": self._tick, "agv": int(i), "t_s": round(st.sim_s, 3),
+                "m": round(float(lag[i]), 3)}))
+        self._off = off
+        return off
 
     def _update_parking(self, pos: np.ndarray, ang: np.ndarray, v: np.ndarray,
                         w: np.ndarray, look: bool) -> None:
@@ -296,6 +322,7 @@ class PhysicsExecutor:
             "comm_latency_s": float(getattr(spec, "comm_latency_s", 0.0)),
             "delay_comm_latency_s": self._comm_wait_s,
             "parked_agv_s": self.parked_steps * self.dt,
+            "off_reference": self.off_reference,
         })
         return out
 
