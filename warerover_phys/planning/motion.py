@@ -6,11 +6,10 @@ so that a plan timed with it is what that executor needs when nothing gets in th
 - **Straight runs.** Along a run of collinear moves the executor's reference point runs a
   trapezoid from rest to rest: accelerate at ``max_accel_mps2`` to ``max_speed_mps``,
   cruise, brake at ``max_accel_mps2`` so as to stop exactly on the run's last cell centre
-  (the reference is exact in steps of ``dt``: :func:`~warerover_phys.executors.control.
-  stop_speed`). A run too short to reach top speed is a triangle that peaks at
-  ``sqrt(a d)``. The body follows the reference through the command limiter (at most
-  ``v_max`` and ``a dt`` away from its present velocity), so it cannot be faster; it
-  arrives within a physics step or two of the reference. A run of ``k`` cells therefore
+  (the executor evaluates it analytically, whatever ``dt``). A run too short to reach top
+  speed is a triangle that peaks at ``sqrt(a d)``. The body tracks the reference exactly
+  when nothing blocks it (it is driven kinematically), so it arrives when the reference
+  does. A run of ``k`` cells therefore
   takes :meth:`MotionModel.run_s` ``(k)``, less than ``k`` separate moves
   (``k x run_s(1)``). A 2x2 body moves its anchor one cell per move, so its moves are
   runs of ``cell_m`` metres too, at its own limits.
@@ -24,9 +23,9 @@ so that a plan timed with it is what that executor needs when nothing gets in th
   A quarter turn takes ``(pi / 2) / max_turn_rate_radps`` (:meth:`MotionModel.turn_s`).
   Omnidirectional AGVs never turn (``turn_s`` is 0).
 
-Times are continuous (seconds). The executor rounds each turn up to whole physics steps and
-decides for standing AGVs every 0.1 s (``executors.follow.DECIDE_S``); the model leaves both
-out (measured against physics: ``tests/planning/test_motion.py``).
+Times are continuous (seconds). The executor ends turns and runs at their exact times inside
+a physics step, but decides for standing AGVs only every 0.1 s (``executors.follow.DECIDE_S``);
+the model leaves that out (measured against physics: ``tests/planning/test_motion.py``).
 
 >>> from warerover_phys.config import AgvTypeSpec
 >>> m = MotionModel.of(AgvTypeSpec(max_speed_mps=1.5, max_accel_mps2=1.0), cell_m=1.0)
