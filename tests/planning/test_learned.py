@@ -236,6 +236,29 @@ def test_cli_solve_exits_2_on_missing_truncated_or_misshapen_weights(tmp_path, k
     assert str(path.name) in lines[0] and want in lines[0] and "Traceback" not in r.output
 
 
+@pytest.mark.parametrize("kind", ["missing", "truncated", "wrong shape"])
+def test_cli_run_exits_2_on_missing_truncated_or_misshapen_weights(tmp_path, kind):
+    """The same three faults through ``run`` and the scenario field ``planner.weights``."""
+    from typer.testing import CliRunner
+
+    from warerover_phys.cli import app
+
+    path = {"missing": lambda: tmp_path / "none.npz",
+            "truncated": lambda: tmp_path / "cut.npz",
+            "wrong shape": lambda: _resave(tmp_path, W3=np.zeros((64, 5), np.float32))}[kind]()
+    if kind == "truncated":
+        path.write_bytes(DEFAULT_WEIGHTS.read_bytes()[: DEFAULT_WEIGHTS.stat().st_size // 2])
+    want = {"missing": "weights file not found", "truncated": "not a readable .npz",
+            "wrong shape": "W3: expected 128 input rows"}[kind]
+    r = CliRunner().invoke(app, ["run", str(PAPER), "--planner", "learned", "--set",
+                                 f"planner.weights={path}", "--json", "--out",
+                                 str(tmp_path / "out")],
+                           env={"NO_COLOR": "1", "COLUMNS": "300"})
+    lines = r.output.strip().splitlines()
+    assert r.exit_code == 2 and len(lines) == 1, r.output
+    assert path.name in lines[0] and want in lines[0] and "Traceback" not in r.output
+
+
 def test_policy_features_v2_priorities_intentions_scalars():
     """Feature set 2: the observation, others' priority sign, their greedy next cells
     (signed by priority) and four scalars; version 1 is the flattened observation."""
