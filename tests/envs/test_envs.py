@@ -305,17 +305,23 @@ def test_physics_in_transit_actions_wait_and_rotations_are_cancelled():
     assert phys.states() == {i: (v, v) for i, v in enumerate(want)}
 
 
-def test_grid_executor_through_the_protocol_matches_the_rules():
-    """The registry's grid executor, driven through the Executor Protocol, moves every agent
-    exactly as the built-in rules (no rotation happens in this episode)."""
+@pytest.mark.parametrize("rotations", [False, True])
+def test_grid_executor_through_the_protocol_matches_the_rules(rotations):
+    """The registry's grid executor, driven through the Executor Protocol, moves (and, with
+    rotations, turns: no poses, so a turn takes one step) every agent exactly as the
+    built-in rules (no cycle of moves happens in these episodes)."""
     def run(executor):
-        env = parallel_env(small(), num_agents=6, max_steps=40, executor=executor)
+        env = parallel_env(small(), num_agents=6, max_steps=40, executor=executor,
+                           rotations=rotations)
         env.reset(seed=2)
+        if rotations:
+            env.core.heading[:] = 0  # a real executor's bodies start facing east
         rng = np.random.default_rng(11)
-        out = [env.core.paths()]
+        k = env.core.num_actions
+        out = [(env.core.paths(), env.core.heading.tolist())]
         while env.agents:
-            env.step({a: int(rng.integers(5)) for a in env.agents})
-            out.append(env.core.paths())
+            env.step({a: int(rng.integers(k)) for a in env.agents})
+            out.append((env.core.paths(), env.core.heading.tolist()))
         return out
 
     assert run("grid") == run("warerover_phys.executors.grid:GridExecutor")

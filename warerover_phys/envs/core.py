@@ -507,10 +507,9 @@ class GridMAPF:
         """Rotations on a real executor: each agent's heading from the body angle of the
         report. A turning agent keeps its heading until its body faces the one it turns to
         (within :data:`ALIGN_RAD`); its turn takes as long as the executor's motion
-        model says."""
-        if report.poses is None:
-            raise ValueError(f"rotations on {self.executor_spec.name!r}: its step report "
-                             "gives no poses (no body headings)")
+        model says. An executor without poses (no bodies) turns in one step."""
+        if report.poses is None:  # no bodies (the grid executor): a turn takes one step
+            return self.turn_to.copy()
         ang = report.poses[:, 2]
         want = self.turn_to * (np.pi / 2)
         done = np.abs((ang - want + np.pi) % (2 * np.pi) - np.pi) < ALIGN_RAD
