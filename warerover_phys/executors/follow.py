@@ -74,10 +74,10 @@ class PlanFollower:
         """AGVs whose new plan did not fit their commit cut: replanned once they stand."""
         self._cycles_seen: set[frozenset[int]] = set()
         self._asleep = np.zeros(st.n, dtype=bool)
+        """AGVs waiting on the dependency graph that need no decision until woken."""
         self._turn_in_place_on = bool(getattr(spec, "turn_in_place", False))
         self._face: dict[int, int] = {}
         """Standing AGVs to turn in place: AGV -> heading (direction index) of its plan."""
-        """AGVs waiting on the dependency graph that need no decision until woken."""
         self._holds: dict[int, dict[int, int]] = {}
         """Planned dwells (``TickView.dwells``): AGV -> action seq -> ticks it must stand
         before that action (from its arrival at the action's start cell)."""
@@ -215,7 +215,8 @@ class PlanFollower:
                 self._decide(i, t, bool(delayed[i]), float(ang[i]))
             woken.clear()
             for i in list(self._face):
-                if st.mode[i] == HOLD and not st.has_next[i] and not delayed[i]:
+                if st.mode[i] == HOLD and not st.has_next[i] and not delayed[i] \
+                        and not st.failed[i]:
                     self._turn_in_place(i, float(ang[i]))
         left = np.full(st.n, st.dt)
         busy = st.mode != HOLD
