@@ -509,6 +509,12 @@ class ExecutorSpec(_Model):
     fell from 1.0 to 0.15-0.35 (``tools/README.md``). ``false`` (default): such a turn
     goes ahead, the overlap is reported in ``min_clearance_m``. No effect on bodies whose
     disc stays clear of neighbours' shelves (the default 0.7 m)."""
+    turn_in_place: Bool = False
+    """Physics: a differential-drive AGV whose committed plan only stands on its cell and
+    changes its heading (``TimedPath.headings``) turns in place to the plan's last heading
+    at once, at its turn rate (if its turn sweeps no cell beyond its own). ``false``
+    (default): plan headings are not followed; the AGV turns when its next move comes. The
+    environments (``warerover_phys.envs``) turn it on for their turn actions."""
     park: Bool = True
     """Physics: an AGV that stands still on its hold point (within 1 mm, at rest, facing its
     heading) has its drive joints taken out of the pymunk world until it moves again, so

@@ -305,17 +305,23 @@ def test_physics_in_transit_actions_wait_and_rotations_are_cancelled():
     assert phys.states() == {i: (v, v) for i, v in enumerate(want)}
 
 
-def test_grid_executor_through_the_protocol_matches_the_rules():
-    """The registry's grid executor, driven through the Executor Protocol, moves every agent
-    exactly as the built-in rules (no rotation happens in this episode)."""
+@pytest.mark.parametrize("rotations", [False, True])
+def test_grid_executor_through_the_protocol_matches_the_rules(rotations):
+    """The registry's grid executor, driven through the Executor Protocol, moves (and, with
+    rotations, turns: no poses, so a turn takes one step) every agent exactly as the
+    built-in rules (no cycle of moves happens in these episodes)."""
     def run(executor):
-        env = parallel_env(small(), num_agents=6, max_steps=40, executor=executor)
+        env = parallel_env(small(), num_agents=6, max_steps=40, executor=executor,
+                           rotations=rotations)
         env.reset(seed=2)
+        if rotations:
+            env.core.heading[:] = 0  # a real executor's bodies start facing east
         rng = np.random.default_rng(11)
-        out = [env.core.paths()]
+        k = env.core.num_actions
+        out = [(env.core.paths(), env.core.heading.tolist())]
         while env.agents:
-            env.step({a: int(rng.integers(5)) for a in env.agents})
-            out.append(env.core.paths())
+            env.step({a: int(rng.integers(k)) for a in env.agents})
+            out.append((env.core.paths(), env.core.heading.tolist()))
         return out
 
     assert run("grid") == run("warerover_phys.executors.grid:GridExecutor")
@@ -433,8 +439,13 @@ def test_rotation_actions_and_heading_channel():
         == [0, 1, 2, 3, 3]
     with pytest.raises(ValueError, match="actions in 0..3"):
         core.step(np.array([4]))
-    with pytest.raises(ValueError, match="grid executor"):
-        EnvConfig(rotations=True, executor="physics")
+    from warerover_phys.config import AgvTypeSpec
+
+    with pytest.raises(ValueError, match="differential drive"):
+        EnvConfig(rotations=True, executor="physics", agv_type=AgvTypeSpec(drive="omni"))
+    with pytest.raises(ValueError, match="sweeps beyond its cell"):
+        GridMAPF(small(), EnvConfig(rotations=True, executor="physics",
+                                    agv_type=AgvTypeSpec(body_m=(1.0, 1.0))))
 
 
 def test_rotations_from_the_scenario(tmp_path):
@@ -457,3 +468,103 @@ def test_rotations_from_the_scenario(tmp_path):
         assert obs.shape == (NUM_CHANNELS + 1, 11, 11)
         if term or trunc:
             break
+
+
+# ------------------------------------------------------------------- rotations on physics
+# Turn actions on a real executor: a turn is a committed plan that stands on its cell and
+# changes its heading; the body turns at the motion model's rate and the report's body
+# angle says when the turn is over (until then the agent is ``turning``: its actions wait).
+
+
+def test_physics_rotations_check_env_and_parallel_api_test():
+    check_env(MAPFGymEnv(small(), num_agents=6, max_steps=15, rotations=True,
+                         executor="physics"), skip_render_check=True)
+    check_env(MAPFGymEnv(small(), num_agents=4, others="wait", max_steps=15, rotations=True,
+                         executor="physics"), skip_render_check=True)
+    parallel_api_test(parallel_env(small(), num_agents=6, max_steps=20, rotations=True,
+                                   executor="physics"), num_cycles=25)
+
+
+def _physics_rotation_episode(seed: int, agv_type=None, agents: int = 5, steps: int = 25):
+    env = parallel_env(small(), num_agents=agents, max_steps=steps, rotations=True,
+                       executor="physics", agv_type=agv_type, lifelong=True)
+    obs, _ = env.reset(seed=seed)
+    core = env.core
+    rng = np.random.default_rng(seed + 100)
+    states, heads = [core.states()], [core.heading.tolist()]
+    record = [np.stack(list(obs.values()))]
+    while env.agents:
+        acts = rng.choice(4, size=agents, p=[0.1, 0.5, 0.2, 0.2])
+        busy, h0 = core.busy(), core.heading.copy()
+        obs, rew, _, _, infos = env.step(dict(zip(env.possible_agents, acts.tolist(),
+                                                  strict=True)))
+        assert core.report.states == core.states()  # the executor's report decides
+        turning = np.array([infos[a]["turning"] for a in env.possible_agents])
+        assert (turning == core.turning()).all()
+        # An idle agent asked to turn turns (at once or over steps); a busy one ignores it.
+        asked = ~busy & (acts >= 2)
+        want = (h0 + np.array([0, 0, -1, 1])[acts]) % 4
+        assert (core.turn_to[asked] == want[asked]).all()
+        assert (core.heading[busy & ~turning] == core.turn_to[busy & ~turning]).all()
+        record += [np.stack(list(obs.values())), np.array(list(rew.values())), turning]
+        states.append(core.states())
+        heads.append(core.heading.tolist())
+    return states, heads, record, core
+
+
+@pytest.mark.parametrize("turn_rate", [2.5, 0.5])
+def test_physics_rotations_are_executed_validated_and_deterministic(turn_rate):
+    """Random rotation actions on physics (a quarter turn in 0.63 s: one step; at 0.5
+    rad/s: 3.14 s, four steps): the reported states pass the validator with the motion
+    model's turn ticks, nobody collides, and the same seed gives the same episode."""
+    from warerover_phys.config import AgvTypeSpec
+    from warerover_phys.planning.rotation import agent_turn_ticks
+    from warerover_phys.validate import validate_headings
+
+    spec = AgvTypeSpec(body_m=(0.7, 0.7), max_speed_mps=1.0, max_turn_rate_radps=turn_rate)
+    states, heads, record, core = _physics_rotation_episode(3, spec)
+    n = core.num_agents
+    traj = {i: [s[i] for s in states] for i in range(n)}
+    headings = {i: [h[i] for h in heads] for i in range(n)}
+    assert [c for c in validate_states(traj, ~core.free) if c.kind != "move"] == []
+    q = agent_turn_ticks(spec, 1.0)
+    assert q == ((1, 2) if turn_rate == 2.5 else (4, 7))
+    assert validate_headings(traj, headings, core.cols, turn_ticks=dict.fromkeys(traj, q)) \
+        == []
+    assert core.collisions == 0
+    turns = sum(a != b for h in headings.values() for a, b in zip(h, h[1:], strict=False))
+    moves = sum(a[0] != b[0] for t in traj.values() for a, b in zip(t, t[1:], strict=False))
+    assert turns > 5 and moves > 5
+    again = _physics_rotation_episode(3, spec)
+    assert again[0] == states and again[1] == heads
+    assert all(np.array_equal(x, y) for x, y in zip(again[2], record, strict=True))
+    assert _physics_rotation_episode(4, spec)[0] != states
+
+
+def test_physics_turn_takes_the_motion_models_time():
+    """One agent: a quarter turn at 0.5 rad/s keeps it ``turning`` for exactly
+    ``turn_ticks`` steps (its actions then wait); it then moves along its new heading."""
+    from warerover_phys.config import AgvTypeSpec
+    from warerover_phys.planning.rotation import turn_ticks
+
+    spec = AgvTypeSpec(body_m=(0.7, 0.7), max_speed_mps=1.0, max_turn_rate_radps=0.5)
+    q = turn_ticks(spec, 1.0, 1)
+    core = GridMAPF(Instance(np.zeros((3, 4), dtype=bool), ((1, 1),), ((2, 1),)),
+                    EnvConfig(num_agents=1, rotations=True, executor="physics",
+                              agv_type=spec))
+    core.reset(np.random.default_rng(0))
+    assert core.heading.tolist() == [0]  # the executor starts bodies facing east
+    core.step(np.array([3]))  # turn right: towards south
+    steps = 1
+    while core.turning()[0]:
+        assert core.heading.tolist() == [0] and core.turn_to.tolist() == [1]
+        core.step(np.array([2]))  # ignored while turning
+        steps += 1
+    assert steps == q and core.heading.tolist() == [1]
+    assert abs(core.report.poses[0, 2] - np.pi / 2) < 1e-6
+    for _ in range(4):
+        _, _, blocked, term, _ = core.step(np.array([1]))  # forward: south
+        assert not blocked[0]
+        if term:
+            break
+    assert term and core.paths() == [(2, 1)] and core.heading.tolist() == [1]

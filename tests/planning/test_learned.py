@@ -174,6 +174,10 @@ def test_mixed_fleet_is_refused():
     req.agents[0] = AgentRequest(0, req.agents[0].start, req.agents[0].goal, k=2)
     with pytest.raises(PlanningError, match="1x1 AGVs"):
         LearnedPlanner().plan(req)
+    req = _request(world)
+    req.agents[0] = AgentRequest(0, req.agents[0].start, req.agents[0].goal, turn_ticks=(1, 2))
+    with pytest.raises(PlanningError, match="does not plan rotations"):
+        LearnedPlanner().plan(req)
 
 
 @pytest.mark.parametrize("seed", [1, 2])
@@ -232,6 +236,29 @@ def test_cli_solve_exits_2_on_missing_truncated_or_misshapen_weights(tmp_path, k
     assert str(path.name) in lines[0] and want in lines[0] and "Traceback" not in r.output
 
 
+@pytest.mark.parametrize("kind", ["missing", "truncated", "wrong shape"])
+def test_cli_run_exits_2_on_missing_truncated_or_misshapen_weights(tmp_path, kind):
+    """The same three faults through ``run`` and the scenario field ``planner.weights``."""
+    from typer.testing import CliRunner
+
+    from warerover_phys.cli import app
+
+    path = {"missing": lambda: tmp_path / "none.npz",
+            "truncated": lambda: tmp_path / "cut.npz",
+            "wrong shape": lambda: _resave(tmp_path, W3=np.zeros((64, 5), np.float32))}[kind]()
+    if kind == "truncated":
+        path.write_bytes(DEFAULT_WEIGHTS.read_bytes()[: DEFAULT_WEIGHTS.stat().st_size // 2])
+    want = {"missing": "weights file not found", "truncated": "not a readable .npz",
+            "wrong shape": "W3: expected 128 input rows"}[kind]
+    r = CliRunner().invoke(app, ["run", str(PAPER), "--planner", "learned", "--set",
+                                 f"planner.weights={path}", "--json", "--out",
+                                 str(tmp_path / "out")],
+                           env={"NO_COLOR": "1", "COLUMNS": "300"})
+    lines = r.output.strip().splitlines()
+    assert r.exit_code == 2 and len(lines) == 1, r.output
+    assert path.name in lines[0] and want in lines[0] and "Traceback" not in r.output
+
+
 def test_policy_features_v2_priorities_intentions_scalars():
     """Feature set 2: the observation, others' priority sign, their greedy next cells
     (signed by priority) and four scalars; version 1 is the flattened observation."""
@@ -271,3 +298,78 @@ def test_old_weights_version_1_still_load_and_plan(tmp_path):
     assert paths is not None
     states = {i: [(r * m.cols + c,) * 2 for r, c in p] for i, p in enumerate(paths)}
     assert validate_states(states, m.obstacles) == []
+
+
+# ------------------------------------------------------------------ sweeps, execute, training
+
+def test_learned_in_a_sweep(tmp_path):
+    """``planner.name: learned`` as a sweep axis: every episode runs and succeeds."""
+    import json
+
+    import yaml
+
+    from warerover_phys.sweep import load_sweep, run_sweep
+
+    path = tmp_path / "sweep.yaml"
+    path.write_text(yaml.safe_dump({
+        "name": "learned", "scenarios": {"Ho": str(PAPER)},
+        "grid": {"planner.name": ["learned", "pibt"]},
+        "set": {"orders.oneshot.count": 4, "max_ticks": 80}, "repetitions": 1}))
+    summary = run_sweep(load_sweep(path), tmp_path / "out", workers=1)
+    assert summary.ran == 2
+    rows = [json.loads(line) for line in
+            (tmp_path / "out" / "results.jsonl").read_text().splitlines()]
+    learned = [r for r in rows if "learned" in json.dumps(r)]
+    assert len(rows) == 2 and learned
+    assert all(r["metrics"]["success_rate"] == 1.0 for r in rows), rows
+
+
+def test_learned_plan_from_solve_runs_in_execute_on_physics(tmp_path):
+    """``solve --planner learned --out PLAN`` then ``execute MAP --plan PLAN`` on physics:
+    the plan is read back and carried out to the end without a collision."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from warerover_phys.cli import app
+
+    plan, out = tmp_path / "plan.txt", tmp_path / "exec"
+    r = CliRunner().invoke(app, ["solve", str(DATA / "random-32-32-10.map"),
+                                 str(DATA / "random-32-32-10-random-1.scen"), "--agents", "4",
+                                 "--planner", "learned", "--seed", "1", "--out", str(plan)])
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(app, ["execute", str(DATA / "random-32-32-10.map"), "--plan",
+                                 str(plan), "--executor", "physics", "--out", str(out),
+                                 "--json"])
+    assert r.exit_code == 0, r.output
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["completed"] is True and metrics["agents"] == 4
+    assert metrics["collisions"] == 0 and metrics["agv_contacts"] == 0
+    assert metrics["executed_makespan_ticks"] >= metrics["planned_makespan_ticks"] > 0
+
+
+def _train(tmp_path: Path, seed: int, name: str) -> dict[str, np.ndarray]:
+    out = tmp_path / name
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "OPENBLAS_NUM_THREADS": "1"}
+    proc = subprocess.run([sys.executable, str(ROOT / "tools" / "train_learned.py"),
+                           "--seed", str(seed), "--instances", "3", "--epochs", "1",
+                           "--hidden", "16", "--batch", "256", "--dagger-rounds", "1",
+                           "--dagger-instances", "1", "--dagger-epochs", "1",
+                           "--out", str(out)], capture_output=True, text=True, env=env,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    with np.load(out) as data:
+        return {k: data[k] for k in data.files}
+
+
+def test_training_script_is_reproducible_from_its_seed(tmp_path):
+    """A tiny run of tools/train_learned.py (3 instances, one epoch, one DAgger round of
+    one instance), twice with seed 0: identical weights; seed 1: other weights. The
+    shipped weights are not touched."""
+    before = DEFAULT_WEIGHTS.stat().st_mtime_ns
+    a, b, c = (_train(tmp_path, 0, "a.npz"), _train(tmp_path, 0, "b.npz"),
+               _train(tmp_path, 1, "c.npz"))
+    assert sorted(a) == sorted(b) and all(np.array_equal(a[k], b[k]) for k in a)
+    assert not np.array_equal(a["W1"], c["W1"])
+    MLPPolicy.load(tmp_path / "a.npz")  # loads as weights
+    assert DEFAULT_WEIGHTS.stat().st_mtime_ns == before

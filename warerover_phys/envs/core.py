@@ -30,8 +30,14 @@ actions: ``0`` wait, ``1`` forward (one cell along the heading, the only way to 
 ``2`` turn left, ``3`` turn right (a quarter turn in place, one step). Forward moves go
 through the rules above (a cancelled forward move is ``blocked``); the observation gets a
 fifth channel, 1 on the cell ahead of the agent (its heading). Trajectories and headings
-pass the validator's rotation checks with one-step quarter turns. Grid executor only (a real
-executor turns its AGVs itself).
+pass the validator's rotation checks with one-step quarter turns. On a real executor (see
+below) a turn is a committed plan that stands on the agent's cell and changes its heading
+(``TimedPath.headings``; the executor gets ``turn_in_place: true`` to follow it): the body
+turns at its turn rate, so a quarter turn takes the motion model's time (0.63 s, within one
+step, for the default AGV; ``turn_ticks`` steps for a slower one), and the agent keeps its
+heading and counts as ``turning`` (its actions wait) until the report's body angle faces
+the new heading. Bodies start facing east (the executor's start pose), not at random; the
+AGV must have a differential drive whose turn in place stays within its cell.
 
 Executors (``EnvConfig.executor``). With ``"grid"`` (the default) the rules above *are* the
 step: every move they keep happens. With ``"physics"`` or any other executor the registry
@@ -49,9 +55,9 @@ happened:
   of ``a`` is allowed; the executor orders it);
 - rotations (agents moving round a cycle, each into the cell the next one leaves) are
   cancelled too: a real executor has no order for them;
-- ``blocked`` (and its penalty): the agent asked to move and still stands on its cell after
-  the step, whether the rules cancelled the move or the executor did not start it (waiting
-  for a cell, turning towards the move);
+- ``blocked`` (and its penalty): the agent asked to move (with rotations: forward) and
+  still stands on its cell after the step, whether the rules cancelled the move or the
+  executor did not start it (waiting for a cell, turning towards the move);
 - rewards and termination use the executor's states: an agent is on its goal only while it
   stands there.
 
@@ -82,6 +88,17 @@ __all__ = ["EnvConfig", "GridMAPF", "Instance"]
 
 TICK_S = 1.0
 """Seconds of simulated time per environment step on a real executor."""
+ALIGN_RAD = 0.01
+"""Rotations on a real executor: a turn is over once the body faces its new heading within
+this (radians; the physics executor ends its turns exactly on the heading)."""
+
+
+def default_agv() -> AgvTypeSpec:
+    """The AGV of every agent on a real executor unless ``EnvConfig.agv_type`` says: 1x1,
+    0.7 m body, 1 m/s, differential drive (a quarter turn in 0.63 s)."""
+    from ..config import AgvTypeSpec
+
+    return AgvTypeSpec(body_m=(0.7, 0.7), max_speed_mps=1.0)
 
 
 @dataclass(frozen=True)
@@ -129,9 +146,9 @@ class EnvConfig:
             if not isinstance(self.agv_type, AgvTypeSpec) or self.agv_type.footprint != 1:
                 raise ValueError(f"agv_type must be an AgvTypeSpec of footprint 1 (got "
                                  f"{self.agv_type!r})")
-        if self.rotations and self.executor_spec is not None:
-            raise ValueError("rotations: only on the grid executor (a real executor turns "
-                             "its AGVs itself)")
+        if self.rotations and self.agv_type is not None and self.agv_type.drive != "diff":
+            raise ValueError(f"rotations: the AGV must have a differential drive (got drive "
+                             f"{self.agv_type.drive!r})")
 
     @property
     def executor_spec(self) -> ExecutorSpec | None:
@@ -200,10 +217,17 @@ class GridMAPF:
         self.rotations = bool(config.rotations or instance.rotations)
         """Headings and turn actions (see the module doc)."""
         if self.rotations and config.executor_spec is not None:
-            raise ValueError(f"instance {instance.name!r} asks for rotations: only on the "
-                             "grid executor")
+            from ..planning.sweep import agv_sweeps
+
+            if agv_sweeps([config.agv_type or default_agv()], 1.0):
+                raise ValueError(f"rotations on {config.executor_spec.name!r}: the AGV's turn "
+                                 "in place sweeps beyond its cell (a smaller body, please)")
         self.heading = np.zeros(n, dtype=np.int64)
-        """Each agent's heading (rotations only): 0 east, 1 south, 2 west, 3 north."""
+        """Each agent's heading (rotations only): 0 east, 1 south, 2 west, 3 north (on a
+        real executor: the last one its body was reported facing)."""
+        self.turn_to = self.heading
+        """Rotations on a real executor: the heading each agent is turning to (its
+        ``heading`` when it is not turning)."""
         if instance.starts is not None:
             if len(instance.starts) != n or instance.goals is None or len(instance.goals) != n:
                 raise ValueError(f"instance {instance.name!r} fixes "
@@ -238,6 +262,9 @@ class GridMAPF:
         self._rng: np.random.Generator | None = None
         # A real executor (None: the step rules alone).
         self.executor_spec = config.executor_spec
+        if self.rotations and self.executor_spec is not None:
+            # Turn actions are plans that stand and turn: the executor must follow them.
+            self.executor_spec = self.executor_spec.model_copy(update={"turn_in_place": True})
         self.executor: Any = None
         """The executor of the current episode (rebuilt by every reset)."""
         self.report: StepReport | None = None
@@ -283,8 +310,11 @@ class GridMAPF:
         else:
             self.pos[:] = rng.choice(self.sample_nodes, size=n, replace=False)
             self.goal[:] = rng.choice(self.sample_nodes, size=n, replace=False)
-        if self.rotations:
+        if self.rotations and self.executor_spec is None:
             self.heading = rng.integers(4, size=n).astype(np.int64)
+        elif self.rotations:  # the executor places every body facing east
+            self.heading = np.zeros(n, dtype=np.int64)
+        self.turn_to = self.heading.copy()
         for i in range(n):
             self.dist[i, :-1] = self.graph.dist_to(self.graph.cell(int(self.goal[i])))
         if (self.dist[np.arange(n), self.pos] >= UNREACHABLE).any():
@@ -297,12 +327,11 @@ class GridMAPF:
 
     def _bind(self, rng: np.random.Generator) -> None:
         """Build and bind a fresh executor for the episode (every agent standing)."""
-        from ..config import AgvTypeSpec
         from ..executors.base import AgvBody, ExecutorSetup
         from ..planning.paths import TimedPath
         from ..registry import build
 
-        spec = self.config.agv_type or AgvTypeSpec(body_m=(0.7, 0.7), max_speed_mps=1.0)
+        spec = self.config.agv_type or default_agv()
         self.executor = build("executor", self.executor_spec)
         self.executor.bind(ExecutorSetup(
             layout=self.layout, tick_s=TICK_S, rng=rng,
@@ -334,6 +363,16 @@ class GridMAPF:
             return np.zeros(self.num_agents, dtype=bool)
         return self.dest != self.pos
 
+    def turning(self) -> np.ndarray:
+        """Agents turning in place (rotations on a real executor only)."""
+        if not self.rotations or self.executor_spec is None:
+            return np.zeros(self.num_agents, dtype=bool)
+        return self.turn_to != self.heading
+
+    def busy(self) -> np.ndarray:
+        """Agents whose actions count as wait: in transit or turning."""
+        return self.in_transit() | self.turning()
+
     def states(self) -> dict[int, tuple[int, int]]:
         """Every agent's discrete state ``(pos, dest)``: standing at ``a`` is ``(a, a)``."""
         return {i: (int(a), int(b)) for i, (a, b) in enumerate(zip(self.pos, self.dest,
@@ -349,7 +388,15 @@ class GridMAPF:
             raise ValueError(f"expected {self.num_agents} actions in 0..{k - 1}, "
                              f"got {actions!r}")
         was_on = self.on_goal()
-        if self.rotations:
+        if self.rotations and self.executor is not None:
+            actions = np.where(self.busy(), 0, actions)  # in transit or turning: waits
+            before = self.pos
+            moves = np.where(actions == 1, HEADING_MOVE[self.heading], 0)
+            turn_to = np.where(actions >= 2, (self.heading + TURN[actions]) % 4,
+                               self.turn_to)
+            self._execute(self._resolve(moves), turn_to)
+            blocked = (actions == 1) & (self.pos == before) & (self.dest == before)
+        elif self.rotations:
             moves = np.where(actions == 1, HEADING_MOVE[self.heading], 0)
             target = self._resolve(moves)
             blocked = (actions == 1) & (target == self.pos)
@@ -424,17 +471,23 @@ class GridMAPF:
         on[far] = True  # what n steps reach: only cycle members (and the sink)
         return on[:-1] & moving
 
-    def _execute(self, target: np.ndarray) -> None:
-        """Hand the intended next cells to the executor as one-move plans; take every
-        agent's state from its report."""
+    def _execute(self, target: np.ndarray, turn_to: np.ndarray | None = None) -> None:
+        """Hand the intended next cells to the executor as one-move plans (with rotations:
+        plans with headings, a turn being a plan that stands on its cell and changes its
+        heading); take every agent's state (and heading) from its report."""
         from ..executors.base import TickView
         from ..planning.paths import TimedPath
 
         n, t = self.num_agents, self.t
         plans = self._plans
-        for i in np.flatnonzero(self.dest == self.pos):  # in transit: keeps its plan
+        idle = (self.dest == self.pos) if turn_to is None else ~self.busy()
+        for i in np.flatnonzero(idle):  # in transit or turning: keeps its plan
             cur, nxt = int(self.pos[i]), int(target[i])
-            plans[int(i)] = TimedPath(int(i), t, ((cur, cur), (nxt, nxt)))
+            heads = None
+            if turn_to is not None:
+                h0 = int(self.heading[i])
+                heads = (h0, int(turn_to[i]) if nxt == cur else h0)
+            plans[int(i)] = TimedPath(int(i), t, ((cur, cur), (nxt, nxt)), heads)
         # Plans are committed afresh every step: nobody is behind them.
         view = TickView(tick=t, plans=MappingProxyType(dict(plans)), behind=(0,) * n,
                         failed=frozenset(), loaded=(False,) * n, carried=(None,) * n,
@@ -446,6 +499,21 @@ class GridMAPF:
         self.pos, self.dest = pos, dest
         self.collisions += int(report.collisions)
         self.report = report
+        if turn_to is not None:
+            self.turn_to = turn_to
+            self.heading = self._reported_headings(report)
+
+    def _reported_headings(self, report: StepReport) -> np.ndarray:
+        """Rotations on a real executor: each agent's heading from the body angle of the
+        report. A turning agent keeps its heading until its body faces the one it turns to
+        (within :data:`ALIGN_RAD`); its turn takes as long as the executor's motion
+        model says. An executor without poses (no bodies) turns in one step."""
+        if report.poses is None:  # no bodies (the grid executor): a turn takes one step
+            return self.turn_to.copy()
+        ang = report.poses[:, 2]
+        want = self.turn_to * (np.pi / 2)
+        done = np.abs((ang - want + np.pi) % (2 * np.pi) - np.pi) < ALIGN_RAD
+        return np.where(done, self.turn_to, self.heading)
 
     def paths(self) -> list[tuple[int, int]]:
         """Current (row, col) of every agent."""

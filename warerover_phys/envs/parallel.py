@@ -9,7 +9,8 @@ episode until it ends: a one-shot episode terminates for everybody when all stan
 goals; any episode is truncated after ``max_steps``. ``infos[agent]`` holds ``on_goal``,
 ``blocked`` (it asked to move and did not leave its cell) and ``in_transit`` (on a real
 executor, ``executor="physics"``: it is still moving between two cells, and its action is
-treated as wait until it stands). Seeding as in Gymnasium: ``reset(seed=s)`` seeds the
+treated as wait until it stands) and ``turning`` (rotations on a real executor: its body is
+still turning to its new heading; its action is treated as wait until it faces it). Seeding as in Gymnasium: ``reset(seed=s)`` seeds the
 episode generator, later resets without a seed continue it.
 
 >>> from warerover_phys.envs import parallel_env, Instance
@@ -61,10 +62,10 @@ class MAPFParallelEnv(ParallelEnv):
         return self._act_space
 
     def _infos(self, blocked: np.ndarray | None = None) -> dict[str, dict]:
-        on, moving = self.core.on_goal(), self.core.in_transit()
+        on, moving, turning = self.core.on_goal(), self.core.in_transit(), self.core.turning()
         return {a: {"on_goal": bool(on[i]),
                     "blocked": bool(blocked[i]) if blocked is not None else False,
-                    "in_transit": bool(moving[i])}
+                    "in_transit": bool(moving[i]), "turning": bool(turning[i])}
                 for i, a in enumerate(self.possible_agents)}
 
     def reset(self, seed: int | None = None, options: dict | None = None):

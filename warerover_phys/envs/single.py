@@ -6,7 +6,8 @@ the default) or stand still (``others="wait"``); their choices are made first, t
 (a conflicting move of agent 0 is cancelled). Reward, termination (agent 0 on its goal,
 one-shot) and truncation are agent 0's. With ``executor="physics"`` (or another executor)
 the moves are carried out by it (see :mod:`warerover_phys.envs.core`); while agent 0 is
-``info["in_transit"]`` its actions are treated as wait. :func:`register` adds it to Gymnasium's registry as
+``info["in_transit"]`` (or, with rotations, ``info["turning"]``) its actions are treated
+as wait. :func:`register` adds it to Gymnasium's registry as
 ``warerover/MAPF-v0`` (``gymnasium.make("warerover/MAPF-v0", instance=...)``); importing
 changes no registry. With rotations (``rotations=True`` or a scenario's
 ``planner.rotations``) the others' moves become rotation actions (a turn first where a move
@@ -59,7 +60,8 @@ class MAPFGymEnv(gym.Env):
         if self.others == "learned":
             self._driver = LearnedDriver(self.core, seed=int(self.np_random.integers(2**31)))
             self._driver.reset()
-        return obs[0], {"on_goal": bool(self.core.on_goal()[0]), "in_transit": False}
+        return obs[0], {"on_goal": bool(self.core.on_goal()[0]), "in_transit": False,
+                        "turning": False}
 
     def step(self, action):
         if self._driver is not None:
@@ -72,7 +74,8 @@ class MAPFGymEnv(gym.Env):
         terminated = on and not self.core.config.lifelong
         return (obs[0], float(rewards[0]), terminated, bool(truncated and not terminated),
                 {"on_goal": on, "blocked": bool(blocked[0]),
-                 "in_transit": bool(self.core.in_transit()[0])})
+                 "in_transit": bool(self.core.in_transit()[0]),
+                 "turning": bool(self.core.turning()[0])})
 
     def render(self):
         if self.render_mode == "ansi":

@@ -401,6 +401,10 @@ class ActionGraph:
                 return False
         return True
 
+    def turn_sweeps(self, agv: int) -> bool:
+        """Whether the AGV's turns in place hold cells beyond its footprint."""
+        return agv in self._sweeps
+
     def set_heading(self, agv: int, direction: tuple[int, int]) -> None:
         """The AGV (standing) now faces ``direction`` (the executor turned it): its next
         plan's first move sweeps if it goes another way."""

@@ -10,7 +10,13 @@ replaced), draws the tick's random delays, and per physics step
   collinear run (claiming those actions in the ADG);
 - turns standing differential-drive AGVs towards their next move, and starts it once the
   ADG says its cells are free (or, with ``adg: false``, at its planned tick: naive
-  time-indexed following, for comparison).
+  time-indexed following, for comparison);
+- with ``executor.turn_in_place``: turns in place an AGV whose committed plan only stands
+  and turns (all its states on one cell,
+  :attr:`~warerover_phys.planning.paths.TimedPath.headings` changing) to the plan's last
+  heading, if its turn sweeps no cell beyond its own (the environments' turn actions,
+  :mod:`warerover_phys.envs`). Otherwise plan headings are not followed: the AGV turns
+  when its next move comes.
 
 At the end of a tick it reports each AGV's discrete state, how far behind it is, blocked
 AGVs and AGVs to replan (dependency deadlock, deviation from the path, a plan that did not
@@ -40,6 +46,9 @@ if TYPE_CHECKING:
 
 __all__ = ["LOOKAHEAD", "DECIDE_S", "PlanFollower"]
 
+_DIRS = ((0, 1), (1, 0), (0, -1), (-1, 0))
+"""(d_row, d_col) of each direction index: east, south, west, north."""
+
 LOOKAHEAD = 8
 """Actions looked at (and claimed) ahead of a driving AGV."""
 MAX_EVENTS = 6
@@ -66,6 +75,9 @@ class PlanFollower:
         self._cycles_seen: set[frozenset[int]] = set()
         self._asleep = np.zeros(st.n, dtype=bool)
         """AGVs waiting on the dependency graph that need no decision until woken."""
+        self._turn_in_place_on = bool(getattr(spec, "turn_in_place", False))
+        self._face: dict[int, int] = {}
+        """Standing AGVs to turn in place: AGV -> heading (direction index) of its plan."""
         self._holds: dict[int, dict[int, int]] = {}
         """Planned dwells (``TickView.dwells``): AGV -> action seq -> ticks it must stand
         before that action (from its arrival at the action's start cell)."""
@@ -86,6 +98,13 @@ class PlanFollower:
             self._synced[i] = path
             cut = self._cut(i, path)
             node = cut.states[0][0]
+            self._face.pop(i, None)
+            heads = path.headings
+            if self._turn_in_place_on and heads and len(set(heads)) > 1 \
+                    and not self.st.omni[i] \
+                    and all(a == b == node for a, b in path.states) \
+                    and not self.adg.turn_sweeps(i):
+                self._face[i] = int(heads[-1]) % 4
             if all(a == b == node for a, b in cut.states) and self.synced_once(i) \
                     and self.adg.next_action(i) is None:
                 continue  # a plan to stay where it will stop anyway: nothing changes
@@ -195,6 +214,10 @@ class PlanFollower:
                 asleep[i] = False
                 self._decide(i, t, bool(delayed[i]), float(ang[i]))
             woken.clear()
+            for i in list(self._face):
+                if st.mode[i] == HOLD and not st.has_next[i] and not delayed[i] \
+                        and not st.failed[i]:
+                    self._turn_in_place(i, float(ang[i]))
         left = np.full(st.n, st.dt)
         busy = st.mode != HOLD
         for _ in range(MAX_EVENTS):
@@ -268,6 +291,22 @@ class PlanFollower:
         elif t + 1e-9 < nxt.tick * st.tick_s:
             return
         self._start(i, t)
+
+    def _turn_in_place(self, i: int, angle: float) -> None:
+        """Turn standing AGV ``i`` to the heading its plan ends in (``_face``)."""
+        d = self._face.pop(i)
+        dr, dc = _DIRS[d]
+        want = math.atan2(dr, dc)
+        turn = float(wrap(want - angle))
+        if abs(turn) < TURN_EPS_RAD:
+            return
+        if turn < -math.pi + 1e-6:
+            turn += 2 * math.pi
+        st = self.st
+        st.ang_ref[i] = angle
+        st.heading[i] = angle + turn
+        st.mode[i] = TURN
+        self.adg.set_heading(i, (dr, dc))
 
     def _start(self, i: int, t: float) -> None:
         st = self.st

@@ -12,7 +12,8 @@ from the loop (ticks since the AGV got its goal); AGVs working in place are held
 AGVs see shelves as obstacles and move on their own motion graph. Liveness fallback: a
 tick on which some AGV has chased its goal for more than ``fallback_age`` ticks is planned
 by plain PIBT with swap (counted as a budget hit). Fleets of 1x1 AGVs that
-move one cell per tick only: any other fleet raises :class:`PlanningError`.
+move one cell per tick only, without rotations (``planner.rotations``): anything else raises
+:class:`PlanningError`.
 
 The weights default to the shipped ``weights/learned_v2.npz`` (feature set 2; the first
 weights, ``learned_v1.npz``, feature set 1, still load); another file can be given as
@@ -99,6 +100,9 @@ class LearnedPlanner:
         result = PlanResult()
         if not agents:
             return result
+        if any(a.turn_ticks is not None for a in agents):
+            raise PlanningError("the learned planner does not plan rotations "
+                                "(planner.rotations: true): use astar, pibt or lacam")
         if not uniform_fleet(agents):
             raise PlanningError("the learned planner drives 1x1 AGVs that move one cell per "
                                 "tick only (use pibt for mixed fleets)")
