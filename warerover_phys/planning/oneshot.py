@@ -20,7 +20,7 @@ from ..errors import PlanningError
 from ..layout import CellType, Layout
 from .graph import UNREACHABLE, MotionGraph
 
-__all__ = ["OneShotResult", "grid_graph", "solve", "write_plan", "ONESHOT_PLANNERS"]
+__all__ = ["OneShotResult", "grid_graph", "goal_tables", "solve", "write_plan", "ONESHOT_PLANNERS"]
 
 Cell = tuple[int, int]
 
@@ -51,6 +51,38 @@ def grid_graph(obstacles: np.ndarray) -> MotionGraph:
     layout = Layout(grid=grid, cell_m=1.0, shelves=(), stations=(), parking=(),
                     access_points=(), num_skus=0, name="grid")
     return MotionGraph(layout, 1, False)
+
+
+def goal_tables(graph: MotionGraph, goals: list[Cell]) -> list[np.ndarray]:
+    """Per goal, the moves from every cell to it: the same read-only int32 tables as
+    :meth:`MotionGraph.dist_to` (:data:`UNREACHABLE` where none), computed by the compiled
+    breadth-first search of :class:`~warerover_phys.planning.dist_store.DistStore` (half the
+    time of ``dist_to``'s) once per distinct goal, and left in ``graph``'s table cache (while
+    it has room) for the planners that ask ``graph`` for them.
+
+    ``graph`` is a plain grid (:func:`grid_graph`: no sinks, every enterable cell
+    expandable), where both searches give the same move counts."""
+    from .dist_store import DistStore
+
+    store = DistStore(graph)
+    far = np.uint16(np.iinfo(np.uint16).max)
+    cache = graph._tables
+    out: dict[int, np.ndarray] = {}
+    for goal in goals:
+        g = graph.node(goal)
+        if g in out:
+            continue
+        table = cache.get(g)
+        if table is None:
+            raw = store.get(g)
+            table = raw.astype(np.int32)
+            if raw.dtype == np.uint16:
+                table[raw == far] = UNREACHABLE
+            table.setflags(write=False)
+            if len(cache) < graph._cap:
+                cache[g] = table
+        out[g] = table
+    return [out[graph.node(goal)] for goal in goals]
 
 
 def _costs(paths: list[list[Cell]], goals: list[Cell]) -> tuple[int, int]:
@@ -86,9 +118,10 @@ def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner:
     start_mono = time.monotonic()
     deadline = start_mono + time_limit_s
     graph = grid_graph(obstacles)
+    tables = goal_tables(graph, goals)
     lb = 0
-    for s, g in zip(starts, goals, strict=True):
-        d = graph.distance(s, g)
+    for s, g, table in zip(starts, goals, tables, strict=True):
+        d = 0 if s == g else int(table[graph.node(s)])
         if d >= UNREACHABLE:
             raise PlanningError(f"goal {g} cannot be reached from start {s}")
         lb += d
@@ -97,7 +130,9 @@ def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner:
         paths, stats = pibt_oneshot(graph, starts, goals, deadline, seed, guide=guide)
     elif planner == "lacam":
         from .lacam import lacam
-        paths, stats = lacam(graph, starts, goals, deadline, seed, guide=guide)
+        # Python lists: PIBT reads single entries, far faster from a list than from numpy.
+        paths, stats = lacam(graph, starts, goals, deadline, seed, guide=guide,
+                             dists=[t.tolist() for t in tables])
     elif planner == "astar":
         paths, stats = _prioritized(graph, starts, goals, deadline)
     elif planner == "learned":
@@ -175,9 +210,15 @@ def write_plan(path, result: OneShotResult, *, map_file: str = "", scen_file: st
              f"soc={result.sum_of_costs}", f"soc_lb={result.lower_bound}",
              f"makespan={result.makespan}", f"comp_time={round(result.wall_s * 1000)}",
              "solution="]
-    horizon = max((len(p) for p in result.paths), default=0)
-    for t in range(horizon):
-        cells = (p[min(t, len(p) - 1)] for p in result.paths)
-        lines.append(f"{t}:" + "".join(f"({c},{r})," for r, c in cells))
+    paths = result.paths
+    horizon = max((len(p) for p in paths), default=0)
+    if any(len(p) != horizon for p in paths):  # hold each agent at its last cell
+        paths = [list(p) + [p[-1]] * (horizon - len(p)) for p in paths]
+    # Each cell's text once; then a timestep is a join of looked-up strings (3x faster at
+    # 1,000 agents than formatting every entry).
+    text = {cell: f"({cell[1]},{cell[0]})," for cell in set().union(*paths)}
+    get = text.__getitem__
+    lines += [f"{t}:" + "".join(map(get, column))
+              for t, column in enumerate(zip(*paths, strict=True))]
     from pathlib import Path
     Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
