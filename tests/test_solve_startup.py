@@ -140,3 +140,43 @@ def test_fast_parser_takes_plain_lines_and_leaves_the_rest():
     for argv in (["m.map"], ["m.map", "s.scen", "--help"], ["m.map", "s.scen", "--agents"],
                  ["m.map", "s.scen", "--agents", "+5"], ["m.map", "s.scen", "x"]):
         assert parse_solve_args(argv) is None, argv
+
+
+# ----------------------------------------------------------------------------- distances
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 12), st.integers(1, 12), st.floats(0.0, 0.6), st.integers(0, 2**32 - 1),
+       st.integers(1, 150))
+def test_goal_tables_equal_dist_to(rows, cols, density, seed, goals):
+    """The bit-parallel search gives ``dist_to``'s tables on any grid: free borders (a row
+    end beside the next row's start), walls that cut the grid apart, goals on obstacles,
+    repeated goals and more than 64 goals (several words)."""
+    import numpy as np
+
+    from warerover_phys.planning.oneshot import goal_tables, grid_graph
+
+    rng = np.random.default_rng(seed)
+    obstacles = rng.random((rows, cols)) < density
+    cells = [(int(r), int(c)) for r, c in zip(rng.integers(0, rows, goals),
+                                              rng.integers(0, cols, goals), strict=True)]
+    got = goal_tables(grid_graph(obstacles), cells)
+    reference = grid_graph(obstacles)
+    for cell, table in zip(cells, got, strict=True):
+        want = reference.dist_to(cell)
+        assert table.dtype == want.dtype and np.array_equal(table, want), cell
+        assert not table.flags.writeable
+
+
+def test_goal_tables_on_the_warehouse_map():
+    import numpy as np
+
+    from warerover_phys.movingai import read_map, read_scen
+    from warerover_phys.planning.oneshot import goal_tables, grid_graph
+
+    grid = read_map(MAP)
+    goals = [a.goal for a in read_scen(SCEN, 600, grid)]  # two chunks of goals
+    got = goal_tables(grid_graph(grid.obstacles), goals)
+    reference = grid_graph(grid.obstacles)
+    for cell in sorted(set(goals))[::7]:
+        assert np.array_equal(got[goals.index(cell)], reference.dist_to(cell))

@@ -93,9 +93,22 @@ def run_solve(map_file: Path, scen_file: Path, agents: int = 100, planner: str =
             if not json_out:
                 _echo(f"refine: {seconds:7.2f} s  sum of costs {soc}", err=True)
 
-        result = solve_instance(grid.obstacles, [a.start for a in scen], [a.goal for a in scen],
-                                planner=planner, time_limit_s=budget, seed=seed,
-                                guide=guide, refine=refine, on_improve=improved)
+        # The search makes many small objects and no cyclic garbage to speak of: the
+        # collector's passes over the objects loaded so far (frozen) and its frequent young
+        # passes are skipped (LaCAM's CPU -10% at 700 agents); restored afterwards.
+        import gc
+
+        thresholds = gc.get_threshold()
+        gc.freeze()
+        gc.set_threshold(50_000, 50, 100)
+        try:
+            result = solve_instance(grid.obstacles, [a.start for a in scen],
+                                    [a.goal for a in scen], planner=planner,
+                                    time_limit_s=budget, seed=seed, guide=guide,
+                                    refine=refine, on_improve=improved)
+        finally:
+            gc.set_threshold(*thresholds)
+            gc.unfreeze()
         conflicts = []
         if result.success:
             cols = grid.cols

@@ -54,35 +54,109 @@ def grid_graph(obstacles: np.ndarray) -> MotionGraph:
 
 
 def goal_tables(graph: MotionGraph, goals: list[Cell]) -> list[np.ndarray]:
-    """Per goal, the moves from every cell to it: the same read-only int32 tables as
-    :meth:`MotionGraph.dist_to` (:data:`UNREACHABLE` where none), computed by the compiled
-    breadth-first search of :class:`~warerover_phys.planning.dist_store.DistStore` (half the
-    time of ``dist_to``'s) once per distinct goal, and left in ``graph``'s table cache (while
-    it has room) for the planners that ask ``graph`` for them.
-
-    ``graph`` is a plain grid (:func:`grid_graph`: no sinks, every enterable cell
-    expandable), where both searches give the same move counts."""
-    from .dist_store import DistStore
-
-    store = DistStore(graph)
-    far = np.uint16(np.iinfo(np.uint16).max)
+    """Per goal, the moves from every node to it: the same read-only int32 tables as
+    :meth:`MotionGraph.dist_to` (:data:`UNREACHABLE` where none), for all the goals at once
+    by :func:`_grid_bfs` where ``graph``'s moves are the plain 4-neighbour ones (else by
+    ``dist_to``), and left in ``graph``'s table cache (while it has room) for the planners
+    that ask ``graph`` for them."""
     cache = graph._tables
-    out: dict[int, np.ndarray] = {}
-    for goal in goals:
-        g = graph.node(goal)
-        if g in out:
+    wanted = list(dict.fromkeys(graph.node(g) for g in goals))
+    out = {g: cache[g] for g in wanted if g in cache}
+    todo = [g for g in wanted if g not in out]
+    plain = bool(todo) and _plain_grid(graph)
+    for start in range(0, len(todo), _BFS_CHUNK):
+        chunk = todo[start:start + _BFS_CHUNK]
+        if not plain:
+            out.update((g, graph.dist_to(divmod(g, graph.cols))) for g in chunk)
             continue
-        table = cache.get(g)
-        if table is None:
-            raw = store.get(g)
-            table = raw.astype(np.int32)
-            if raw.dtype == np.uint16:
-                table[raw == far] = UNREACHABLE
+        for g, table in zip(chunk, _grid_bfs(graph, chunk), strict=True):
             table.setflags(write=False)
+            out[g] = table
             if len(cache) < graph._cap:
                 cache[g] = table
-        out[g] = table
     return [out[graph.node(goal)] for goal in goals]
+
+
+_BFS_CHUNK = 512
+"""Goals searched together by :func:`_grid_bfs` (8 words of 64 bits per cell)."""
+
+
+def _plain_grid(graph: MotionGraph) -> bool:
+    """Whether ``graph``'s moves (from expandable nodes) are exactly the moves from each
+    expandable cell to each enterable 4-neighbour, as on a bare grid."""
+    valid = np.asarray(graph.expandable_flat, dtype=bool).reshape(graph.rows, graph.cols)
+    enter = np.asarray(graph.enterable, dtype=bool)
+    pairs = int((valid[:, :-1] & enter[:, 1:]).sum() + (valid[:, 1:] & enter[:, :-1]).sum()
+                + (valid[:-1] & enter[1:]).sum() + (valid[1:] & enter[:-1]).sum())
+    starts, dst = graph._adj_src, graph._adj_dst
+    src = np.repeat(np.arange(graph.num_nodes), np.diff(starts))
+    from_valid = valid.ravel()[src]
+    d = np.abs(dst[from_valid] - src[from_valid])
+    return int(from_valid.sum()) == pairs and bool(np.all((d == 1) | (d == graph.cols)))
+
+
+def _grid_bfs(graph: MotionGraph, goals: list[int]) -> list[np.ndarray]:
+    """Breadth-first searches from many goals at once on a plain grid (:func:`_plain_grid`),
+    bit-parallel: one bit per goal in each cell's words. The cells are laid out with a
+    blank column after each row, so that a move is a shift of the flat array by 1 or by a
+    row: a level of every search is then a few numpy operations over the whole grid (a cell
+    is reached when it is expandable, not reached yet, and a 4-neighbour was reached the
+    level before). The depths are kept bit-sliced (plane k holds bit k of every depth) and
+    unpacked once at the end. The same move counts as :meth:`MotionGraph.dist_to` (a goal
+    that is not enterable is reached from nowhere), without scipy: 0.2 s for 400 goals on a
+    10,000-cell map where ``dist_to`` takes 0.3-0.6 s and scipy's import 0.4 s more."""
+    rows, cols, m = graph.rows, graph.cols, len(goals)
+    words = max(1, -(-m // 64))
+    word = np.dtype("<u8")
+    wide = cols + 1
+    n = rows * wide
+
+    def spread(mask: np.ndarray) -> np.ndarray:  # (rows, cols) bools -> (n, 1) words
+        out = np.zeros((rows, wide), dtype=word)
+        out[:, :cols][mask] = np.uint64(0xFFFF_FFFF_FFFF_FFFF)
+        return out.reshape(n, 1)
+
+    valid = np.asarray(graph.expandable_flat, dtype=bool).reshape(rows, cols)
+    enter = np.asarray(graph.enterable, dtype=bool).ravel()
+    seen = np.zeros((n, words), dtype=word)  # the goals (depth 0)
+    for j, g in enumerate(goals):
+        if enter[g]:
+            r, c = divmod(g, cols)
+            seen[r * wide + c, j // 64] |= np.uint64(1) << np.uint64(j % 64)
+    front = seen.copy()
+    open_ = spread(valid) & ~seen  # may still be reached: expandable, not reached yet
+    reached = np.empty_like(front)
+    planes: list[np.ndarray] = []
+    level = 0
+    while True:
+        level += 1
+        reached[:-1] = front[1:]  # moves by one column, then by one row, both ways
+        reached[-1] = 0
+        reached[1:] |= front[:-1]
+        reached[:-wide] |= front[wide:]
+        reached[wide:] |= front[:-wide]
+        reached &= open_
+        if not reached.any():
+            break
+        open_ ^= reached
+        front, reached = reached, front
+        for k in range(level.bit_length()):
+            if k == len(planes):
+                planes.append(np.zeros((n, words), dtype=word))
+            if level >> k & 1:
+                planes[k] |= front
+
+    def unpack(bits: np.ndarray) -> np.ndarray:  # (n, words) -> (rows * cols, goals) 0/1
+        flat = np.unpackbits(bits.view(np.uint8), axis=1, bitorder="little")[:, :m]
+        return flat.reshape(rows, wide, m)[:, :cols].reshape(rows * cols, m)
+
+    depth = np.zeros((rows * cols, m), dtype=np.uint16 if len(planes) <= 16 else np.int32)
+    for k, plane in enumerate(planes):
+        depth |= unpack(plane).astype(depth.dtype) << k
+    out = np.ascontiguousarray(depth.T, dtype=np.int32)
+    reach = (spread(valid) & ~open_) | seen  # reached: expandable and not open, or a goal
+    out[unpack(reach).T == 0] = UNREACHABLE
+    return list(out)
 
 
 def _costs(paths: list[list[Cell]], goals: list[Cell]) -> tuple[int, int]:
