@@ -20,8 +20,9 @@ lacam3: ``--lacam3 PATH`` or ``$WARERO_LACAM3`` names a binary; otherwise it is 
 into ``build/lacam3`` (reused when present). Without cmake or g++ (or the sources) the script
 says so plainly and runs our side alone. lacam3 takes whole seconds as its limit (rounded up).
 
-Prints one row per run, then per (N, mode) the ratios ours / lacam3 (SoC and wall time), with
-the load average, and writes everything as JSON (default ``tools/out/bench_mapf.json``).
+Prints one row per run, then per (N, mode) the ratios ours / lacam3 (SoC, wall time and CPU
+time: user + system of the whole process), with the load average, and writes everything as
+JSON (default ``tools/out/bench_mapf.json``).
 
     .venv/bin/python tools/bench_mapf.py --quick            # N = 100 400 on random-1
     .venv/bin/python tools/bench_mapf.py                    # N = 100 200 400 700 1000, random-1
@@ -36,6 +37,7 @@ import math
 import os
 import platform
 import re
+import resource
 import shutil
 import subprocess
 import sys
@@ -220,17 +222,26 @@ def lacam3_command(binary: Path, n: int, scen: Path, mode: str, time_limit: floa
     return cmd
 
 
+def _children_cpu() -> float:
+    """CPU seconds (user + system) of the child processes waited for so far."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
 def run_process(cmd: list[str], out: Path, timeout: float, env: dict | None = None,
                 ) -> tuple[dict, list[list[Cell]] | None]:
-    """Run ``cmd`` (it writes its plan to ``out``); the whole process is timed."""
+    """Run ``cmd`` (it writes its plan to ``out``); the whole process is timed, in wall
+    time and in CPU time (user + system, of the process and anything it waited for)."""
     t0 = time.perf_counter()
+    cpu0 = _children_cpu()
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
     except subprocess.TimeoutExpired:
         return {"solved": False, "status": f"timeout (killed at {timeout:g} s)",
                 "process_s": time.perf_counter() - t0}, None
     wall = time.perf_counter() - t0
-    info: dict = {"process_s": wall, "returncode": proc.returncode}
+    info: dict = {"process_s": wall, "process_cpu_s": _children_cpu() - cpu0,
+                  "returncode": proc.returncode}
     try:
         info["stdout_json"] = json.loads(proc.stdout)
     except ValueError:
@@ -287,7 +298,8 @@ COLUMNS = [("impl", "impl", "{}"), ("mode", "mode", "{}"), ("scen", "scen", "{}"
            ("N", "agents", "{}"), ("ok", "ok", "{}"), ("status", "status", "{}"),
            ("SoC", "sum_of_costs", "{}"), ("LB", "lower_bound", "{}"),
            ("SoC/LB", "soc_ratio", "{:.3f}"), ("makespan", "makespan", "{}"),
-           ("process s", "process_s", "{:.2f}"), ("solver s", "solver_s", "{:.2f}"),
+           ("process s", "process_s", "{:.2f}"), ("CPU s", "process_cpu_s", "{:.2f}"),
+           ("solver s", "solver_s", "{:.2f}"),
            ("conflicts", "conflicts_str", "{}"), ("load", "load_1min", "{:.1f}")]
 
 COMPARE_COLUMNS = [("scen", "scen", "{}"), ("N", "agents", "{}"), ("mode", "mode", "{}"),
@@ -296,7 +308,10 @@ COMPARE_COLUMNS = [("scen", "scen", "{}"), ("N", "agents", "{}"), ("mode", "mode
                    ("SoC ours/lacam3", "soc_ours_over_lacam3", "{:.3f}"),
                    ("ours s", "ours_process_s", "{:.2f}"), ("lacam3 s", "lacam3_process_s",
                                                             "{:.2f}"),
-                   ("wall ours/lacam3", "wall_ours_over_lacam3", "{:.2f}")]
+                   ("wall ours/lacam3", "wall_ours_over_lacam3", "{:.2f}"),
+                   ("ours CPU s", "ours_process_cpu_s", "{:.2f}"),
+                   ("lacam3 CPU s", "lacam3_process_cpu_s", "{:.2f}"),
+                   ("CPU ours/lacam3", "cpu_ours_over_lacam3", "{:.2f}")]
 
 
 def _cell(row: dict, key: str, fmt: str) -> str:
@@ -341,9 +356,12 @@ def compare(runs: list[dict]) -> list[dict]:
                 row[f"{name}_sum_of_costs"] = r.get("sum_of_costs") if r.get("success") else None
                 row[f"{name}_soc_ratio"] = r.get("soc_ratio") if r.get("success") else None
                 row[f"{name}_process_s"] = r.get("process_s")
+                row[f"{name}_process_cpu_s"] = r.get("process_cpu_s")
         if ours and theirs and ours.get("success") and theirs.get("success"):
             row["soc_ours_over_lacam3"] = ours["sum_of_costs"] / theirs["sum_of_costs"]
             row["wall_ours_over_lacam3"] = ours["process_s"] / theirs["process_s"]
+            if ours.get("process_cpu_s") and theirs.get("process_cpu_s"):
+                row["cpu_ours_over_lacam3"] = ours["process_cpu_s"] / theirs["process_cpu_s"]
         out.append(row)
     return out
 

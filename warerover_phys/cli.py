@@ -26,6 +26,7 @@ from .console import err_console
 from .console import fail as _fail
 from .errors import ScenarioError, WareroverError
 from .media import check_media_path
+from .solve_cli import mark_entered, run_solve  # `solve`'s body and its fast path
 
 __all__ = ["app", "main"]
 
@@ -385,38 +386,6 @@ def check(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
                f"cells, {len(world.agvs)} AGVs")
 
 
-def _process_age_s() -> float:
-    """Seconds since this process started (Linux ``/proc``; 0 where it cannot be read)."""
-    import os
-
-    try:
-        with open("/proc/self/stat", encoding="ascii") as f:
-            ticks = int(f.read().rsplit(")", 1)[1].split()[19])  # field 22: starttime
-        with open("/proc/uptime", encoding="ascii") as f:
-            up = float(f.read().split()[0])
-        return max(0.0, up - ticks / os.sysconf("SC_CLK_TCK"))
-    except (OSError, ValueError, IndexError):
-        return 0.0
-
-
-SOLVE_RESERVE = (0.03, 0.5)
-"""Of ``solve --time-limit``: a share and seconds kept for validating and writing the plan
-and for the interpreter's exit."""
-_ENTERED: tuple[float, float] | None = None
-"""(monotonic time, process age in s) when :func:`main` started: the command is the
-process, so its start-up counts against ``solve --time-limit``; None when the app is called
-in a longer-lived process (tests, notebooks)."""
-
-
-def _command_age_s() -> float:
-    """Seconds since the process started, if this command is the process; else 0."""
-    import time
-
-    if _ENTERED is None:
-        return 0.0
-    return _ENTERED[1] + time.monotonic() - _ENTERED[0]
-
-
 @app.command()
 def solve(map_file: Annotated[Path, typer.Argument(metavar="MAP.map", help="MovingAI map.")],
           scen_file: Annotated[Path, typer.Argument(metavar="SCEN.scen",
@@ -438,72 +407,16 @@ def solve(map_file: Annotated[Path, typer.Argument(metavar="MAP.map", help="Movi
                                "large-neighbourhood search until the time limit.")] = False,
           ) -> None:
     """Solve a one-shot MovingAI instance, validate the plan and print its figures."""
-    from .movingai import read_map, read_scen
-    from .planning.oneshot import solve as solve_instance
-    from .planning.oneshot import write_plan
-    from .validate import validate_states
-
-    try:
-        if agents < 1:
-            raise WareroverError(f"--agents: must be at least 1 (got {agents})")
-        if not 0 < time_limit < float("inf"):
-            raise WareroverError(f"--time-limit: must be positive and finite (got {time_limit})")
-        grid = read_map(map_file)
-        scen = read_scen(scen_file, agents, grid)
-        # The limit covers what the user waits for: start-up and reading so far, the
-        # validation, the plan file and the exit after solving (SOLVE_RESERVE).
-        share, fixed = SOLVE_RESERVE
-        budget = max(0.05 * time_limit, time_limit * (1 - share) - fixed - _command_age_s())
-
-        def improved(seconds: float, soc: int) -> None:
-            if not json_out:
-                typer.echo(f"refine: {seconds:7.2f} s  sum of costs {soc}", err=True)
-
-        result = solve_instance(grid.obstacles, [a.start for a in scen], [a.goal for a in scen],
-                                planner=planner, time_limit_s=budget, seed=seed,
-                                guide=guide, refine=refine, on_improve=improved)
-        conflicts = []
-        if result.success:
-            cols = grid.cols
-            conflicts = validate_states(
-                {i: [(r * cols + c, r * cols + c) for r, c in path]
-                 for i, path in enumerate(result.paths)}, grid.obstacles)
-            ends_ok = all(p[0] == a.start and p[-1] == a.goal
-                          for p, a in zip(result.paths, scen, strict=True))
-            if conflicts or not ends_ok:
-                result.success = False
-        if out is not None and result.success:
-            write_plan(out, result, map_file=map_file.name, scen_file=scen_file.name)
-    except WareroverError as err:
-        _fail(err)
-    except OSError as err:
-        _fail(WareroverError(f"{getattr(err, 'filename', '') or ''}: {err.strerror or err}"))
-    figures = {"map": map_file.name, "scen": scen_file.name, "agents": agents,
-               "planner": planner, "success": result.success,
-               "sum_of_costs": result.sum_of_costs, "makespan": result.makespan,
-               "lower_bound": result.lower_bound,
-               "soc_over_lb": round(result.soc_ratio, 4) if result.success else None,
-               "wall_s": round(result.wall_s, 4), "conflicts": len(conflicts)}
-    if refine:
-        ref = result.stats.get("refine", {})
-        figures.update(first_sum_of_costs=ref.get("first_soc"),
-                       refine_iterations=ref.get("iterations"),
-                       refine_improvements=ref.get("improvements"))
-    if json_out:
-        typer.echo(json.dumps(figures, indent=2))
-    else:
-        for k, v in figures.items():
-            typer.echo(f"{k:>13}: {v}")
-    if not result.success:
-        raise typer.Exit(1)
+    code = run_solve(map_file, scen_file, agents=agents, planner=planner,
+                     time_limit=time_limit, seed=seed, json_out=json_out, out=out,
+                     guide=guide, refine=refine, fail=_fail)
+    if code:
+        raise typer.Exit(code)
 
 
 def main() -> None:
     """Console-script entry point."""
-    import time
-
-    global _ENTERED
-    _ENTERED = (time.monotonic(), _process_age_s())
+    mark_entered()
     try:
         app()
     except KeyboardInterrupt:

@@ -17,11 +17,14 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 from functools import cached_property
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .config import MAX_CELLS, GeneratorSpec, InventorySpec, LayoutSpec
 from .errors import LayoutError, ScenarioError
+
+if TYPE_CHECKING:  # the scenario models (pydantic): not loaded by `warerover solve`
+    from .config import GeneratorSpec, InventorySpec, LayoutSpec
 
 __all__ = ["CellType", "Shelf", "Layout", "build_layout", "generate_base"]
 
@@ -160,6 +163,8 @@ def generate_base(gen: GeneratorSpec, fleet_size: int) -> np.ndarray:
     wall = 1 if gen.walls else 0
     rows = area_h + margin["top"] + margin["bottom"] + 2 * wall
     cols = area_w + margin["left"] + margin["right"] + 2 * wall
+    from .config import MAX_CELLS
+
     if rows * cols > MAX_CELLS:
         raise ScenarioError(f"generated layout would be {rows} x {cols} cells (at most "
                             f"{MAX_CELLS:,})", field="layout.generator",

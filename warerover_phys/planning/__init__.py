@@ -1,22 +1,45 @@
-"""MAPF planning: motion graphs, reservations, planners."""
+"""MAPF planning: motion graphs, reservations, planners.
+
+The names below are imported on first use, so that importing one planning module (as
+``warerover solve`` does with :mod:`~warerover_phys.planning.oneshot`) does not load every
+planner and the plug-in registry (pydantic).
+"""
 
 from __future__ import annotations
 
-from ..registry import build
-from .astar import AStarPlanner
-from .base import AgentRequest, Planner, PlanRequest, PlanResult, TimedPath
-from .cbs import CBSPlanner
-from .graph import GraphSet, MotionGraph
-from .lacam_planner import LaCAMPlanner
-from .pibt_planner import PIBTPlanner
-from .reservation import ReservationTable
+import importlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .astar import AStarPlanner
+    from .base import AgentRequest, Planner, PlanRequest, PlanResult, TimedPath
+    from .cbs import CBSPlanner
+    from .graph import GraphSet, MotionGraph
+    from .lacam_planner import LaCAMPlanner
+    from .pibt_planner import PIBTPlanner
+    from .reservation import ReservationTable
 
 __all__ = ["AStarPlanner", "CBSPlanner", "PIBTPlanner", "LaCAMPlanner", "AgentRequest", "Planner", "PlanRequest", "PlanResult", "TimedPath",
            "GraphSet", "MotionGraph", "ReservationTable", "make_planner"]
 
+_LAZY = {"AStarPlanner": "astar", "CBSPlanner": "cbs", "PIBTPlanner": "pibt_planner",
+         "LaCAMPlanner": "lacam_planner", "AgentRequest": "base", "Planner": "base",
+         "PlanRequest": "base", "PlanResult": "base", "TimedPath": "base",
+         "GraphSet": "graph", "MotionGraph": "graph", "ReservationTable": "reservation"}
+
+
+def __getattr__(name: str):
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
 
 
 def make_planner(spec) -> Planner:
     """Build the planner a :class:`~warerover_phys.config.PlannerSpec` names (a built-in, an
     entry point or a plug-in class; see :mod:`warerover_phys.registry`)."""
+    from ..registry import build
+
     return build("planner", spec)

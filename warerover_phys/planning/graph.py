@@ -23,13 +23,15 @@ breadth-first search cut into levels: 1.5-2x faster than its unweighted Dijkstra
 from __future__ import annotations
 
 from collections import OrderedDict
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import breadth_first_order
 
 from ..layout import CellType, Layout
 from .headings import dead_ends, turn_dist
+
+if TYPE_CHECKING:  # scipy is imported where a search runs (`warerover solve` does without)
+    from scipy.sparse import csr_matrix
 
 __all__ = ["MotionGraph", "GraphSet", "UNREACHABLE"]
 
@@ -57,6 +59,8 @@ def bfs_depths(graph: csr_matrix, source: int) -> np.ndarray:
     :data:`UNREACHABLE` where none). scipy's breadth-first search lists the reached nodes
     level by level, each node's parent earlier in the list than any later node's parent; so
     the levels are cut where the parents' positions pass the previous level's end."""
+    from scipy.sparse.csgraph import breadth_first_order
+
     n = graph.shape[0]
     order, pred = breadth_first_order(graph, source, directed=True, return_predecessors=True)
     depth = np.full(n, UNREACHABLE, dtype=np.int32)
@@ -188,8 +192,20 @@ class MotionGraph:
         # Reversed graph for distance-to-goal tables: a forward edge u->v exists in the
         # plain graph if u is valid (expandable); reversed it is v->u.
         keep = flat_valid[src_a]
-        self._rev = csr_matrix((np.ones(int(keep.sum()), dtype=np.int8),
-                                (dst_a[keep], src_a[keep])), shape=(n, n))
+        self._rev_edges = (dst_a[keep], src_a[keep])
+        self._rev_csr: csr_matrix | None = None
+
+    @property
+    def _rev(self) -> csr_matrix:
+        """The reversed graph (scipy CSR), built on first use."""
+        if self._rev_csr is None:
+            from scipy.sparse import csr_matrix
+
+            n = self.rows * self.cols
+            rows, cols = self._rev_edges
+            self._rev_csr = csr_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)),
+                                       shape=(n, n))
+        return self._rev_csr
 
     @property
     def num_nodes(self) -> int:

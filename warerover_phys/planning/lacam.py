@@ -45,14 +45,18 @@ class _High:
 
 
 def lacam(graph: MotionGraph, starts: Sequence[Cell], goals: Sequence[Cell], deadline: float,
-          seed: int = 0, guide: bool = False) -> tuple[list[list[Cell]] | None, dict]:
+          seed: int = 0, guide: bool = False, dists: Sequence[Sequence[int]] | None = None,
+          ) -> tuple[list[list[Cell]] | None, dict]:
     """Solve; returns (paths or None, stats). None with ``stats["exhausted"]`` True means
     there is no solution; otherwise the deadline passed. ``guide``: PIBT follows guide paths
-    (:mod:`~warerover_phys.planning.scatter`, computed in at most half the time left)."""
+    (:mod:`~warerover_phys.planning.scatter`, computed in at most half the time left).
+    ``dists``: per agent, the moves from every node to its goal (``graph.dist_to(goal)`` as
+    a list), when the caller has them already."""
     s = [graph.node(c) for c in starts]
     g = [graph.node(c) for c in goals]
-    # Python lists: PIBT reads single entries, far faster from a list than from numpy.
-    dists = [graph.dist_to(c).tolist() for c in goals]
+    if dists is None:
+        # Python lists: PIBT reads single entries, far faster from a list than from numpy.
+        dists = [graph.dist_to(c).tolist() for c in goals]
     nxt, guide_stats = None, None
     if guide:
         from .scatter import guide_for

@@ -20,7 +20,7 @@ from ..errors import PlanningError
 from ..layout import CellType, Layout
 from .graph import UNREACHABLE, MotionGraph
 
-__all__ = ["OneShotResult", "grid_graph", "solve", "write_plan", "ONESHOT_PLANNERS"]
+__all__ = ["OneShotResult", "grid_graph", "goal_tables", "solve", "write_plan", "ONESHOT_PLANNERS"]
 
 Cell = tuple[int, int]
 
@@ -51,6 +51,112 @@ def grid_graph(obstacles: np.ndarray) -> MotionGraph:
     layout = Layout(grid=grid, cell_m=1.0, shelves=(), stations=(), parking=(),
                     access_points=(), num_skus=0, name="grid")
     return MotionGraph(layout, 1, False)
+
+
+def goal_tables(graph: MotionGraph, goals: list[Cell]) -> list[np.ndarray]:
+    """Per goal, the moves from every node to it: the same read-only int32 tables as
+    :meth:`MotionGraph.dist_to` (:data:`UNREACHABLE` where none), for all the goals at once
+    by :func:`_grid_bfs` where ``graph``'s moves are the plain 4-neighbour ones (else by
+    ``dist_to``), and left in ``graph``'s table cache (while it has room) for the planners
+    that ask ``graph`` for them."""
+    cache = graph._tables
+    wanted = list(dict.fromkeys(graph.node(g) for g in goals))
+    out = {g: cache[g] for g in wanted if g in cache}
+    todo = [g for g in wanted if g not in out]
+    plain = bool(todo) and _plain_grid(graph)
+    for start in range(0, len(todo), _BFS_CHUNK):
+        chunk = todo[start:start + _BFS_CHUNK]
+        if not plain:
+            out.update((g, graph.dist_to(divmod(g, graph.cols))) for g in chunk)
+            continue
+        for g, table in zip(chunk, _grid_bfs(graph, chunk), strict=True):
+            table.setflags(write=False)
+            out[g] = table
+            if len(cache) < graph._cap:
+                cache[g] = table
+    return [out[graph.node(goal)] for goal in goals]
+
+
+_BFS_CHUNK = 512
+"""Goals searched together by :func:`_grid_bfs` (8 words of 64 bits per cell)."""
+
+
+def _plain_grid(graph: MotionGraph) -> bool:
+    """Whether ``graph``'s moves (from expandable nodes) are exactly the moves from each
+    expandable cell to each enterable 4-neighbour, as on a bare grid."""
+    valid = np.asarray(graph.expandable_flat, dtype=bool).reshape(graph.rows, graph.cols)
+    enter = np.asarray(graph.enterable, dtype=bool)
+    pairs = int((valid[:, :-1] & enter[:, 1:]).sum() + (valid[:, 1:] & enter[:, :-1]).sum()
+                + (valid[:-1] & enter[1:]).sum() + (valid[1:] & enter[:-1]).sum())
+    starts, dst = graph._adj_src, graph._adj_dst
+    src = np.repeat(np.arange(graph.num_nodes), np.diff(starts))
+    from_valid = valid.ravel()[src]
+    d = np.abs(dst[from_valid] - src[from_valid])
+    return int(from_valid.sum()) == pairs and bool(np.all((d == 1) | (d == graph.cols)))
+
+
+def _grid_bfs(graph: MotionGraph, goals: list[int]) -> list[np.ndarray]:
+    """Breadth-first searches from many goals at once on a plain grid (:func:`_plain_grid`),
+    bit-parallel: one bit per goal in each cell's words. The cells are laid out with a
+    blank column after each row, so that a move is a shift of the flat array by 1 or by a
+    row: a level of every search is then a few numpy operations over the whole grid (a cell
+    is reached when it is expandable, not reached yet, and a 4-neighbour was reached the
+    level before). The depths are kept bit-sliced (plane k holds bit k of every depth) and
+    unpacked once at the end. The same move counts as :meth:`MotionGraph.dist_to` (a goal
+    that is not enterable is reached from nowhere), without scipy: 0.2 s for 400 goals on a
+    10,000-cell map where ``dist_to`` takes 0.3-0.6 s and scipy's import 0.4 s more."""
+    rows, cols, m = graph.rows, graph.cols, len(goals)
+    words = max(1, -(-m // 64))
+    word = np.dtype("<u8")
+    wide = cols + 1
+    n = rows * wide
+
+    def spread(mask: np.ndarray) -> np.ndarray:  # (rows, cols) bools -> (n, 1) words
+        out = np.zeros((rows, wide), dtype=word)
+        out[:, :cols][mask] = np.uint64(0xFFFF_FFFF_FFFF_FFFF)
+        return out.reshape(n, 1)
+
+    valid = np.asarray(graph.expandable_flat, dtype=bool).reshape(rows, cols)
+    enter = np.asarray(graph.enterable, dtype=bool).ravel()
+    seen = np.zeros((n, words), dtype=word)  # the goals (depth 0)
+    for j, g in enumerate(goals):
+        if enter[g]:
+            r, c = divmod(g, cols)
+            seen[r * wide + c, j // 64] |= np.uint64(1) << np.uint64(j % 64)
+    front = seen.copy()
+    open_ = spread(valid) & ~seen  # may still be reached: expandable, not reached yet
+    reached = np.empty_like(front)
+    planes: list[np.ndarray] = []
+    level = 0
+    while True:
+        level += 1
+        reached[:-1] = front[1:]  # moves by one column, then by one row, both ways
+        reached[-1] = 0
+        reached[1:] |= front[:-1]
+        reached[:-wide] |= front[wide:]
+        reached[wide:] |= front[:-wide]
+        reached &= open_
+        if not reached.any():
+            break
+        open_ ^= reached
+        front, reached = reached, front
+        for k in range(level.bit_length()):
+            if k == len(planes):
+                planes.append(np.zeros((n, words), dtype=word))
+            if level >> k & 1:
+                planes[k] |= front
+
+    def unpack(bits: np.ndarray) -> np.ndarray:  # (n, words) -> (rows * cols, goals) 0/1
+        flat = np.unpackbits(bits.view(np.uint8), axis=1, bitorder="little")[:, :m]
+        return flat.reshape(rows, wide, m)[:, :cols].reshape(rows * cols, m)
+
+    depth = np.zeros((rows * cols, m), dtype=np.uint16 if len(planes) <= 16 else np.int32)
+    for k, plane in enumerate(planes):
+        depth |= unpack(plane).astype(depth.dtype) << k
+    out = np.ascontiguousarray(depth.T, dtype=np.int32)
+    reach = (spread(valid) & ~open_) | seen  # reached: expandable and not open, or a goal
+    out[unpack(reach).T == 0] = UNREACHABLE
+    return list(out)
 
 
 def _costs(paths: list[list[Cell]], goals: list[Cell]) -> tuple[int, int]:
@@ -86,9 +192,10 @@ def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner:
     start_mono = time.monotonic()
     deadline = start_mono + time_limit_s
     graph = grid_graph(obstacles)
+    tables = goal_tables(graph, goals)
     lb = 0
-    for s, g in zip(starts, goals, strict=True):
-        d = graph.distance(s, g)
+    for s, g, table in zip(starts, goals, tables, strict=True):
+        d = 0 if s == g else int(table[graph.node(s)])
         if d >= UNREACHABLE:
             raise PlanningError(f"goal {g} cannot be reached from start {s}")
         lb += d
@@ -97,7 +204,9 @@ def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner:
         paths, stats = pibt_oneshot(graph, starts, goals, deadline, seed, guide=guide)
     elif planner == "lacam":
         from .lacam import lacam
-        paths, stats = lacam(graph, starts, goals, deadline, seed, guide=guide)
+        # Python lists: PIBT reads single entries, far faster from a list than from numpy.
+        paths, stats = lacam(graph, starts, goals, deadline, seed, guide=guide,
+                             dists=[t.tolist() for t in tables])
     elif planner == "astar":
         paths, stats = _prioritized(graph, starts, goals, deadline)
     elif planner == "learned":
@@ -175,9 +284,15 @@ def write_plan(path, result: OneShotResult, *, map_file: str = "", scen_file: st
              f"soc={result.sum_of_costs}", f"soc_lb={result.lower_bound}",
              f"makespan={result.makespan}", f"comp_time={round(result.wall_s * 1000)}",
              "solution="]
-    horizon = max((len(p) for p in result.paths), default=0)
-    for t in range(horizon):
-        cells = (p[min(t, len(p) - 1)] for p in result.paths)
-        lines.append(f"{t}:" + "".join(f"({c},{r})," for r, c in cells))
+    paths = result.paths
+    horizon = max((len(p) for p in paths), default=0)
+    if any(len(p) != horizon for p in paths):  # hold each agent at its last cell
+        paths = [list(p) + [p[-1]] * (horizon - len(p)) for p in paths]
+    # Each cell's text once; then a timestep is a join of looked-up strings (3x faster at
+    # 1,000 agents than formatting every entry).
+    text = {cell: f"({cell[1]},{cell[0]})," for cell in set().union(*paths)}
+    get = text.__getitem__
+    lines += [f"{t}:" + "".join(map(get, column))
+              for t, column in enumerate(zip(*paths, strict=True))]
     from pathlib import Path
     Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
