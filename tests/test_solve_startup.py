@@ -56,6 +56,32 @@ def test_solve_imports_only_what_it_needs(tmp_path):
     assert "numpy" in loaded and "warerover_phys.planning.lacam" in loaded  # it did solve
 
 
+def test_the_console_script_takes_the_fast_path(tmp_path):
+    """``warerover solve`` (the script pyproject.toml installs) loads what ``python -m``
+    does: no typer, rich, pydantic, YAML or scipy."""
+    import tomllib
+
+    script = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["scripts"]
+    module, func = script["warerover"].split(":")
+    out = tmp_path / "plan.txt"
+    probe = (
+        "import importlib, json, sys\n"
+        f"sys.argv = ['warerover', 'solve', {str(MAP)!r}, {str(SCEN)!r}, '--agents', '5',\n"
+        f"            '--out', {str(out)!r}]\n"
+        "try:\n"
+        f"    getattr(importlib.import_module({module!r}), {func!r})()\n"
+        "    code = 'returned'\n"
+        "except SystemExit as exit_:\n"
+        "    code = exit_.code\n"
+        "print(json.dumps({'code': code, 'modules': sorted(sys.modules)}), file=sys.stderr)\n")
+    proc = _python("-c", probe)
+    report = json.loads(proc.stderr.strip().splitlines()[-1])
+    assert report["code"] == 0, proc.stderr
+    assert out.is_file()
+    loaded = set(report["modules"])
+    assert sorted(m for m in loaded if m in HEAVY or m.split(".")[0] in HEAVY) == []
+
+
 TYPER_ONLY = ("import runpy, sys\n"
               "import warerover_phys.solve_cli as fast\n"
               "fast.fast_main = lambda argv: None  # never taken: the typer command answers\n"

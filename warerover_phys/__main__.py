@@ -1,17 +1,5 @@
-"""``python -m warerover_phys`` is the ``warerover`` command.
+"""``python -m warerover_phys`` is the ``warerover`` command (:mod:`warerover_phys.entry`)."""
 
-``solve`` with plainly well-formed arguments starts without the full command line (typer,
-rich, the scenario models): :func:`warerover_phys.solve_cli.fast_main`; everything else, and
-``solve`` with anything it does not read, goes to :func:`warerover_phys.cli.main`.
-"""
-
-import sys
-
-if len(sys.argv) > 1 and sys.argv[1] == "solve":
-    from .solve_cli import fast_main
-
-    fast_main(sys.argv[1:])  # exits when it ran the command
-
-from .cli import main  # noqa: E402
+from .entry import main
 
 main()
