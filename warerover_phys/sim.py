@@ -32,7 +32,7 @@ from .faults.model import FaultModel, close_failure, open_failure
 from .metrics import MetricsRecorder
 from .planning import make_planner
 from .planning.astar import nearest_free_anchor
-from .planning.base import AgentRequest, PlanRequest, PlanResult
+from .planning.base import AgentRequest, Planner, PlanRequest, PlanResult
 from .planning.paths import TimedPath, footprint_nodes, occupancy
 from .planning.rotation import agent_turn_ticks
 from .planning.sweep import DIR_OF, EAST, BodyShape, TurnMasks, turn_fields
@@ -71,7 +71,10 @@ class EpisodeResult:
 class Simulation:
     """One episode, stepped one tick at a time (``run_episode`` runs it to the end)."""
 
-    def __init__(self, scenario: Scenario, seed: int | None = None) -> None:
+    def __init__(self, scenario: Scenario, seed: int | None = None, *,
+                 planner: Planner | None = None) -> None:
+        """``planner``: a planner object to use instead of the scenario's (the closed-loop
+        environment, :mod:`warerover_phys.envs.loop`, plans with the agents' actions)."""
         if seed is not None:
             scenario = scenario.with_seed(seed)
         self.scenario = scenario
@@ -79,13 +82,15 @@ class Simulation:
         try:
             check_plugins(scenario)
             self.scheduler = make_scheduler(scenario.scheduler)
-            self.planner = make_planner(scenario.planner)
+            self.planner = make_planner(scenario.planner) if planner is None else planner
             self.executor = make_executor(scenario.executor)
         except ScenarioError as err:
             raise err.with_file(scenario.source) if scenario.source else err from None
         self.executor.bind(executor_setup(self.world))
         self.metrics = MetricsRecorder(scenario)
         self.faults = FaultModel(scenario.faults, self.world.rngs["faults"])
+        self._pending: tuple | None = None
+        """Between begin_tick and finish_tick: (request, t0, t1)."""
         self.last_report: StepReport | None = None
         """What the executor reported for the last tick (read-only for observers such as
         the live view: ``poses`` holds continuous poses on physics)."""
@@ -148,6 +153,15 @@ class Simulation:
 
     def step(self) -> None:
         """Run one tick of the loop."""
+        request = self.begin_tick()
+        self.finish_tick(None if request is None else self.planner.plan(request))
+
+    def begin_tick(self) -> PlanRequest | None:
+        """The first half of a tick: faults, order arrivals, the scheduler, and the
+        planning request (None: no AGV needs planning). :meth:`finish_tick` takes what was
+        planned for it; :meth:`step` is the two with the planner between them."""
+        if self._pending is not None:
+            raise RuntimeError("begin_tick called twice without finish_tick")
         w = self.world
         self._apply_faults()
         self._send_out()
@@ -156,7 +170,27 @@ class Simulation:
         for a in self.scheduler.assign(SchedulerView(w), w.rngs["scheduler"]):
             w.start_trip(a.agv, a.shelf, list(a.orders))
         t1 = time.perf_counter()
-        self._plan()
+        agents = self._step_requests() if self._lifelong else self._replan_requests()
+        request = None if not agents else PlanRequest(
+            tick=w.tick, agents=agents, graphs=w.graphs, reservations=w.reservations.copy(),
+            rng=w.rngs["planner"], keep_clear=w.keep_clear())
+        self._pending = (request, t0, t1)
+        return request
+
+    def finish_tick(self, result: PlanResult | None) -> None:
+        """The second half of the tick :meth:`begin_tick` started: commit ``result`` (the
+        plan for its request; None when there was none), step the executor and apply its
+        report."""
+        if self._pending is None:
+            raise RuntimeError("finish_tick called without begin_tick")
+        (request, t0, t1), self._pending = self._pending, None
+        w = self.world
+        if request is None:
+            self.metrics.replans_this_tick(0, 0, 0)
+        else:
+            if result is None:
+                raise TypeError("finish_tick: a plan request was made, the result is None")
+            self._take(result, request.agents)
         t2 = time.perf_counter()
         report = self.executor.step(self._view())
         self._apply_report(report)
@@ -233,22 +267,12 @@ class Simulation:
             w.log("corridor_exit_sent", agv=aid, corridor=inside_open_corridor(w, aid),
                   spot=list(w.cell(spot)))
 
-    def _plan(self) -> None:
-        """Plan the AGVs that need it: a new goal, a path that ran out short of its goal,
-        or blocked for ``replan_blocked_ticks``. The planner works on a copy of the
-        reservations; the paths it returns are committed here."""
+    def _take(self, result: PlanResult, agents: list[AgentRequest]) -> None:
+        """Take what the planner returned for the AGVs that needed planning (a new goal, a
+        path that ran out short of its goal, blocked for ``replan_blocked_ticks``; every
+        AGV for step planners): the planner worked on a copy of the reservations; the paths
+        it returns are committed here."""
         w = self.world
-        if self._lifelong:
-            agents = self._step_requests()
-        else:
-            agents = self._replan_requests()
-        if not agents:
-            self.metrics.replans_this_tick(0, 0, 0)
-            return
-        request = PlanRequest(tick=w.tick, agents=agents, graphs=w.graphs,
-                              reservations=w.reservations.copy(), rng=w.rngs["planner"],
-                              keep_clear=w.keep_clear())
-        result = self.planner.plan(request)
         self._commit(result, agents)
         for aid, path in result.paths.items():
             agv = w.agvs[aid]

@@ -168,16 +168,38 @@ def test_plan_request_paths_are_valid_and_returned():
     assert validate_states(traj, world.layout.obstacles) == []
 
 
-def test_mixed_fleet_is_refused():
+def test_rotations_are_refused():
     world = World.build(load_scenario(PAPER))
-    req = _request(world)
-    req.agents[0] = AgentRequest(0, req.agents[0].start, req.agents[0].goal, k=2)
-    with pytest.raises(PlanningError, match="1x1 AGVs"):
-        LearnedPlanner().plan(req)
     req = _request(world)
     req.agents[0] = AgentRequest(0, req.agents[0].start, req.agents[0].goal, turn_ticks=(1, 2))
     with pytest.raises(PlanningError, match="does not plan rotations"):
         LearnedPlanner().plan(req)
+
+
+HETERO = ROOT / "layouts" / "paper_heterogeneous.yaml"
+
+
+@pytest.mark.parametrize("seed", [0, 2])
+def test_mixed_fleet_footprint_step_with_policy_rankings(seed):
+    """2x2 and slow AGVs: one footprint-aware PIBT step, the 1x1 AGVs ranked by the policy:
+    every order done, footprints never overlap, the same seed gives the same episode, and
+    the policy changes the moves (not pibt's episode)."""
+    sc = load_scenario(HETERO, [("planner.name", "learned"), ("orders.oneshot.count", 8)])
+    result = run_episode(sc, seed=seed)
+    w = result.world
+    assert result.metrics["success_rate"] == 1.0
+    assert result.metrics["collisions"] == 0
+    sizes = {a.id: a.k for a in w.agvs}
+    speeds = {a.id: a.ticks_per_move for a in w.agvs}
+    assert len(set(sizes.values())) > 1
+    assert validate_states(result.actual, w.layout.obstacles, sizes=sizes,
+                           ticks_per_move=speeds) == []
+    again = run_episode(load_scenario(HETERO, [("planner.name", "learned"),
+                                               ("orders.oneshot.count", 8)]), seed=seed)
+    assert again.actual == result.actual
+    pibt = run_episode(load_scenario(HETERO, [("planner.name", "pibt"),
+                                              ("orders.oneshot.count", 8)]), seed=seed)
+    assert pibt.actual != result.actual
 
 
 @pytest.mark.parametrize("seed", [1, 2])

@@ -122,6 +122,10 @@ class Mover:
     free)."""
     rdist: np.ndarray | None = None
     """Rotation-aware mover: ticks to its goal from ``[anchor, heading]``."""
+    prefer: Mapping[int, float] | None = None
+    """Plain movers: this step's preference of target anchors, lower first (the ``learned``
+    planner's policy ranking); anchors it does not name come after, by distance. None: by
+    distance to the goal, as PIBT."""
 
     @property
     def turns(self) -> bool:
@@ -387,6 +391,9 @@ class _Step:
         if avoid:
             near = [v for v in near
                     if avoid.isdisjoint(footprint_nodes(v, mv.k, self.cols))]
+        if mv.prefer is not None:
+            pref, last = mv.prefer, float("inf")
+            return sorted(near, key=lambda v: (pref.get(v, last), d[v] + tie[v]))
         return sorted(near, key=lambda v: d[v] + tie[v])
 
     def rot_options(self, i: int) -> list[tuple[float, int, int]]:

@@ -11,9 +11,10 @@ Like :class:`~warerover_phys.planning.pibt_planner.PIBTPlanner` it is a step pla
 from the loop (ticks since the AGV got its goal); AGVs working in place are held. Loaded
 AGVs see shelves as obstacles and move on their own motion graph. Liveness fallback: a
 tick on which some AGV has chased its goal for more than ``fallback_age`` ticks is planned
-by plain PIBT with swap (counted as a budget hit). Fleets of 1x1 AGVs that
-move one cell per tick only, without rotations (``planner.rotations``): anything else raises
-:class:`PlanningError`.
+by plain PIBT with swap (counted as a budget hit). Rotations (``planner.rotations``) raise
+:class:`PlanningError`. Fleets with larger or slower AGVs are planned by one footprint-aware
+PIBT step (as ``pibt``) in which the 1x1 one-cell-per-tick AGVs rank their moves by the
+policy and the others by distance (the policy was trained on 1x1 AGVs only).
 
 The weights default to the shipped ``weights/learned_v2.npz`` (feature set 2; the first
 weights, ``learned_v1.npz``, feature set 1, still load); another file can be given as
@@ -39,7 +40,7 @@ from .base import AgentRequest, PlanRequest, PlanResult, TimedPath
 from .graph import MotionGraph
 from .pibt import _to_paths, initial_priorities, pibt_step, update_priorities
 from .pibt_planner import uniform_fleet
-from .policy import MLPPolicy, ObsGrid, shield_step
+from .policy import ACTIONS, MLPPolicy, ObsGrid, shield_step
 
 __all__ = ["LearnedPlanner", "learned_oneshot", "LearnedController", "WEIGHTS_ENV"]
 
@@ -104,8 +105,7 @@ class LearnedPlanner:
             raise PlanningError("the learned planner does not plan rotations "
                                 "(planner.rotations: true): use astar, pibt or lacam")
         if not uniform_fleet(agents):
-            raise PlanningError("the learned planner drives 1x1 AGVs that move one cell per "
-                                "tick only (use pibt for mixed fleets)")
+            return self._plan_mixed(request, agents)
         graphs = request.graphs
         unloaded, loaded = graphs.get(1, False), graphs.get(1, True)
         grid = _obs_grid(unloaded, loaded, self.policy.fov_radius)
@@ -137,6 +137,76 @@ class LearnedPlanner:
             path = TimedPath(a.agv, request.tick, states)
             res.commit(path, 1)
             result.paths[a.agv] = path
+        return result
+
+
+    def _plan_mixed(self, request: PlanRequest, agents: list[AgentRequest]) -> PlanResult:
+        """A fleet of mixed sizes or speeds: one footprint-aware PIBT step
+        (:func:`~warerover_phys.planning.footprint_pibt.footprint_step`, as ``pibt``) in
+        which every 1x1 AGV that moves a cell per tick and stands ranks its moves by the
+        policy (``Mover.prefer``); larger and slower AGVs rank theirs by distance, as the
+        policy was trained on 1x1 AGVs only. The policy sees every AGV on its anchor cell.
+        The liveness fallback plans the tick with no policy ranking."""
+        from dataclasses import replace
+
+        from .footprint_pibt import footprint_step, successor
+        from .pibt_planner import (
+            commit_poses,
+            current_pose,
+            headings_for,
+            last_turns,
+            movers_for,
+        )
+
+        res, tick = request.reservations, request.tick
+        movers = movers_for(request, agents, [a.goal for a in agents])
+        poses = [current_pose(res, a, tick) for a in agents]
+        prio = [float(a.priority[0]) if a.priority else 0.0 for a in agents]
+        held = {i: a.start for i, a in enumerate(agents) if a.hold and poses[i][2] == 0}
+        rng = request.rng if request.rng is not None else np.random.default_rng(0)
+        tie = rng.random(len(movers[0].dist)) * 0.5
+        unloaded, loaded = request.graphs.get(1, False), request.graphs.get(1, True)
+        limit = (2 * (unloaded.rows + unloaded.cols) if self.fallback_age is None
+                 else self.fallback_age)
+        stale = any(p > limit and not a.hold and a.start != a.goal
+                    for p, a in zip(prio, agents, strict=True))
+        result = PlanResult()
+        if stale:
+            result.budget_hits += 1
+        else:
+            small = [i for i, (a, mv) in enumerate(zip(agents, movers, strict=True))
+                     if mv.k == 1 and mv.m == 1 and mv.rot is None and not mv.turns
+                     and poses[i][2] == 0 and i not in held]
+            if small:
+                grid = _obs_grid(unloaded, loaded, self.policy.fov_radius)
+                config = np.array([p[1] for p in poses], dtype=np.int64)
+                goals = np.array([a.goal for a in agents], dtype=np.int64)
+                dists = [mv.dist if mv.k == 1 else unloaded.dist_to(unloaded.cell(a.goal))
+                         for a, mv in zip(agents, movers, strict=True)]
+                classes = np.array([1 if a.loaded else 0 for a in agents], dtype=np.int64)
+                logits = self.policy.logits(self.policy.features(
+                    grid, config, goals, dists, prio, classes))
+                cols = unloaded.cols
+                for i in small:
+                    here = int(config[i])
+                    pref = {}
+                    for act, (dr, dc) in enumerate(ACTIONS.tolist()):
+                        r, c = divmod(here, cols)
+                        v = (r + dr) * cols + (c + dc)
+                        if act == 0 or (0 <= r + dr < unloaded.rows and 0 <= c + dc < cols
+                                        and v in movers[i].neighbors[here]):
+                            pref[here if act == 0 else v] = -float(logits[i, act])
+                    movers[i] = replace(movers[i], prefer=pref)
+        heads = headings_for(agents, res, tick)
+        out_heads: list[int] = []
+        nxt = footprint_step(movers, poses, prio, tie, res.cols, forced=held,
+                             headings=heads, out_headings=out_heads,
+                             undo=last_turns(res, agents, tick))
+        if nxt is None:  # holds never contradict each other; be safe and keep still
+            nxt = [successor(p, p[1], mv.m) for p, mv in zip(poses, movers, strict=True)]
+            out_heads = list(heads) if heads is not None else []
+        commit_poses(result, res, agents, [tuple(poses), tuple(nxt)],
+                     [heads, tuple(out_heads)] if heads is not None else None, tick)
         return result
 
 

@@ -38,7 +38,7 @@ from .sweep import turn_aware
 from .turns import heading_index
 
 __all__ = ["PIBTPlanner", "uniform_fleet", "movers_for", "current_pose", "headings_for",
-           "commit_poses"]
+           "last_turns", "commit_poses"]
 
 
 def uniform_fleet(agents: Sequence[AgentRequest]) -> bool:
@@ -95,7 +95,7 @@ def headings_for(agents: Sequence[AgentRequest], res: ReservationTable | None = 
     return tuple(out)
 
 
-def _last_turns(res: ReservationTable, agents: Sequence[AgentRequest],
+def last_turns(res: ReservationTable, agents: Sequence[AgentRequest],
                 tick: int) -> dict[int, int]:
     """Per rotation-aware agent (index) that turned in the tick before ``tick``, the
     heading it turned away from (read from its committed path)."""
@@ -207,7 +207,7 @@ class PIBTPlanner:
         out_heads: list[int] = []
         nxt = footprint_step(movers, poses, prio, tie, res.cols, forced=held,
                              headings=heads, out_headings=out_heads,
-                             rotation=self.rotation, undo=_last_turns(res, agents, tick))
+                             rotation=self.rotation, undo=last_turns(res, agents, tick))
         if nxt is None:  # holds never contradict each other; be safe and keep still
             nxt = [successor(p, p[1], mv.m) for p, mv in zip(poses, movers, strict=True)]
             out_heads = list(heads) if heads is not None else []
