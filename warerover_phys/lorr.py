@@ -317,7 +317,11 @@ class _Tasks:
         self.n = problem.team_size
         self.cols = problem.grid.cols
         self.next_task = 0
-        self.open: list[int] = []
+        # the open pool (2024 and later): task ids, in the order revealed, and the row and
+        # column of each one's first errand
+        self.open = np.zeros(0, dtype=np.int64)
+        self.open_r = np.zeros(0, dtype=np.int64)
+        self.open_c = np.zeros(0, dtype=np.int64)
         self.releases: dict[int, int] = {}
         self.rr_next = list(range(self.n))  # roundrobin: each robot's next task id
         if problem.strategy == "pool":
@@ -327,12 +331,18 @@ class _Tasks:
         return self.p.tasks[k % len(self.p.tasks)]
 
     def _reveal(self, count: int, tick: int) -> None:
-        for _ in range(count):
-            self.open.append(self.next_task)
-            self.releases[self.next_task] = tick
-            self.next_task += 1
+        if count <= 0:
+            return
+        ids = np.arange(self.next_task, self.next_task + count, dtype=np.int64)
+        for k in ids.tolist():
+            self.releases[k] = tick
+        first = np.asarray([self._task(k)[0] for k in ids.tolist()], dtype=np.int64)
+        self.open = np.concatenate([self.open, ids])
+        self.open_r = np.concatenate([self.open_r, first // self.cols])
+        self.open_c = np.concatenate([self.open_c, first % self.cols])
+        self.next_task += count
 
-    def assign(self, free: list[int], where: list[int], tick: int) -> dict[int, int]:
+    def assign(self, free: list[int], where, tick: int) -> dict[int, int]:
         """Tasks for the free robots (robot -> task id)."""
         out: dict[int, int] = {}
         strategy = self.p.strategy
@@ -348,21 +358,22 @@ class _Tasks:
                 self.releases[k] = tick
                 out[i] = k
         else:
-            if not self.open or not free:
+            if not len(self.open) or not free:
                 return out
-            first = np.asarray([self._task(k)[0] for k in self.open])
-            fr, fc = first // self.cols, first % self.cols
+            fr, fc = self.open_r, self.open_c
             taken = np.zeros(len(self.open), dtype=bool)
+            far = np.iinfo(np.int64).max
             for i in free:
-                r, c = divmod(where[i], self.cols)
+                r, c = divmod(int(where[i]), self.cols)
                 d = np.abs(fr - r) + np.abs(fc - c)
-                d = np.where(taken, np.iinfo(np.int64).max, d)
+                d[taken] = far
                 j = int(np.argmin(d))
                 if taken[j]:
                     break
                 taken[j] = True
-                out[i] = self.open[j]
-            self.open = [k for j, k in enumerate(self.open) if not taken[j]]
+                out[i] = int(self.open[j])
+            keep = ~taken
+            self.open, self.open_r, self.open_c = self.open[keep], fr[keep], fc[keep]
         return out
 
     def finished(self, count: int, tick: int) -> None:

@@ -50,6 +50,36 @@ except ImportError:  # pragma: no cover - another scipy
 
 __all__ = ["DistStore", "DEFAULT_BUDGET_MB"]
 
+try:
+    from numba import njit
+except ImportError:  # pragma: no cover - numba is a dependency; scipy's search remains
+    _bfs_fill = None
+else:
+    @njit(cache=True)
+    def _bfs_fill(indptr, indices, free, source, table):  # pragma: no cover - compiled
+        """Breadth-first search from compact cell ``source`` over the CSR graph
+        (``indptr``, ``indices``), writing each reached cell's depth into ``table`` at its
+        map cell ``free[c]`` (the rest of ``table`` is left as it is)."""
+        m = indptr.shape[0] - 1
+        depth = np.full(m, -1, dtype=np.int32)
+        queue = np.empty(m, dtype=np.int32)
+        depth[source] = 0
+        queue[0] = source
+        head, tail = 0, 1
+        while head < tail:
+            v = queue[head]
+            head += 1
+            dv = depth[v] + 1
+            for e in range(indptr[v], indptr[v + 1]):
+                u = indices[e]
+                if depth[u] < 0:
+                    depth[u] = dv
+                    queue[tail] = u
+                    tail += 1
+        for q in range(tail):
+            v = queue[q]
+            table[free[v]] = depth[v]
+
 DEFAULT_BUDGET_MB = 1024.0
 """Bytes the cached tables may hold, in MiB: 7,600 ``uint16`` tables of a 70,000-cell map."""
 _U16_FAR = np.iinfo(np.uint16).max
@@ -196,8 +226,11 @@ class DistStore:
         far = _U16_FAR if self.dtype is np.uint16 else UNREACHABLE
         table = np.full(self.num_nodes, far, dtype=self.dtype)
         if self._enterable[goal]:
-            order, depth = self._bfs(int(self._cid[goal]))
-            table[self._free[order]] = depth
+            if _bfs_fill is not None:
+                _bfs_fill(self._indptr, self._indices, self._free, int(self._cid[goal]), table)
+            else:  # pragma: no cover - numba missing
+                order, depth = self._bfs(int(self._cid[goal]))
+                table[self._free[order]] = depth
         table.setflags(write=False)
         return table
 
