@@ -92,7 +92,8 @@ class DistStore:
     tables may hold (tables robots still hold live on beyond it until they let go).
     """
 
-    def __init__(self, graph: MotionGraph, budget_mb: float = DEFAULT_BUDGET_MB) -> None:
+    def __init__(self, graph: MotionGraph, budget_mb: float = DEFAULT_BUDGET_MB,
+                 reserve: int | None = None) -> None:
         if not budget_mb > 0:
             raise ValueError(f"budget_mb: expected a positive number, got {budget_mb!r}")
         n = graph.num_nodes
@@ -128,6 +129,18 @@ class DistStore:
         self.budget_bytes = int(budget_mb * 2**20)
         self.capacity = max(1, self.budget_bytes // self.table_bytes)
         """Tables the cache holds at most."""
+        self.slab: np.ndarray | None = None
+        """With ``reserve``: every table is a row of this one 2-D array (``slot``), so a
+        compiled step reads any robot's table by its row number (:mod:`.pibt_numba`)."""
+        if reserve is not None:
+            # Rows for the cached tables and for one more table per robot (evicted but
+            # still held): a robot holds one table, so the rows never run out (nor can
+            # there be more tables than goal cells). np.empty only reserves the address
+            # space; a row takes memory once a table is written into it.
+            rows = min(self.capacity + max(0, int(reserve)), max(1, len(self._free))) + 1
+            self.slab = np.empty((rows, n), dtype=self.dtype)
+            self._slots: list[int] = []  # rows given back
+            self._next_row = 0  # rows never used start here
         self._cache: OrderedDict[int, np.ndarray] = OrderedDict()
         self._live: weakref.WeakValueDictionary[int, np.ndarray] = weakref.WeakValueDictionary()
         self.hits = 0
@@ -222,9 +235,27 @@ class DistStore:
         self.misses, self.bfs_s = misses, bfs
         return len(self._cache)
 
+    def slot(self, table: np.ndarray) -> int:
+        """The row of :attr:`slab` that holds ``table`` (a table this store gave)."""
+        assert self.slab is not None, "slot: the store was made without reserve"
+        return (table.ctypes.data - self.slab.ctypes.data) // self.slab.strides[0]
+
     def _compute(self, goal: int) -> np.ndarray:
         far = _U16_FAR if self.dtype is np.uint16 else UNREACHABLE
-        table = np.full(self.num_nodes, far, dtype=self.dtype)
+        if self.slab is not None:
+            if self._slots:
+                row = self._slots.pop()
+            elif self._next_row < len(self.slab):
+                row = self._next_row
+                self._next_row += 1
+            else:  # pragma: no cover - more tables held than robots reserved
+                raise RuntimeError("DistStore: every slab row is held (reserve too small)")
+            table = self.slab[row]
+            table.fill(far)
+            # the row is free again once nobody (cache, robot) holds the table
+            weakref.finalize(table, self._slots.append, row)
+        else:
+            table = np.full(self.num_nodes, far, dtype=self.dtype)
         if self._enterable[goal]:
             if _bfs_fill is not None:
                 _bfs_fill(self._indptr, self._indices, self._free, int(self._cid[goal]), table)
@@ -233,6 +264,11 @@ class DistStore:
                 table[self._free[order]] = depth
         table.setflags(write=False)
         return table
+
+    @property
+    def slab_rows_in_use(self) -> int:
+        """Rows of :attr:`slab` holding a table (0 without a slab)."""
+        return 0 if self.slab is None else self._next_row - len(self._slots)
 
     def counters(self) -> dict[str, Any]:
         """Hits, misses (tables computed), revived, evictions, seconds of BFS, tables cached
