@@ -45,7 +45,7 @@ except ImportError:  # pragma: no cover - numba is a dependency; the Python step
         return lambda f: f
 
 __all__ = ["AVAILABLE", "StepTables", "step_tables", "pibt_step_nb", "heading_step_nb",
-           "robot_tables", "warm_up", "ACT_CODES"]
+           "robot_tables", "warm_up", "ACT_CODES", "bfs_fill", "priority_order"]
 
 ACT_CODES = {"F": ord("F"), "R": ord("R"), "C": ord("C"), "W": ord("W")}
 _F, _R, _C, _W = ord("F"), ord("R"), ord("C"), ord("W")
@@ -574,6 +574,33 @@ def heading_step_nb(st: StepTables, config: np.ndarray, heading: np.ndarray, tab
                            np.asarray(heading, dtype=np.int64), tables,
                            np.asarray(order, dtype=np.int64), np.asarray(tie, dtype=np.float64),
                            np.asarray(escaping, dtype=np.bool_))
+
+
+@njit(cache=True)
+def bfs_fill(indptr, indices, free, source, table):  # pragma: no cover - compiled
+    """Breadth-first search from compact cell ``source`` over a CSR graph (``indptr``,
+    ``indices``), writing each reached cell's depth into ``table`` at its map cell
+    ``free[c]`` (the rest of ``table`` is left as it is): :class:`~.dist_store.DistStore`'s
+    tables."""
+    m = indptr.shape[0] - 1
+    depth = np.full(m, -1, dtype=np.int32)
+    queue = np.empty(m, dtype=np.int32)
+    depth[source] = 0
+    queue[0] = source
+    head, tail = 0, 1
+    while head < tail:
+        v = queue[head]
+        head += 1
+        dv = depth[v] + 1
+        for e in range(indptr[v], indptr[v + 1]):
+            u = indices[e]
+            if depth[u] < 0:
+                depth[u] = dv
+                queue[tail] = u
+                tail += 1
+    for q in range(tail):
+        v = queue[q]
+        table[free[v]] = depth[v]
 
 
 def warm_up(dtype=np.uint16) -> None:
