@@ -512,7 +512,8 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
                     st, config, heading, tabs, order, tie, escaping)
             elif rotations:
                 nxt = pn.pibt_step_nb(st, config, goal, tabs, order, tie, heading=heading)
-                nxt, heading, acts = _turn_first_arrays(config, nxt, heading, cols)
+                nxt, heading, acts = pn.turn_first_nb(config, nxt, heading, cols,
+                                                      graph.num_nodes)
             else:
                 nxt = pn.pibt_step_nb(st, config, goal, tabs, order, tie)
                 acts = letters[_move_codes(nxt - config, cols)]
@@ -694,16 +695,6 @@ def _turn_first(config: list[int], nxt: list[int], heading: list[int], acts: lis
         if out[i] != config[i] and acts[i] == "W":
             acts[i] = "F"
     return out
-
-
-def _turn_first_arrays(config: np.ndarray, nxt: np.ndarray, heading: np.ndarray, cols: int
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`_turn_first` over arrays: (cells, headings, action codes)."""
-    hd = heading.tolist()
-    acts = ["W"] * len(hd)
-    out = _turn_first(config.tolist(), nxt.tolist(), hd, acts, cols)
-    return (np.asarray(out, dtype=np.int64), np.asarray(hd, dtype=np.int64),
-            np.frombuffer("".join(acts).encode("ascii"), dtype=np.uint8).copy())
 
 
 def _check(config: np.ndarray, nxt: np.ndarray, st: Any, pos: np.ndarray, arange: np.ndarray,

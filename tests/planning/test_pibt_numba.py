@@ -90,6 +90,10 @@ def test_compiled_steps_match_the_python_steps_on_random_grids(inst):
     acts = ["W"] * n
     hd = list(heading)
     moved = _turn_first(config, got, hd, acts, cols)
+    c_moved, c_hd, c_acts = pn.turn_first_nb(np.array(config), np.array(got), np.array(heading),
+                                             cols, graph.num_nodes)
+    assert (c_moved.tolist(), c_hd.tolist(), c_acts.tobytes().decode("ascii")) == (
+        moved, hd, "".join(acts))
     _valid(graph, cols, config, moved, heading, hd, acts)
 
     # actions forward / turn / wait

@@ -45,7 +45,8 @@ except ImportError:  # pragma: no cover - numba is a dependency; the Python step
         return lambda f: f
 
 __all__ = ["AVAILABLE", "StepTables", "step_tables", "pibt_step_nb", "heading_step_nb",
-           "robot_tables", "warm_up", "ACT_CODES", "bfs_fill", "priority_order"]
+           "robot_tables", "warm_up", "ACT_CODES", "bfs_fill", "priority_order",
+           "turn_first_nb"]
 
 ACT_CODES = {"F": ord("F"), "R": ord("R"), "C": ord("C"), "W": ord("W")}
 _F, _R, _C, _W = ord("F"), ord("R"), ord("C"), ord("W")
@@ -577,6 +578,64 @@ def heading_step_nb(st: StepTables, config: np.ndarray, heading: np.ndarray, tab
 
 
 @njit(cache=True)
+def _turn_first_kernel(config, nxt, heading, cols, cells):
+    n = config.shape[0]
+    out = nxt.copy()
+    hd = heading.copy()
+    acts = np.full(n, 87, dtype=np.uint8)  # W
+    for i in range(n):
+        if out[i] == config[i]:
+            continue
+        dr = out[i] // cols - config[i] // cols
+        dc = out[i] % cols - config[i] % cols
+        if dr == 0:
+            want = 0 if dc == 1 else 2
+        else:
+            want = 1 if dr == 1 else 3
+        if want != hd[i]:
+            diff = (want - hd[i]) % 4
+            if diff == 1 or diff == 2:
+                acts[i] = 82  # R
+                hd[i] = (hd[i] + 1) % 4
+            else:
+                acts[i] = 67  # C
+                hd[i] = (hd[i] + 3) % 4
+            out[i] = config[i]
+    # Cascade: whoever enters a cell whose robot stays, stays.
+    entering = np.full(cells, -1, dtype=np.int64)
+    stack = np.empty(n, dtype=np.int64)
+    top = 0
+    for i in range(n):
+        if out[i] != config[i]:
+            entering[out[i]] = i
+        else:
+            stack[top] = i
+            top += 1
+    while top > 0:
+        top -= 1
+        i = stack[top]
+        j = entering[config[i]]
+        entering[config[i]] = -1
+        if j >= 0 and out[j] != config[j]:
+            out[j] = config[j]
+            stack[top] = j
+            top += 1
+    for i in range(n):
+        if out[i] != config[i] and acts[i] == 87:
+            acts[i] = 70  # F
+    return out, hd, acts
+
+
+def turn_first_nb(config: np.ndarray, nxt: np.ndarray, heading: np.ndarray, cols: int,
+                  cells: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``lorr._turn_first`` compiled: (cells, headings, action codes) of PIBT's next cells
+    ``nxt`` under the rotation model."""
+    return _turn_first_kernel(np.asarray(config, dtype=np.int64),
+                              np.asarray(nxt, dtype=np.int64),
+                              np.asarray(heading, dtype=np.int64), cols, cells)
+
+
+@njit(cache=True)
 def bfs_fill(indptr, indices, free, source, table):  # pragma: no cover - compiled
     """Breadth-first search from compact cell ``source`` over a CSR graph (``indptr``,
     ``indices``), writing each reached cell's depth into ``table`` at its map cell
@@ -613,4 +672,5 @@ def warm_up(dtype=np.uint16) -> None:
     one = np.zeros(1, dtype=np.int64)
     pibt_step_nb(st, one, np.array([2]), tabs, one, np.zeros(3))
     pibt_step_nb(st, one, np.array([2]), tabs, one, np.zeros(3), heading=one)
+    turn_first_nb(one, one + 1, one, 3, 3)
     heading_step_nb(st, one, one, tabs, one, np.zeros(3), np.zeros(1, dtype=bool))
