@@ -27,8 +27,11 @@ leave it wait too. On ``warehouse_small`` (2023) over 300 timesteps ``actions`` 
 more tasks up to 200 robots and ``turn-first`` more at 400 (``tools/README.md``); both jam
 at high density. Robots start facing east. A robot that stands on its
 current errand's cell has done it (any heading); the task is finished with its last errand.
-Robots' distance tables come from one store per run, one table per goal cell, least
-recently used evicted under a MiB budget (:mod:`.planning.dist_store`); with ``trace_dir``
+The steps run compiled with numba (:mod:`.planning.pibt_numba`, ``engine``), with the same
+plans as the Python steps of :mod:`.planning.pibt` and :mod:`.planning.pibt_heading`, which
+stay the reference (``engine="python"``). Robots' distance tables come from one store per
+run, one table per goal cell, least recently used evicted under a MiB budget
+(:mod:`.planning.dist_store`); with ``trace_dir``
 the actions go to disk in chunks instead of lists, and :func:`write_output_json` streams
 them into the output, so memory does not grow with the timesteps.
 
