@@ -315,7 +315,7 @@ def _ms(name: str, seconds: list[float]) -> dict[str, float]:
 class _Tasks:
     """The task pool and who holds what."""
 
-    def __init__(self, problem: LorrProblem) -> None:
+    def __init__(self, problem: LorrProblem, compiled: Callable | None = None) -> None:
         self.p = problem
         self.n = problem.team_size
         self.cols = problem.grid.cols
@@ -327,6 +327,8 @@ class _Tasks:
         self.open_c = np.zeros(0, dtype=np.int64)
         self.releases: dict[int, int] = {}
         self.rr_next = list(range(self.n))  # roundrobin: each robot's next task id
+        self.compiled = compiled
+        """:func:`~.planning.pibt_numba.nearest_open`, or None: the Python loop."""
         if problem.strategy == "pool":
             self._reveal(max(1, int(problem.reveal * self.n)), 0)
 
@@ -365,6 +367,16 @@ class _Tasks:
                 return out
             fr, fc = self.open_r, self.open_c
             taken = np.zeros(len(self.open), dtype=bool)
+            if self.compiled is not None:  # the same choices, compiled
+                robots = np.asarray(free, dtype=np.int64)
+                cells = np.asarray(where, dtype=np.int64)[robots]
+                pick = self.compiled(fr, fc, cells // self.cols, cells % self.cols)
+                for i, j in zip(free, pick.tolist(), strict=True):
+                    if j < 0:
+                        break
+                    taken[j] = True
+                    out[i] = int(self.open[j])
+                free = []
             far = np.iinfo(np.int64).max
             for i in free:
                 r, c = divmod(int(where[i]), self.cols)
@@ -432,7 +444,7 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
     if prefetch:
         store.prefetch(e for k in range(min(len(problem.tasks), 10 * store.capacity))
                        for e in problem.tasks[k])
-    tasks = _Tasks(problem)
+    tasks = _Tasks(problem, pn.nearest_open if fast else None)
     rng = np.random.default_rng(seed)
     config = np.asarray(problem.starts, dtype=np.int64)
     heading = np.zeros(n, dtype=np.int64)

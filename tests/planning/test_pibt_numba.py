@@ -114,9 +114,9 @@ def _digest(result) -> str:
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
 
 
-def _same_runs(robots: int, ticks: int, rotations: bool, rule: str) -> None:
+def _same_runs(robots: int, ticks: int, rotations: bool, rule: str, **kw) -> None:
     problem = read_problem(DATA / "warehouse_small_400.json")
-    problem = dataclasses.replace(problem, starts=problem.starts[:robots])
+    problem = dataclasses.replace(problem, starts=problem.starts[:robots], **kw)
     ref = run_lifelong(problem, ticks, rotations=rotations, rule=rule, seed=7, engine="python")
     fast = run_lifelong(problem, ticks, rotations=rotations, rule=rule, seed=7, engine="numba")
     assert (ref.engine, fast.engine) == ("python", "numba")
@@ -139,6 +139,11 @@ def _same_runs(robots: int, ticks: int, rotations: bool, rule: str) -> None:
                                            (True, "turn-first")])
 def test_lifelong_runs_give_the_same_output_with_either_engine(rotations, rule):
     _same_runs(200, 250, rotations, rule)
+
+
+def test_the_task_pool_assigns_the_same_with_either_engine():
+    """The 2024 pool (nearest open task, compiled with numba in the fast engine)."""
+    _same_runs(150, 200, False, "actions", strategy="pool", reveal=1.5, version="2024")
 
 
 @pytest.mark.slow

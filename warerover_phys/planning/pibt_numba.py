@@ -46,7 +46,7 @@ except ImportError:  # pragma: no cover - numba is a dependency; the Python step
 
 __all__ = ["AVAILABLE", "StepTables", "step_tables", "pibt_step_nb", "heading_step_nb",
            "robot_tables", "warm_up", "ACT_CODES", "bfs_fill", "priority_order",
-           "turn_first_nb"]
+           "turn_first_nb", "nearest_open"]
 
 ACT_CODES = {"F": ord("F"), "R": ord("R"), "C": ord("C"), "W": ord("W")}
 _F, _R, _C, _W = ord("F"), ord("R"), ord("C"), ord("W")
@@ -636,6 +636,31 @@ def turn_first_nb(config: np.ndarray, nxt: np.ndarray, heading: np.ndarray, cols
 
 
 @njit(cache=True)
+def nearest_open(fr, fc, rr, rc):  # pragma: no cover - compiled
+    """Greedy nearest-task assignment: robot ``q`` (row ``rr[q]``, column ``rc[q]``), in
+    order, takes the untaken task nearest by Manhattan distance (first errand at ``fr``,
+    ``fc``; the first such on ties); -1 from the first robot that finds none left."""
+    m = fr.shape[0]
+    taken = np.zeros(m, dtype=np.bool_)
+    out = np.full(rr.shape[0], -1, dtype=np.int64)
+    for q in range(rr.shape[0]):
+        best = -1
+        bd = 0
+        for j in range(m):
+            if taken[j]:
+                continue
+            d = abs(fr[j] - rr[q]) + abs(fc[j] - rc[q])
+            if best < 0 or d < bd:
+                best = j
+                bd = d
+        if best < 0:
+            break
+        taken[best] = True
+        out[q] = best
+    return out
+
+
+@njit(cache=True)
 def bfs_fill(indptr, indices, free, source, table):  # pragma: no cover - compiled
     """Breadth-first search from compact cell ``source`` over a CSR graph (``indptr``,
     ``indices``), writing each reached cell's depth into ``table`` at its map cell
@@ -673,4 +698,5 @@ def warm_up(dtype=np.uint16) -> None:
     pibt_step_nb(st, one, np.array([2]), tabs, one, np.zeros(3))
     pibt_step_nb(st, one, np.array([2]), tabs, one, np.zeros(3), heading=one)
     turn_first_nb(one, one + 1, one, 3, 3)
+    nearest_open(one, one, one, one)
     heading_step_nb(st, one, one, tabs, one, np.zeros(3), np.zeros(1, dtype=bool))
