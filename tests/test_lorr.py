@@ -179,3 +179,21 @@ def test_agent_on_an_obstacle_is_named(tmp_path):
     agents.write_text("\n".join(lines) + "\n")
     with pytest.raises(ScenarioError, match="agent 0"):
         read_problem(tmp_path / "p" / PROBLEM.name)
+
+
+def test_the_runner_check_refuses_shared_cells_swaps_and_jumps():
+    """``lorr._check`` (over arrays) on a 1 x 4 corridor, cells 0-3."""
+    import numpy as np
+
+    from warerover_phys.lorr import _check
+    from warerover_phys.planning.pibt_numba import step_tables
+
+    st = step_tables([(1,), (0, 2), (1, 3), (2,)], 4)
+    pos = np.full(4, -1, dtype=np.int64)
+    ar = np.arange(2)
+    _check(np.array([0, 2]), np.array([1, 3]), st, pos, ar, 0)  # fine
+    for cfg, nxt, what in (([0, 2], [1, 1], "vertex conflict"), ([0, 3], [2, 3], "jumps"),
+                           ([0, 1], [1, 0], "swap")):
+        with pytest.raises(AssertionError, match=what):
+            _check(np.array(cfg), np.array(nxt), st, pos, ar, 4)
+        assert (pos == -1).all()  # the scratch array is left as it was

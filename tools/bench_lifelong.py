@@ -5,7 +5,8 @@ problem JSON given, with ``--agents`` robots (default: its ``teamSize``; fewer: 
 ones; more: the extra ones drawn on free cells with ``--agents-seed``, as
 ``tools/make_lorr_agents.py`` does), with and/or without the rotation model, and prints and
 writes (JSON) ms per timestep (mean, p99, max; of it the PIBT step and the breadth-first
-searches of the distance tables), set-up seconds, tasks finished, the distance-table
+searches of the distance tables), set-up seconds (of it numba's compile or cache load),
+tasks finished, the distance-table
 store's counters (hits, misses, evictions, prefetched) and peak memory (the process's peak
 RSS so far: give one ``--rotations`` value per call to measure a run alone). Every
 timestep's configuration is checked by the runner (no vertex or swap conflicts, no jumps).
@@ -70,6 +71,8 @@ def main() -> None:
                     help="tables of the errand cells before the first timestep")
     ap.add_argument("--stream", action="store_true",
                     help="stream the actions to a temporary folder (as `lorr --out`)")
+    ap.add_argument("--engine", choices=["auto", "numba", "python"], default="auto",
+                    help="the PIBT step: compiled (numba) or the Python reference")
     ap.add_argument("--json", type=Path, default=Path(__file__).parent / "out" /
                     "bench_lifelong.json")
     args = ap.parse_args()
@@ -84,7 +87,7 @@ def main() -> None:
             result = run_lifelong(
                 problem, args.ticks, rotations=rot, seed=args.seed, rule=args.rule,
                 dist_budget_mb=args.dist_budget_mb, prefetch=args.prefetch,
-                trace_dir=trace if args.stream else None,
+                trace_dir=trace if args.stream else None, engine=args.engine,
                 progress=lambda t, n, t0=t0: print(
                     f"  {t}/{n} {time.perf_counter() - t0:.0f} s RSS {_rss_mb():.0f} MB",
                     file=sys.stderr, flush=True) if t % 100 == 0 else None)
@@ -100,8 +103,10 @@ def main() -> None:
               f"timestep mean, {s['ms_per_tick_p99']:.1f} p99, {s['ms_per_tick_max']:.1f} max "
               f"(PIBT {s['pibt_ms_per_tick_mean']:.1f} mean, tables {d['bfs_ms_per_tick_mean']:.1f}"
               f" mean; CPU {s['cpu_ms_per_tick_mean']:.1f} mean, {s['cpu_ms_per_tick_p99']:.1f}"
-              f" p99, PIBT CPU {s['pibt_cpu_ms_per_tick_mean']:.1f} mean); set-up "
-              f"{s['setup_s']:.1f} s; {s['tasks_finished']} tasks; tables: "
+              f" p99, PIBT CPU {s['pibt_cpu_ms_per_tick_mean']:.1f} mean); engine "
+              f"{s['engine']}; set-up {s['setup_s']:.1f} s (of it compiling or loading the "
+              f"compiled steps {s['compile_s']:.1f} s, prefetching tables "
+              f"{d['prefetch_s']:.1f} s); {s['tasks_finished']} tasks; tables: "
               f"{d['misses']} computed, {d['prefetched']} prefetched, {d['hits']} hits, "
               f"{d['evictions']} evicted; peak RSS {rss:.0f} MB; load average "
               f"{load0:.1f} -> {os.getloadavg()[0]:.1f}")

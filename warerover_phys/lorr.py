@@ -27,8 +27,11 @@ leave it wait too. On ``warehouse_small`` (2023) over 300 timesteps ``actions`` 
 more tasks up to 200 robots and ``turn-first`` more at 400 (``tools/README.md``); both jam
 at high density. Robots start facing east. A robot that stands on its
 current errand's cell has done it (any heading); the task is finished with its last errand.
-Robots' distance tables come from one store per run, one table per goal cell, least
-recently used evicted under a MiB budget (:mod:`.planning.dist_store`); with ``trace_dir``
+The steps run compiled with numba (:mod:`.planning.pibt_numba`, ``engine``), with the same
+plans as the Python steps of :mod:`.planning.pibt` and :mod:`.planning.pibt_heading`, which
+stay the reference (``engine="python"``). Robots' distance tables come from one store per
+run, one table per goal cell, least recently used evicted under a MiB budget
+(:mod:`.planning.dist_store`); with ``trace_dir``
 the actions go to disk in chunks instead of lists, and :func:`write_output_json` streams
 them into the output, so memory does not grow with the timesteps.
 
@@ -61,7 +64,7 @@ from .errors import ScenarioError
 from .movingai import MovingAIMap, read_map
 
 __all__ = ["LorrProblem", "LorrResult", "read_problem", "run_lifelong", "output_json",
-           "write_output_json", "ActionChunks", "HEADINGS", "RULES"]
+           "write_output_json", "ActionChunks", "HEADINGS", "RULES", "ENGINES"]
 
 HEADINGS = "ESWN"
 """Heading codes 0-3: east (+col), south (+row), west (-col), north (-row)."""
@@ -257,6 +260,11 @@ class LorrResult:
     a loaded machine)."""
     tick_plan_cpu_s: list[float] = field(default_factory=list)
     """CPU seconds of the PIBT step in every timestep."""
+    engine: str = "python"
+    """The PIBT step that ran (``numba`` or ``python``, :data:`ENGINES`)."""
+    compile_s: float = 0.0
+    """Seconds of ``setup_s`` spent importing numba and compiling the numba steps or
+    loading them from numba's cache (the first run of a process; 0 with ``engine="python"``)."""
 
     @property
     def ticks(self) -> int:
@@ -278,6 +286,7 @@ class LorrResult:
                 "tasks_finished": self.finished,
                 "ms_per_tick_mean": float(ms.mean()), "ms_per_tick_p99":
                 float(np.percentile(ms, 99)), "ms_per_tick_max": float(ms.max()),
+                "engine": self.engine, "compile_s": self.compile_s,
                 "setup_s": self.setup_s, "wall_s": self.setup_s + float(ms.sum()) / 1e3,
                 "first_tick_s": float(ms[0]) / 1e3,
                 "pibt_ms_per_tick_mean": float(np.mean(self.tick_plan_s)) * 1e3
@@ -306,14 +315,20 @@ def _ms(name: str, seconds: list[float]) -> dict[str, float]:
 class _Tasks:
     """The task pool and who holds what."""
 
-    def __init__(self, problem: LorrProblem) -> None:
+    def __init__(self, problem: LorrProblem, compiled: Callable | None = None) -> None:
         self.p = problem
         self.n = problem.team_size
         self.cols = problem.grid.cols
         self.next_task = 0
-        self.open: list[int] = []
+        # the open pool (2024 and later): task ids, in the order revealed, and the row and
+        # column of each one's first errand
+        self.open = np.zeros(0, dtype=np.int64)
+        self.open_r = np.zeros(0, dtype=np.int64)
+        self.open_c = np.zeros(0, dtype=np.int64)
         self.releases: dict[int, int] = {}
         self.rr_next = list(range(self.n))  # roundrobin: each robot's next task id
+        self.compiled = compiled
+        """:func:`~.planning.pibt_numba.nearest_open`, or None: the Python loop."""
         if problem.strategy == "pool":
             self._reveal(max(1, int(problem.reveal * self.n)), 0)
 
@@ -321,12 +336,18 @@ class _Tasks:
         return self.p.tasks[k % len(self.p.tasks)]
 
     def _reveal(self, count: int, tick: int) -> None:
-        for _ in range(count):
-            self.open.append(self.next_task)
-            self.releases[self.next_task] = tick
-            self.next_task += 1
+        if count <= 0:
+            return
+        ids = np.arange(self.next_task, self.next_task + count, dtype=np.int64)
+        for k in ids.tolist():
+            self.releases[k] = tick
+        first = np.asarray([self._task(k)[0] for k in ids.tolist()], dtype=np.int64)
+        self.open = np.concatenate([self.open, ids])
+        self.open_r = np.concatenate([self.open_r, first // self.cols])
+        self.open_c = np.concatenate([self.open_c, first % self.cols])
+        self.next_task += count
 
-    def assign(self, free: list[int], where: list[int], tick: int) -> dict[int, int]:
+    def assign(self, free: list[int], where, tick: int) -> dict[int, int]:
         """Tasks for the free robots (robot -> task id)."""
         out: dict[int, int] = {}
         strategy = self.p.strategy
@@ -342,21 +363,32 @@ class _Tasks:
                 self.releases[k] = tick
                 out[i] = k
         else:
-            if not self.open or not free:
+            if not len(self.open) or not free:
                 return out
-            first = np.asarray([self._task(k)[0] for k in self.open])
-            fr, fc = first // self.cols, first % self.cols
+            fr, fc = self.open_r, self.open_c
             taken = np.zeros(len(self.open), dtype=bool)
+            if self.compiled is not None:  # the same choices, compiled
+                robots = np.asarray(free, dtype=np.int64)
+                cells = np.asarray(where, dtype=np.int64)[robots]
+                pick = self.compiled(fr, fc, cells // self.cols, cells % self.cols)
+                for i, j in zip(free, pick.tolist(), strict=True):
+                    if j < 0:
+                        break
+                    taken[j] = True
+                    out[i] = int(self.open[j])
+                free = []
+            far = np.iinfo(np.int64).max
             for i in free:
-                r, c = divmod(where[i], self.cols)
+                r, c = divmod(int(where[i]), self.cols)
                 d = np.abs(fr - r) + np.abs(fc - c)
-                d = np.where(taken, np.iinfo(np.int64).max, d)
+                d[taken] = far
                 j = int(np.argmin(d))
                 if taken[j]:
                     break
                 taken[j] = True
-                out[i] = self.open[j]
-            self.open = [k for j, k in enumerate(self.open) if not taken[j]]
+                out[i] = int(self.open[j])
+            keep = ~taken
+            self.open, self.open_r, self.open_c = self.open[keep], fr[keep], fc[keep]
         return out
 
     def finished(self, count: int, tick: int) -> None:
@@ -368,7 +400,8 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
                  rule: str = "actions",
                  progress: Callable[[int, int], None] | None = None,
                  dist_budget_mb: float | None = None, trace_dir: str | Path | None = None,
-                 chunk_ticks: int = 100, prefetch: bool = False) -> LorrResult:
+                 chunk_ticks: int = 100, prefetch: bool = False,
+                 engine: str = "auto") -> LorrResult:
     """Run ``problem`` for ``ticks`` timesteps with lifelong PIBT (see the module
     docstring; ``rule``: one of :data:`RULES`, used with ``rotations``); every timestep's
     configuration is checked (no two robots on a cell, no swaps, no jumps).
@@ -380,40 +413,73 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
     positions and headings in lists, so memory does not grow with ``ticks``. ``prefetch``:
     before the first timestep, compute the tables of the tasks' errand cells, in the order
     the tasks come, until the budget is full (set-up time instead of timestep time; the
-    league gives entrants a preprocessing phase); plans do not change."""
+    league gives entrants a preprocessing phase); plans do not change. ``engine``: the PIBT
+    step, ``numba`` (compiled, :mod:`.planning.pibt_numba`), ``python`` (the reference
+    steps) or ``auto`` (numba when it imports); both give the same plans."""
     if rule not in RULES:
         raise ValueError(f"rule: expected one of {RULES}, got {rule!r}")
+    if engine not in ENGINES:
+        raise ValueError(f"engine: expected one of {ENGINES}, got {engine!r}")
+    t0 = time.perf_counter()
+    from .planning import pibt_numba as pn  # imports numba: part of the compile time
+    import_s = time.perf_counter() - t0
     from .planning.dist_store import DEFAULT_BUDGET_MB, DistStore
     from .planning.oneshot import grid_graph
-    from .planning.pibt import pibt_step
-    from .planning.pibt_heading import heading_pibt_step, steps_of
+    from .planning.pibt_heading import steps_of
 
-    t0 = time.perf_counter()
+    if engine == "auto":
+        engine = "numba" if pn.AVAILABLE else "python"
+    elif engine == "numba" and not pn.AVAILABLE:  # pragma: no cover - numba is a dependency
+        raise ValueError("engine numba: numba is not installed (pip install numba)")
+    fast = engine == "numba"
     grid = problem.grid
     cols = grid.cols
     graph = grid_graph(grid.obstacles)
-    store = DistStore(graph, DEFAULT_BUDGET_MB if dist_budget_mb is None else dist_budget_mb)
-    steps = steps_of(graph.neighbors, cols) if rotations and rule == "actions" else None
+    n = problem.team_size
+    store = DistStore(graph, DEFAULT_BUDGET_MB if dist_budget_mb is None else dist_budget_mb,
+                      reserve=n if fast else None)
+    st = pn.step_tables(graph.neighbors, cols)
+    steps = steps_of(graph.neighbors, cols) if rotations and rule == "actions" and not fast \
+        else None
     if prefetch:
         store.prefetch(e for k in range(min(len(problem.tasks), 10 * store.capacity))
                        for e in problem.tasks[k])
-    n = problem.team_size
-    tasks = _Tasks(problem)
+    tasks = _Tasks(problem, pn.nearest_open if fast else None)
     rng = np.random.default_rng(seed)
-    config = list(problem.starts)
-    heading = [0] * n
-    task_of = [-1] * n
-    errand = [0] * n  # errands of its task done
-    goal = [-1] * n  # tables are made once robots have their first errands
-    dists: list[memoryview] = [None] * n  # type: ignore[list-item]
-    since = [0] * n
-    escaping: frozenset[int] = frozenset()
+    config = np.asarray(problem.starts, dtype=np.int64)
+    heading = np.zeros(n, dtype=np.int64)
+    task_of = np.full(n, -1, dtype=np.int64)
+    errand = np.zeros(n, dtype=np.int64)  # errands of its task done
+    goal = np.full(n, -1, dtype=np.int64)  # tables are made once robots have their first errands
+    since = np.zeros(n, dtype=np.int64)
+    frac = np.arange(n) / (n + 1)
+    escaping = np.zeros(n, dtype=bool)
+    if fast:
+        c0 = time.perf_counter()
+        pn.warm_up(store.dtype)
+        result_compile_s = import_s + time.perf_counter() - c0
+        # the robots' tables: rows of the store's slab (every robot gets one before the
+        # first step); ``held`` keeps each robot's table alive, so its row stays its own
+        rows = np.zeros(n, dtype=np.int64)
+        tabs = (store.slab, rows)
+        held: list = [None] * n
+    else:
+        result_compile_s = 0.0
+        # a memoryview reads Python ints: PIBT's single reads run 3-10x faster than on numpy
+        # scalars (uint16 against a float or a large int most)
+        tabs = [None] * n
     chunks = None if trace_dir is None else ActionChunks(Path(trace_dir), n, chunk_ticks)
     result = LorrResult(problem, rotations, rule if rotations else "none",
-                        actions=[[] for _ in range(n)] if chunks is None else [],
-                        positions=[[c] for c in config] if chunks is None else [],
-                        headings=[[0] for _ in range(n)] if chunks is None else [],
+                        actions=[], positions=[], headings=[],
                         schedule=[[] for _ in range(n)], chunks=chunks)
+    result.engine = engine
+    result.compile_s = result_compile_s
+    kept_acts: list[np.ndarray] = []
+    kept_cfg: list[np.ndarray] = [config]
+    kept_head: list[np.ndarray] = [heading]
+    arange = np.arange(n)
+    pos = np.full(graph.num_nodes, -1, dtype=np.int64)
+    letters = np.frombuffer(b"WRLDU", dtype=np.uint8)
     result.setup_s = time.perf_counter() - t0
     for tick in range(ticks):
         w0 = time.perf_counter()
@@ -421,68 +487,65 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
         misses0, bfs0 = store.misses, store.bfs_s
         # Errands reached (any heading), then new tasks for free robots.
         done_now = 0
-        arrived = [i for i, (c, g) in enumerate(zip(config, goal, strict=True)) if c == g]
-        advanced = []
-        for i in arrived:
-            k = task_of[i]
-            if k >= 0:
-                advanced.append(i)
-                errand[i] += 1
-                result.events.append((tick, i, k, errand[i]))
-                if errand[i] == len(tasks._task(k)):
-                    task_of[i] = -1
-                    done_now += 1
+        advanced = np.flatnonzero((config == goal) & (task_of >= 0)).tolist()
+        for i in advanced:
+            k = int(task_of[i])
+            e = int(errand[i]) + 1
+            errand[i] = e
+            result.events.append((tick, i, k, e))
+            if e == len(tasks._task(k)):
+                task_of[i] = -1
+                done_now += 1
         result.finished += done_now
         tasks.finished(done_now, tick)
-        free = [i for i in range(n) if task_of[i] < 0]
+        free = np.flatnonzero(task_of < 0).tolist()
         for i, k in tasks.assign(free, config, tick).items():
             task_of[i], errand[i] = k, 0
             result.events.append((tick, i, k, 0))
             result.schedule[i].append((tick, k))
         # Goals change only for robots that did an errand, took a task or have none.
         for i in sorted(set(advanced).union(free)):
-            k = task_of[i]
-            g = config[i] if k < 0 else tasks._task(k)[errand[i]]
+            k = int(task_of[i])
+            g = int(config[i]) if k < 0 else tasks._task(k)[int(errand[i])]
             if g != goal[i]:
                 goal[i] = g
-                # a memoryview reads Python ints: PIBT's single reads run 3-10x faster
-                # than on numpy scalars (uint16 against a float or a large int most)
-                dists[i] = memoryview(store.get(g))  # type: ignore[call-overload]
+                table = store.get(g)
+                if fast:
+                    held[i] = table
+                    rows[i] = store.slot(table)
+                else:
+                    tabs[i] = memoryview(table)  # type: ignore[call-overload]
                 since[i] = tick
-        prio = [tick - s + i / (n + 1) for i, s in enumerate(since)]
-        tie = (rng.random(graph.num_nodes) * 0.5).tolist()  # lists: faster single reads
+        prio = (tick - since) + frac
+        tie = rng.random(graph.num_nodes) * 0.5
         p0 = time.perf_counter()
         pc0 = time.process_time()
-        if rotations and rule == "actions":  # PIBT over the actions forward / turn / wait
-            nxt, heading, acts, escaping = heading_pibt_step(
-                graph.neighbors, cols, config, heading, dists, prio, tie, escaping, steps)
-        elif rotations:  # PIBT over cells, then turn first where a cell is not ahead
-            costs = [_Facing(dists[i], config[i], heading[i], cols) for i in range(n)]
-            nxt = pibt_step(graph, config, costs, prio, tie, goals=goal)
-            if nxt is None:  # pragma: no cover - no forced moves are given
-                raise AssertionError("PIBT found no configuration")
-            acts = ["W"] * n
-            nxt = _turn_first(config, nxt, heading, acts, cols)
+        if fast:
+            order = pn.priority_order(prio)
+            if rotations and rule == "actions":
+                nxt, heading, acts, escaping = pn.heading_step_nb(
+                    st, config, heading, tabs, order, tie, escaping)
+            elif rotations:
+                nxt = pn.pibt_step_nb(st, config, goal, tabs, order, tie, heading=heading)
+                nxt, heading, acts = pn.turn_first_nb(config, nxt, heading, cols,
+                                                      graph.num_nodes)
+            else:
+                nxt = pn.pibt_step_nb(st, config, goal, tabs, order, tie)
+                acts = letters[_move_codes(nxt - config, cols)]
         else:
-            nxt = pibt_step(graph, config, dists, prio, tie, goals=goal)
-            if nxt is None:  # pragma: no cover - no forced moves are given
-                raise AssertionError("PIBT found no configuration")
-            acts = ["W"] * n
-            for i in range(n):
-                if nxt[i] != config[i]:
-                    dr, dc = nxt[i] // cols - config[i] // cols, nxt[i] % cols - config[i] % cols
-                    acts[i] = _MOVE_LETTER[(dr, dc)]
+            nxt, heading, acts, escaping = _python_step(
+                graph, st, steps, cols, config, heading, goal, tabs, prio.tolist(),
+                tie.tolist(), escaping, rotations, rule, letters)
         result.tick_plan_s.append(time.perf_counter() - p0)
         result.tick_plan_cpu_s.append(time.process_time() - pc0)
-        _check(config, nxt, graph, tick)
+        _check(config, nxt, st, pos, arange, tick)
         config = nxt
         if chunks is not None:
             chunks.append(acts)
         else:
-            for i in range(n):
-                result.actions[i].append(acts[i])
-                result.positions[i].append(config[i])
-                result.headings[i].append(heading[i])
+            kept_acts.append(acts)
+            kept_cfg.append(config)
+            kept_head.append(heading)
         result.tick_misses.append(store.misses - misses0)
         result.tick_bfs_s.append(store.bfs_s - bfs0)
         result.tick_s.append(time.perf_counter() - w0)
@@ -491,9 +554,63 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
             progress(tick + 1, ticks)
     if chunks is not None:
         chunks.flush()
+    else:
+        acts_2d = np.stack(kept_acts) if kept_acts else np.zeros((0, n), dtype=np.uint8)
+        result.actions = [list(row.tobytes().decode("ascii"))
+                          for row in np.ascontiguousarray(acts_2d.T)]
+        result.positions = np.stack(kept_cfg).T.tolist()
+        result.headings = np.stack(kept_head).T.tolist()
     result.releases = dict(tasks.releases)
     result.dist = store.counters()
     return result
+
+
+ENGINES = ("auto", "numba", "python")
+"""The PIBT step of :func:`run_lifelong`: compiled or the Python reference."""
+
+
+def _move_codes(delta: np.ndarray, cols: int) -> np.ndarray:
+    """Index into ``b"WRLDU"`` of each move ``nxt - config`` (linear cells)."""
+    return np.where(delta == cols, 3, np.where(delta == -cols, 4, np.where(
+        delta == 1, 1, np.where(delta == -1, 2, 0))))
+
+
+def _python_step(graph, st, steps, cols, config, heading, goal, tabs, prio, tie, escaping,
+                 rotations, rule, letters):
+    """One timestep with the Python reference steps (lists in, arrays out)."""
+    from .planning.pibt import pibt_step
+    from .planning.pibt_heading import heading_pibt_step
+
+    n = len(config)
+    cfg = config.tolist()
+    if rotations and rule == "actions":  # PIBT over the actions forward / turn / wait
+        esc = frozenset(np.flatnonzero(escaping).tolist())
+        nxt, nh, acts, esc = heading_pibt_step(graph.neighbors, cols, cfg, heading.tolist(),
+                                               tabs, prio, tie, esc, steps)
+        out_esc = np.zeros(n, dtype=bool)
+        out_esc[list(esc)] = True
+        return (np.asarray(nxt, dtype=np.int64), np.asarray(nh, dtype=np.int64),
+                np.frombuffer("".join(acts).encode("ascii"), dtype=np.uint8).copy(), out_esc)
+    if rotations:  # PIBT over cells, then turn first where a cell is not ahead
+        hd = heading.tolist()
+        costs = [_Facing(tabs[i], cfg[i], hd[i], cols) for i in range(n)]
+        nxt = pibt_step(graph, cfg, costs, prio, tie, goals=goal.tolist())
+        if nxt is None:  # pragma: no cover - no forced moves are given
+            raise AssertionError("PIBT found no configuration")
+        acts_l = ["W"] * n
+        nxt = _turn_first(cfg, nxt, hd, acts_l, cols)
+        return (np.asarray(nxt, dtype=np.int64), np.asarray(hd, dtype=np.int64),
+                np.frombuffer("".join(acts_l).encode("ascii"), dtype=np.uint8).copy(), escaping)
+    nxt = pibt_step(graph, cfg, tabs, prio, tie, goals=goal.tolist())
+    if nxt is None:  # pragma: no cover - no forced moves are given
+        raise AssertionError("PIBT found no configuration")
+    acts_l = ["W"] * n
+    for i in range(n):
+        if nxt[i] != cfg[i]:
+            dr, dc = nxt[i] // cols - cfg[i] // cols, nxt[i] % cols - cfg[i] % cols
+            acts_l[i] = _MOVE_LETTER[(dr, dc)]
+    return (np.asarray(nxt, dtype=np.int64), heading,
+            np.frombuffer("".join(acts_l).encode("ascii"), dtype=np.uint8).copy(), escaping)
 
 
 class ActionChunks:
@@ -513,9 +630,10 @@ class ActionChunks:
         self._buf: list[bytes] = []
         self.ticks = 0
 
-    def append(self, acts: list[str]) -> None:
-        """One timestep's actions (one letter per robot)."""
-        self._buf.append("".join(acts).encode("ascii"))
+    def append(self, acts: list[str] | np.ndarray) -> None:
+        """One timestep's actions (one letter per robot, or their ``uint8`` ASCII codes)."""
+        self._buf.append(acts.tobytes() if isinstance(acts, np.ndarray)
+                         else "".join(acts).encode("ascii"))
         self.ticks += 1
         if len(self._buf) >= self.chunk:
             self.flush()
@@ -594,16 +712,25 @@ def _turn_first(config: list[int], nxt: list[int], heading: list[int], acts: lis
     return out
 
 
-def _check(config: list[int], nxt: list[int], graph: Any, tick: int) -> None:
-    if len(set(nxt)) != len(nxt):
-        raise AssertionError(f"vertex conflict at timestep {tick + 1}")  # pragma: no cover
-    moved_into = {v: i for i, v in enumerate(nxt)}
-    for i, (a, b) in enumerate(zip(config, nxt, strict=True)):
-        j = moved_into.get(a)
-        if j is not None and j != i and config[j] == b:  # pragma: no cover
-            raise AssertionError(f"robots {i} and {j} swap at timestep {tick + 1}")
-        if a != b and b not in graph.neighbors[a]:  # pragma: no cover
-            raise AssertionError(f"robot {i} jumps at timestep {tick + 1}")
+def _check(config: np.ndarray, nxt: np.ndarray, st: Any, pos: np.ndarray, arange: np.ndarray,
+           tick: int) -> None:
+    """No two robots on a cell, no two swapping cells, no jumps (over arrays: ``pos`` is a
+    per-cell scratch array of -1, left as it was found; ``st``: the step tables)."""
+    pos[nxt] = arange
+    try:
+        if (pos[nxt] != arange).any():
+            raise AssertionError(f"vertex conflict at timestep {tick + 1}")  # pragma: no cover
+        j = pos[config]  # who moves into my cell
+        bad = (j >= 0) & (j != arange) & (config[np.maximum(j, 0)] == nxt)
+        if bad.any():  # pragma: no cover
+            i = int(np.flatnonzero(bad)[0])
+            raise AssertionError(f"robots {i} and {int(j[i])} swap at timestep {tick + 1}")
+        moved = np.flatnonzero(nxt != config)
+        jumps = ~(st.nbr[config[moved]] == nxt[moved, None]).any(axis=1)
+        if jumps.any():  # pragma: no cover
+            raise AssertionError(f"robot {int(moved[jumps][0])} jumps at timestep {tick + 1}")
+    finally:
+        pos[nxt] = -1
 
 
 def output_json(result: LorrResult, *, paths: bool = True) -> dict[str, Any]:

@@ -56,3 +56,26 @@ def test_cache_evicts_least_recent_and_revives_tables_still_held():
     c = store.counters()
     assert (c["misses"], c["revived"], c["hits"], c["cached_tables"]) == (4, 1, 1, 3)
     assert c["cached_mb"] <= c["budget_mb"] and c["bfs_s"] > 0
+
+
+def test_slab_rows_hold_the_same_tables_and_are_reused_once_let_go():
+    """``reserve``: tables are rows of one 2-D array (what the compiled PIBT reads); a row
+    whose table nobody holds any more (evicted and let go) takes the next new table."""
+    graph = grid_graph(np.zeros((10, 10), dtype=bool))
+    plain = DistStore(graph, budget_mb=3 * 100 * 2 / 2**20)
+    slab = DistStore(graph, budget_mb=3 * 100 * 2 / 2**20, reserve=2)
+    assert plain.slab is None and slab.slab.shape == (3 + 2 + 1, 100)
+    held = slab.get(7)
+    row = slab.slot(held)
+    assert np.array_equal(slab.slab[row], held) and np.array_equal(held, plain.get(7))
+    assert not held.flags.writeable
+    for g in (1, 2, 3):  # 7 is evicted but still held: its row stays
+        assert np.array_equal(slab.get(g), plain.get(g))
+    assert slab.slab_rows_in_use == 4 and slab.get(7) is held
+    for g in (4, 5, 6):  # evict 1, 2, 3 and 7; the first three are let go at once
+        slab.get(g)
+    assert slab.slab_rows_in_use == 4
+    del held  # the last holder of 7 lets go: its row is free
+    assert slab.slab_rows_in_use == 3
+    fresh = slab.get(9)
+    assert slab.slot(fresh) == row and np.array_equal(fresh, plain.get(9))

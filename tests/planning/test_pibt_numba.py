@@ -1,0 +1,169 @@
+"""The compiled PIBT steps (:mod:`warerover_phys.planning.pibt_numba`) against the Python
+reference steps: the same next cells, headings and actions on random grids (hypothesis), and
+the same output over whole lifelong runs of ``warehouse_small`` with 200 and 400 robots.
+Every step is also checked by an independent validator (no shared cells, no swaps, no
+jumps, forward moves straight ahead)."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from warerover_phys.lorr import _Facing, _turn_first, output_json, read_problem, run_lifelong
+from warerover_phys.planning import pibt_numba as pn
+from warerover_phys.planning.dist_store import DistStore
+from warerover_phys.planning.oneshot import grid_graph
+from warerover_phys.planning.pibt import pibt_step
+from warerover_phys.planning.pibt_heading import STEP, heading_pibt_step, steps_of
+
+pytestmark = pytest.mark.skipif(not pn.AVAILABLE, reason="numba is not installed")
+
+DATA = Path(__file__).parent.parent / "data" / "lorr2023_warehouse_small"
+
+
+def _valid(graph, cols, config, nxt, heading=None, nh=None, acts=None):
+    """An independent check of one step (not the runner's own)."""
+    assert len(set(nxt)) == len(nxt), "two robots on one cell"
+    moved_into = {v: i for i, v in enumerate(nxt)}
+    for i, (a, b) in enumerate(zip(config, nxt, strict=True)):
+        j = moved_into.get(a)
+        assert not (j is not None and j != i and config[j] == b), "swap"
+        assert a == b or b in graph.neighbors[a], "jump"
+        if acts is not None and a != b:
+            assert acts[i] == "F" and nh[i] == heading[i]
+            assert (b // cols - a // cols, b % cols - a % cols) == STEP[heading[i]]
+
+
+@st.composite
+def _instances(draw):
+    rows = draw(st.integers(2, 9))
+    cols = draw(st.integers(2, 9))
+    seed = draw(st.integers(0, 2**31 - 1))
+    rng = np.random.default_rng(seed)
+    obstacles = rng.random((rows, cols)) < draw(st.sampled_from([0.0, 0.15, 0.3]))
+    free = np.flatnonzero(~obstacles.ravel())
+    if len(free) == 0:
+        obstacles[0, 0] = False
+        free = np.array([0])
+    n = draw(st.integers(1, len(free)))
+    return obstacles, rng, free, n
+
+
+@settings(max_examples=80, deadline=None)
+@given(_instances())
+def test_compiled_steps_match_the_python_steps_on_random_grids(inst):
+    obstacles, rng, free, n = inst
+    cols = obstacles.shape[1]
+    graph = grid_graph(obstacles)
+    store = DistStore(graph, budget_mb=4)  # uint16, or int32 where the grid is split
+    tab = pn.step_tables(graph.neighbors, cols)
+    config = rng.choice(free, n, replace=False).tolist()
+    goals = rng.choice(free, n).tolist()
+    tables = [store.get(g) for g in goals]
+    views = [memoryview(t) for t in tables]
+    typed = pn.robot_tables(tables)
+    prio = rng.random(n).tolist()
+    order = pn.priority_order(prio)
+    tie = rng.random(graph.num_nodes) * 0.5
+    heading = rng.integers(0, 4, n).tolist()
+    escaping = rng.random(n) < 0.3
+
+    # cells, no rotations
+    want = pibt_step(graph, config, views, prio, tie.tolist(), goals=goals)
+    got = pn.pibt_step_nb(tab, np.array(config), np.array(goals), typed, order, tie).tolist()
+    assert got == want
+    _valid(graph, cols, config, got)
+
+    # cells with the turn-first costs
+    costs = [_Facing(views[i], config[i], heading[i], cols) for i in range(n)]
+    want = pibt_step(graph, config, costs, prio, tie.tolist(), goals=goals)
+    got = pn.pibt_step_nb(tab, np.array(config), np.array(goals), typed, order, tie,
+                          heading=np.array(heading)).tolist()
+    assert got == want
+    acts = ["W"] * n
+    hd = list(heading)
+    moved = _turn_first(config, got, hd, acts, cols)
+    c_moved, c_hd, c_acts = pn.turn_first_nb(np.array(config), np.array(got), np.array(heading),
+                                             cols, graph.num_nodes)
+    assert (c_moved.tolist(), c_hd.tolist(), c_acts.tobytes().decode("ascii")) == (
+        moved, hd, "".join(acts))
+    _valid(graph, cols, config, moved, heading, hd, acts)
+
+    # actions forward / turn / wait
+    w_nxt, w_nh, w_acts, w_esc = heading_pibt_step(
+        graph.neighbors, cols, config, heading, views, prio, tie.tolist(),
+        frozenset(np.flatnonzero(escaping).tolist()), steps_of(graph.neighbors, cols))
+    g_nxt, g_nh, g_acts, g_esc = pn.heading_step_nb(tab, np.array(config), np.array(heading),
+                                                    typed, order, tie, escaping)
+    assert g_nxt.tolist() == w_nxt and g_nh.tolist() == w_nh
+    assert g_acts.tobytes().decode("ascii") == "".join(w_acts)
+    assert set(np.flatnonzero(g_esc).tolist()) == set(w_esc)
+    _valid(graph, cols, config, w_nxt, heading, w_nh, w_acts)
+
+
+def _digest(result) -> str:
+    doc = output_json(result)
+    doc.pop("plannerTimes")
+    return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
+
+
+def _same_runs(robots: int, ticks: int, rotations: bool, rule: str, **kw) -> None:
+    problem = read_problem(DATA / "warehouse_small_400.json")
+    problem = dataclasses.replace(problem, starts=problem.starts[:robots], **kw)
+    ref = run_lifelong(problem, ticks, rotations=rotations, rule=rule, seed=7, engine="python")
+    fast = run_lifelong(problem, ticks, rotations=rotations, rule=rule, seed=7, engine="numba")
+    assert (ref.engine, fast.engine) == ("python", "numba")
+    assert fast.finished == ref.finished > 0
+    assert fast.actions == ref.actions and fast.positions == ref.positions
+    assert fast.headings == ref.headings and fast.events == ref.events
+    assert _digest(fast) == _digest(ref)
+    graph = grid_graph(problem.grid.obstacles)
+    cols = problem.grid.cols
+    steps = list(zip(*fast.positions, strict=True))
+    heads = list(zip(*fast.headings, strict=True))
+    for t in range(ticks):
+        acts = [a[t] for a in fast.actions]
+        _valid(graph, cols, list(steps[t]), list(steps[t + 1]),
+               list(heads[t]) if rotations else None, list(heads[t + 1]) if rotations else None,
+               acts if rotations else None)
+
+
+@pytest.mark.parametrize("rotations,rule", [(False, "actions"), (True, "actions"),
+                                           (True, "turn-first")])
+def test_lifelong_runs_give_the_same_output_with_either_engine(rotations, rule):
+    _same_runs(200, 250, rotations, rule)
+
+
+def test_the_task_pool_assigns_the_same_with_either_engine():
+    """The 2024 pool (nearest open task, compiled with numba in the fast engine)."""
+    _same_runs(150, 200, False, "actions", strategy="pool", reveal=1.5, version="2024")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("rotations,rule", [(False, "actions"), (True, "actions"),
+                                           (True, "turn-first")])
+def test_lifelong_runs_give_the_same_output_with_400_robots(rotations, rule):
+    _same_runs(400, 400, rotations, rule)
+
+
+def test_steps_compiled_once_are_loaded_from_the_cache():
+    """``cache=True``: numba keeps the compiled steps beside the module (no recompiling in
+    the next process)."""
+    pn.warm_up()
+    cache = Path(pn.__file__).parent / "__pycache__"
+    assert any(p.name.startswith("pibt_numba._heading_kernel") and p.suffix == ".nbi"
+               for p in cache.iterdir())
+
+
+def test_step_tables_and_priority_order():
+    tab = pn.step_tables([(1,), (0, 2), (1,)], 3)
+    assert tab.nbr.tolist() == [[1, -1, -1, -1], [0, 2, -1, -1], [1, -1, -1, -1]]
+    assert tab.ahead.tolist() == [[1, -1, -1, -1], [2, -1, 0, -1], [-1, -1, 1, -1]]
+    assert pn.priority_order([0.5, 2.0, 2.0, 1.0]).tolist() == [1, 2, 3, 0]
