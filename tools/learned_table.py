@@ -159,7 +159,8 @@ def markdown(paper, oneshot) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scenarios", nargs="+",
-                    default=["paper_homogeneous.yaml", "paper_fault.yaml"])
+                    default=["paper_homogeneous.yaml", "paper_heterogeneous.yaml",
+                             "paper_fault.yaml"])
     ap.add_argument("--planners", nargs="+", default=["astar", "cbs", "pibt", "lacam",
                                                       "learned"])
     ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4])
