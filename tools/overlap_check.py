@@ -158,6 +158,8 @@ def main() -> None:
                 row.update(scenario=path.name, planner=planner, seed=seed,
                            delays=args.delays, body=args.body,
                            success_rate=m.get("success_rate"),
+                           failure_cause=m.get("failure_cause"),
+                           deadlocks=m.get("deadlocks"), freezes=m.get("freezes"),
                            reported_min_clearance_m=m.get("min_clearance_m"),
                            agv_contacts=m.get("agv_contacts"))
                 rows.append(row)
@@ -167,7 +169,9 @@ def main() -> None:
                       f"{row['samples_with_body_overlap']} / "
                       f"{row['samples_with_outline_overlap']}; executor: "
                       f"{row['reported_min_clearance_m']}, contacts {row['agv_contacts']}; "
-                      f"SR {row['success_rate']}; peak speed / accel ratio "
+                      f"SR {row['success_rate']} (cause {row['failure_cause']}), deadlocks "
+                      f"{row['deadlocks']} (freezes {row['freezes']}); "
+                      f"peak speed / accel ratio "
                       f"{row['peak_speed_ratio']:.4f} / {row['peak_accel_ratio']:.4f}",
                       flush=True)
     args.json.parent.mkdir(parents=True, exist_ok=True)
