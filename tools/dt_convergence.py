@@ -3,7 +3,8 @@ steps, makespan and other figures side by side.
 
 For each shipped scenario (``layouts/*.yaml``, or those given) and seed, runs the episode on
 the physics executor at each ``dt_s`` and prints a table of makespan (ticks), success rate,
-dependency wait, kinematic lag and contacts, with each makespan's relative difference from
+orders completed (what to compare on a run capped by ``--max-ticks``), dependency wait,
+kinematic lag and contacts, with each makespan's relative difference from
 the finest step's; ``--json`` writes the rows.
 
     python tools/dt_convergence.py [--dt 0.01 0.02 0.05] [--seeds 0] [--max-ticks N] \\
@@ -51,9 +52,9 @@ def main() -> int:
     args = ap.parse_args()
     rows = []
     dts = sorted(args.dt)
-    print("| scenario | seed | dt_s | makespan (ticks) | vs finest | SR | dependency wait (s) "
-          "| kinematic lag mean (s) | deadlocks | contacts | wall (s) |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("| scenario | seed | dt_s | makespan (ticks) | vs finest | SR | orders | dependency "
+          "wait (s) | kinematic lag mean (s) | deadlocks | contacts | wall (s) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for path in args.scenarios:
         for seed in args.seeds:
             base = None
@@ -64,6 +65,7 @@ def main() -> int:
                 rows.append(row)
                 print(f"| {row['scenario']} | {seed} | {dt:g} | {row['ticks']} | "
                       f"{row['makespan_diff']:+.1%} | {row['success_rate']:.2f} | "
+                      f"{row['orders_completed']} | "
                       f"{row['delay_dependency_wait_s']:.1f} | "
                       f"{row['kinematic_lag_mean_s']:.3f} | {row['deadlocks']} | "
                       f"{row['agv_contacts']} | {row['wall_s']} |", flush=True)

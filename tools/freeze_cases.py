@@ -43,11 +43,13 @@ CASES = {
 }
 
 
-def run(label: str, seeds: int, max_ticks: int) -> dict:
+def run(label: str, seeds: int, max_ticks: int, cases: list[str] | None = None) -> dict:
     from warerover_phys import load_scenario, run_episode
 
     out: dict = {"label": label, "seeds": seeds, "max_ticks": max_ticks, "cases": {}}
     for case, (layout, sets) in CASES.items():
+        if cases and case not in cases:
+            continue
         overrides = [("executor.name", "physics"), ("max_ticks", max_ticks), *sets]
         scenario = load_scenario(ROOT / "layouts" / layout, overrides)
         rows = []
@@ -109,13 +111,15 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=6)
     ap.add_argument("--max-ticks", type=int, default=600)
     ap.add_argument("--compare", nargs="+", metavar="LABEL")
+    ap.add_argument("--cases", nargs="+", choices=list(CASES),
+                    help="only these cases (default: all)")
     args = ap.parse_args()
     if args.compare:
         datas = [json.loads((DATA / f"freeze_cases_{lb}.json").read_text())
                  for lb in args.compare]
         print_table(args.compare, [summarise(d) for d in datas])
         return
-    data = run(args.label, args.seeds, args.max_ticks)
+    data = run(args.label, args.seeds, args.max_ticks, args.cases)
     data["summary"] = summarise(data)
     DATA.mkdir(parents=True, exist_ok=True)
     path = DATA / f"freeze_cases_{args.label}.json"

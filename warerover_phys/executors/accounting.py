@@ -179,7 +179,10 @@ class Accounting:
         self.injected += (injected & (busy | st.pending)) * st.dt
         self.turn_time += (st.mode == TURN) * st.dt
         self._active += int(np.count_nonzero(st.mode != HOLD))
-        self._act_injected += (injected & (st.mode == DRIVE)) * st.dt
+        # A running action's kinematic lag leaves out the time it was held by an injected
+        # delay or a failure (a down AGV's action is still running: on main its repair time
+        # was counted as kinematic lag).
+        self._act_injected += ((injected | st.failed) & (st.mode == DRIVE)) * st.dt
         self.causes.step(injected)
         self._swept_check(raw)
         if self._corridor_keys:
