@@ -174,12 +174,20 @@ class Accounting:
         st = self.st
         self.steps += 1
         self.measure(raw, raw_ang, t)
-        busy = (st.mode != HOLD) | st.waiting
-        self.dep_wait += st.waiting * st.dt
-        self.injected += (injected & (busy | st.pending)) * st.dt
-        self.turn_time += (st.mode == TURN) * st.dt
-        self._active += int(np.count_nonzero(st.mode != HOLD))
-        self._act_injected += (injected & (st.mode == DRIVE)) * st.dt
+        mode, waiting, dt = st.mode, st.waiting, st.dt
+        moving = mode != HOLD
+        # Only the AGVs with a share this step: adding 0.0 to the others changes nothing.
+        w = np.flatnonzero(waiting)
+        if len(w):
+            self.dep_wait[w] += dt
+        if injected.any():
+            busy = moving | waiting
+            self.injected += (injected & (busy | st.pending)) * dt
+            self._act_injected += (injected & (mode == DRIVE)) * dt
+        turning = np.flatnonzero(mode == TURN)
+        if len(turning):
+            self.turn_time[turning] += dt
+        self._active += int(np.count_nonzero(moving))
         self.causes.step(injected)
         self._swept_check(raw)
         if self._corridor_keys:
