@@ -92,6 +92,7 @@ class Accounting:
         or at the end of the tick): no extra read of the bodies."""
         self._task_state = np.zeros(n, dtype=np.int8)
         self._loaded = np.zeros(n, dtype=bool)
+        self._swept_needed: bool | None = None
         self.causes = CauseRecorder(st, adg)
         """Per-step labels of every AGV's time, per action (:mod:`.causes`)."""
         self._install_handlers()
@@ -214,8 +215,12 @@ class Accounting:
                 self.swept_hits += 1
 
     def _need_swept(self) -> bool:
-        """Cheap bound: no body can move farther than v_max x headroom x dt."""
-        return bool((self.st.vmax * 2.0 * self.st.dt > self.fleet.half_size.min(axis=1)).any())
+        """Cheap bound: no body can move farther than v_max x headroom x dt (top speeds,
+        body sizes and the step are fixed: worked out once)."""
+        if self._swept_needed is None:
+            self._swept_needed = bool(
+                (self.st.vmax * 2.0 * self.st.dt > self.fleet.half_size.min(axis=1)).any())
+        return self._swept_needed
 
     def _check_corridors(self, pos: np.ndarray, ang: np.ndarray) -> None:
         """fcl check of every AGV body against the open corridors' protected zones."""
