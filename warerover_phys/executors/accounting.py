@@ -92,7 +92,6 @@ class Accounting:
         or at the end of the tick): no extra read of the bodies."""
         self._task_state = np.zeros(n, dtype=np.int8)
         self._loaded = np.zeros(n, dtype=bool)
-        self._swept_needed: bool | None = None
         self.causes = CauseRecorder(st, adg)
         """Per-step labels of every AGV's time, per action (:mod:`.causes`)."""
         self._install_handlers()
@@ -175,20 +174,12 @@ class Accounting:
         st = self.st
         self.steps += 1
         self.measure(raw, raw_ang, t)
-        mode, waiting, dt = st.mode, st.waiting, st.dt
-        moving = mode != HOLD
-        # Only the AGVs with a share this step: adding 0.0 to the others changes nothing.
-        w = np.flatnonzero(waiting)
-        if len(w):
-            self.dep_wait[w] += dt
-        if injected.any():
-            busy = moving | waiting
-            self.injected += (injected & (busy | st.pending)) * dt
-            self._act_injected += (injected & (mode == DRIVE)) * dt
-        turning = np.flatnonzero(mode == TURN)
-        if len(turning):
-            self.turn_time[turning] += dt
-        self._active += int(np.count_nonzero(moving))
+        busy = (st.mode != HOLD) | st.waiting
+        self.dep_wait += st.waiting * st.dt
+        self.injected += (injected & (busy | st.pending)) * st.dt
+        self.turn_time += (st.mode == TURN) * st.dt
+        self._active += int(np.count_nonzero(st.mode != HOLD))
+        self._act_injected += (injected & (st.mode == DRIVE)) * st.dt
         self.causes.step(injected)
         self._swept_check(raw)
         if self._corridor_keys:
@@ -215,12 +206,8 @@ class Accounting:
                 self.swept_hits += 1
 
     def _need_swept(self) -> bool:
-        """Cheap bound: no body can move farther than v_max x headroom x dt (top speeds,
-        body sizes and the step are fixed: worked out once)."""
-        if self._swept_needed is None:
-            self._swept_needed = bool(
-                (self.st.vmax * 2.0 * self.st.dt > self.fleet.half_size.min(axis=1)).any())
-        return self._swept_needed
+        """Cheap bound: no body can move farther than v_max x headroom x dt."""
+        return bool((self.st.vmax * 2.0 * self.st.dt > self.fleet.half_size.min(axis=1)).any())
 
     def _check_corridors(self, pos: np.ndarray, ang: np.ndarray) -> None:
         """fcl check of every AGV body against the open corridors' protected zones."""

@@ -247,10 +247,6 @@ class ActionGraph:
         """Simulated time (seconds), set by the executor; used only with a latency."""
         self._heard_at: dict[int, tuple[int, float]] = {}
         """Cell -> (AGV that left it, time the others hear of it), with a latency."""
-        self.version = 0
-        """Counts the changes to the queues, plans and loads (:meth:`set_plan`,
-        :meth:`start`, :meth:`finish`, :meth:`set_loaded`): while it stays the same (and
-        there is no latency), :meth:`released` gives the same actions."""
 
     # ----------------------------------------------------------------- building
 
@@ -271,7 +267,6 @@ class ActionGraph:
         """
         if agv not in self._sizes:
             raise KeyError(f"AGV {agv} has no footprint size")
-        self.version += 1
         if path.agv != agv:
             raise ValueError(f"set_plan for AGV {agv} got the path of AGV {path.agv}")
         moves = path_moves(path, self.cols)
@@ -385,7 +380,6 @@ class ActionGraph:
         now = {a for a, x in enumerate(loaded) if not x}
         if now != self._unloaded:
             self._unloaded = now
-            self.version += 1
             for cell in list(self._waiters):
                 self._touch(cell)
 
@@ -642,7 +636,6 @@ class ActionGraph:
             raise RuntimeError(f"AGV {agv}: the next action is not ready "
                                f"({self.next_action(agv)!r}, running {self.current(agv)!r})")
         rec = self._agents[agv]
-        self.version += 1
         step = rec.pending.popleft()
         for v in step.enter_visits:
             v.entered = True
@@ -657,7 +650,6 @@ class ActionGraph:
         step = rec.running
         if step is None:
             raise RuntimeError(f"AGV {agv} has no running action to finish")
-        self.version += 1
         for v in step.leave_visits:
             q = self._queues[v.cell]
             if q[0] is v:

@@ -280,15 +280,6 @@ class BodyIO:
         self.ctrl_rows = np.array([row[b.id] for b in fleet.ctrl], dtype=np.intp)
         self.out = np.zeros((self.n_rows, 3))
         self.set_buf = batch.Buffer()
-        n = len(fleet.bodies)
-        # The space keeps its bodies in the order they were added, dynamic ones first: the
-        # AGV bodies then fill rows 0..n-1 and their control bodies rows n..2n-1, and reads
-        # and writes are slices instead of gathers and scatters.
-        self._b = slice(0, n) if np.array_equal(self.body_rows, np.arange(n)) else None
-        self._c = slice(n, 2 * n) if np.array_equal(self.ctrl_rows, np.arange(n, 2 * n)) \
-            else None
-        self._covered = self.n_rows == 2 * n
-        """Every row is an AGV body or a control body (nothing else in the space moves)."""
 
     def read(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(positions (N, 2), angles (N,), velocities (N, 2), angular velocities (N,)) of
@@ -297,7 +288,7 @@ class BodyIO:
         batch.get_space_bodies(self.space, self._GET, self.buf)
         data = np.frombuffer(self.buf.float_buf(), dtype=np.float64).reshape(self.n_rows, 6)
         self._all = data
-        b = data[self._b].copy() if self._b is not None else data[self.body_rows]
+        b = data[self.body_rows]
         return b[:, 0:2], b[:, 2], b[:, 3:5], b[:, 5]
 
     def write(self, velocity: np.ndarray, angular: np.ndarray,
@@ -305,20 +296,12 @@ class BodyIO:
         """Set the control bodies' velocities, and those of the AGV bodies where ``bodies``
         ((N,) bool) is set (every other body keeps what :meth:`read` saw)."""
         out = self.out
-        every = bodies is not None and bool(bodies.all())
-        if every and self._covered and self._b is not None and self._c is not None:
-            # Every row is written: no need to copy what was read first.
-            out[self._c, 0:2] = velocity
-            out[self._c, 2] = angular
-            out[self._b, 0:2] = velocity
-            out[self._b, 2] = angular
-        else:
-            out[:] = self._all[:, 3:6]  # velocity (2) and angular velocity, as read
-            out[self.ctrl_rows, 0:2] = velocity
-            out[self.ctrl_rows, 2] = angular
-            if bodies is not None:
-                rows = self.body_rows[bodies]
-                out[rows, 0:2] = velocity[bodies]
-                out[rows, 2] = angular[bodies]
+        out[:] = self._all[:, 3:6]  # velocity (2) and angular velocity, as read
+        out[self.ctrl_rows, 0:2] = velocity
+        out[self.ctrl_rows, 2] = angular
+        if bodies is not None:
+            rows = self.body_rows[bodies]
+            out[rows, 0:2] = velocity[bodies]
+            out[rows, 2] = angular[bodies]
         self.set_buf.set_float_buf(out.ravel())
         batch.set_space_bodies(self.space, self._SET, self.set_buf)

@@ -120,10 +120,8 @@ class CauseRecorder:
         lab[st.waiting] = DEPENDENCY
         lab[st.mode == TURN] = TURN_L
         lab[st.mode == DRIVE] = DRIVE_L
-        if injected.any():
-            lab[injected & ((st.mode != HOLD) | st.has_next)] = INJECTED
-        if st.failed.any():
-            lab[st.failed] = FAILED
+        lab[injected & ((st.mode != HOLD) | st.has_next)] = INJECTED
+        lab[st.failed] = FAILED
         # A dwell runs from the AGV's last arrival (an exact time inside a step) to
         # hold_until: the steps whose midpoints fall in it are its steps (one per dt of
         # the dwell, whatever the arrival's offset in its step).

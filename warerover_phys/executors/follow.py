@@ -64,11 +64,6 @@ class PlanFollower:
         self._resync: set[int] = set()
         """AGVs whose new plan did not fit their commit cut: replanned once they stand."""
         self._cycles_seen: set[frozenset[int]] = set()
-        self._extended: dict[int, tuple[int, Action, float]] = {}
-        """AGV -> (ADG version, running action, stop point) at its last :meth:`_extend`."""
-        self._cache_extend = bool(spec.adg) and adg.latency_s == 0 and \
-            not getattr(spec, "comm_latency_s", 0.0)
-        """Extensions depend only on the ADG (not on the clock: no latency, ADG on)."""
         self._asleep = np.zeros(st.n, dtype=bool)
         """AGVs waiting on the dependency graph that need no decision until woken."""
         self._holds: dict[int, dict[int, int]] = {}
@@ -83,13 +78,12 @@ class PlanFollower:
     # ------------------------------------------------------------------------- per tick
 
     def sync_plans(self, view: TickView) -> None:
-        paths, synced = view.plans, self._synced
-        # The AGVs with a new plan, picked out in one pass (most ticks: none or a few).
-        new = [i for i, path in enumerate(map(paths.get, range(self.st.n)))
-               if path is not None and path is not synced[i]]
-        for i in new:
-            path = paths[i]
-            synced[i] = path
+        paths = view.plans
+        for i in range(self.st.n):
+            path = paths.get(i)
+            if path is None or path is self._synced[i]:
+                continue
+            self._synced[i] = path
             cut = self._cut(i, path)
             node = cut.states[0][0]
             if all(a == b == node for a, b in cut.states) and self.synced_once(i) \
@@ -192,19 +186,14 @@ class PlanFollower:
             # An AGV found waiting on the dependency graph sleeps until the queue head it
             # waits for changes (adg.woken), it is delayed, or its plan changes: deciding
             # for it again before then would find it waiting again.
-            # (No decision below changes ``woken``, ``asleep`` or ``delayed`` of another
-            # AGV, so the sleepers are picked out in one go.)
             asleep, woken = self._asleep, self.adg.woken
-            cand = np.flatnonzero((st.mode != DRIVE) & st.has_next)
-            if len(cand):
-                sleep = asleep[cand] & ~delayed[cand]
-                if woken:
-                    sleep &= ~np.isin(cand, np.fromiter(woken, dtype=np.intp, count=len(woken)))
-                st.waiting[cand[sleep]] = True
-                awake = cand[~sleep]
-                asleep[awake] = False
-                for i in awake.tolist():
-                    self._decide(i, t, bool(delayed[i]), float(ang[i]))
+            for i in np.flatnonzero((st.mode != DRIVE) & st.has_next):
+                i = int(i)
+                if asleep[i] and not delayed[i] and i not in woken:
+                    st.waiting[i] = True
+                    continue
+                asleep[i] = False
+                self._decide(i, t, bool(delayed[i]), float(ang[i]))
             woken.clear()
         left = np.full(st.n, st.dt)
         busy = st.mode != HOLD
@@ -310,13 +299,6 @@ class PlanFollower:
         cur = self.adg.current(i)
         if cur is None:
             return
-        # Nothing in the ADG changed since this AGV's last extension of the same action
-        # (and its stop point is still the one set then): the released run, the claims
-        # and the stop point would come out the same.
-        key = self._extended.get(i)
-        if key is not None and key[0] == self.adg.version and key[1] is cur \
-                and key[2] == st.stop_s[i]:
-            return
         run = 0
         if self.spec.adg:
             ahead = self.adg.released(i, LOOKAHEAD)
@@ -332,8 +314,6 @@ class PlanFollower:
             # Committed: no later plan may put another AGV ahead of it on these cells.
             self.adg.claim(i, run)
         st.stop_s[i] = st.cur_end[i] + run * st.cell_m
-        if self._cache_extend:
-            self._extended[i] = (self.adg.version, cur, st.stop_s[i])
 
     def _arrive(self, i: int, t: float) -> None:
         st = self.st

@@ -162,11 +162,8 @@ class ClearanceMonitor:
         if p == 0:
             return
         # One gather per array for both ends of every pair (rows 0..p-1: i, p..2p-1: j).
-        if 2 * p < self.n:  # the boxes of the pairs' AGVs only (the same values)
-            e = np.maximum(_aabb_half(ang[ends], self.body_half[ends]), self.shelf_half[ends])
-        else:
-            e = np.maximum(_aabb_half(ang, self.body_half), self.shelf_half)[ends]
-        x = pos[ends]
+        ext = np.maximum(_aabb_half(ang, self.body_half), self.shelf_half)
+        x, e = pos[ends], ext[ends]
         g = np.abs(x[:p] - x[p:])
         g -= e[:p]
         g -= e[p:]
