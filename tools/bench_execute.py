@@ -8,6 +8,11 @@ on physics, and the executed per-tick states are checked by the independent vali
 Each count runs in its own process so that its peak memory (max RSS) is its own.
 
     python tools/bench_execute.py --agents 100 500 1000 [--dt 0.02 0.05] --json out.json
+
+``real_time_factor`` is simulated time over the executor's wall time; ``rtf_cpu`` the
+simulated time over the CPU time of the whole execution (steadier on a loaded machine);
+``load_avg`` the 1-minute load average when it ended. ``--plans DIR`` keeps the plans
+(``DIR/planN.txt``) and reuses them, for before / after comparisons on the same plans.
 """
 
 from __future__ import annotations
@@ -93,10 +98,10 @@ def one(n: int, plan_file: Path, solver: str, dt_s: float = 0.02) -> dict:
         validate_plan(plan, layout, sizes)
     t_repair = time.perf_counter() - t0
     types = load_fleet(None, plan.num_agents, None, [])
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     result = execute_plan(plan, layout, types, executor="physics", seed=0, repairs=repairs,
                           dt_s=dt_s)
-    t_exec = time.perf_counter() - t0
+    t_exec, c_exec = time.perf_counter() - t0, time.process_time() - c0
     blocked = np.asarray(layout.grid) == 1
     conflicts = [c for c in validate_states(result.executed, blocked) if c.kind != "move"]
     m = result.metrics
@@ -105,6 +110,9 @@ def one(n: int, plan_file: Path, solver: str, dt_s: float = 0.02) -> dict:
         "read_s": round(t_read, 3), "validate_s": round(t_validate, 3),
         "rotations": len(cycles), "repairs": len(repairs), "repair_s": round(t_repair, 3),
         "execute_wall_s": round(t_exec, 2), "real_time_factor": round(m["real_time_factor"], 1),
+        "execute_cpu_s": round(c_exec, 2),
+        "rtf_cpu": round(m["ticks"] * m["tick_s"] / c_exec, 1),
+        "load_avg": round(os.getloadavg()[0], 1),
         "executed_makespan": m["executed_makespan_ticks"],
         "makespan_ratio": round(m["makespan_ratio"], 3),
         "agv_contacts": m["agv_contacts"], "static_contacts": m["static_contacts"],
@@ -121,6 +129,9 @@ def main() -> int:
     ap.add_argument("--lacam3", type=Path, help="lacam3 binary (default: build the reference)")
     ap.add_argument("--own", action="store_true", help="plan with the project's own LaCAM")
     ap.add_argument("--json", type=Path, help="write the figures here")
+    ap.add_argument("--plans", type=Path,
+                    help="reuse DIR/planN.txt if there (else make it and keep it there): the "
+                         "same plans for a before / after comparison")
     ap.add_argument("--dt", type=float, nargs="+", default=[0.02],
                     help="physics steps (s) to measure at (default 0.02)")
     ap.add_argument("--_one", nargs=4, help=argparse.SUPPRESS)
@@ -133,8 +144,12 @@ def main() -> int:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for n in args.agents:
-            plan = Path(tmp) / f"plan{n}.txt"
-            solver = make_plan(n, lacam3, plan)
+            plan = (args.plans or Path(tmp)) / f"plan{n}.txt"
+            if args.plans is not None and plan.exists():
+                solver = "given plan (" + ("warerover lacam" if args.own
+                                          else "lacam3 (C++ reference)") + ")"
+            else:
+                solver = make_plan(n, lacam3, plan)
             for dt in args.dt:
                 proc = subprocess.run([sys.executable, __file__, "--_one", str(n), str(plan),
                                        solver, str(dt)], capture_output=True, text=True,
@@ -146,8 +161,8 @@ def main() -> int:
                 rows.append(row)
                 print(json.dumps(row), flush=True)
     keys = ["agents", "dt_s", "validate_s", "rotations", "repairs", "execute_wall_s",
-            "real_time_factor", "makespan_ratio", "agv_contacts", "validator_conflicts",
-            "peak_rss_mb"]
+            "real_time_factor", "execute_cpu_s", "rtf_cpu", "load_avg", "makespan_ratio",
+            "agv_contacts", "validator_conflicts", "peak_rss_mb"]
     print("| " + " | ".join(keys) + " |")
     print("|" + "---|" * len(keys))
     for r in rows:
