@@ -21,15 +21,21 @@ reads: no torch at run time.
 
 from __future__ import annotations
 
+import json
+import os
 import time
 
-import numpy as np
-import torch
-from torch import nn
-from torch.nn import functional as F
-from train_learned import accuracy, augment, batch_features, init_params
+# One BLAS thread for numpy too (as train_learned.py), set before numpy loads.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-from warerover_phys.planning.policy import NUM_ACTIONS
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+from torch import nn  # noqa: E402
+from torch.nn import functional as F  # noqa: E402
+from train_learned import accuracy, augment, batch_features, init_params  # noqa: E402
+
+from warerover_phys.planning.policy import NUM_ACTIONS  # noqa: E402
 
 __all__ = ["TorchMLP", "setup", "train_torch", "loss_and_grads"]
 
@@ -124,3 +130,87 @@ def train_torch(x8, sc, y, groups, *, rng, radius, version, hidden, epochs, batc
         print(f"  epoch {epoch + 1}/{epochs} (torch): loss {np.mean(losses):.4f}  "
               f"held-out accuracy {acc:.3f}  ({time.perf_counter() - t0:.0f} s)", flush=True)
     return model.export(), log, {"train": int(len(yt)), "val": int(len(yv))}
+
+
+def bench(samples: int, hidden: int, batch: int, seed: int = 0) -> dict:
+    """CPU and wall seconds of one training epoch of each back end on ``samples`` synthetic
+    feature-set-2 samples (random int8 spatial channels, scalars and labels: the timing of
+    the full-size network, not a trained one)."""
+    import train_learned as tl
+
+    rng = np.random.default_rng(seed)
+    x8 = rng.integers(-5, 6, (samples, 6, 11, 11), dtype=np.int8)
+    sc = rng.random((samples, 4), dtype=np.float32)
+    y = rng.integers(0, NUM_ACTIONS, samples).astype(np.int8)
+    groups = rng.integers(0, 100, samples).astype(np.int32)
+    out = {}
+    for name, fn in (("numpy", tl.train), ("torch", train_torch)):
+        setup(seed)
+        c0, w0 = time.process_time(), time.perf_counter()
+        _, _, split = fn(x8, sc, y, groups, rng=np.random.default_rng(seed), radius=5,
+                         version=2, hidden=hidden, epochs=1, batch=batch, lr=2e-3)
+        cpu, wall = time.process_time() - c0, time.perf_counter() - w0
+        steps = split["train"] // batch
+        out[name] = {"cpu_s": round(cpu, 2), "wall_s": round(wall, 2), "steps": steps,
+                     "cpu_ms_per_step": round(1e3 * cpu / steps, 2)}
+    return out
+
+
+def compare(weights: list[str], agents: list[int], seed: int = 0) -> list[dict]:
+    """One-shot SoC / lower bound of the ``learned`` planner with each weights file on the
+    test data's MovingAI instances (``random-32-32-10``, ``warehouse-10-20-10-2-1``,
+    scenario 1, first ``agents``), every solution checked by the validator."""
+    from pathlib import Path
+
+    from learned_table import _soc
+
+    from warerover_phys.movingai import read_map, read_scen
+    from warerover_phys.planning.learned import learned_oneshot
+    from warerover_phys.planning.oneshot import grid_graph
+    from warerover_phys.planning.policy import MLPPolicy
+    from warerover_phys.validate import validate_states
+
+    data = Path(__file__).resolve().parents[1] / "tests" / "data"
+    rows = []
+    for name in ("random-32-32-10", "warehouse-10-20-10-2-1"):
+        m = read_map(data / f"{name}.map")
+        scen = read_scen(data / f"{name}-random-1.scen")
+        graph = grid_graph(m.obstacles)
+        for n in agents:
+            starts, goals = [a.start for a in scen[:n]], [a.goal for a in scen[:n]]
+            lb = sum(graph.distance(a, b) for a, b in zip(starts, goals, strict=True))
+            for w in weights:
+                paths, stats = learned_oneshot(graph, starts, goals, time.monotonic() + 300,
+                                               seed=seed, policy=MLPPolicy.load(w))
+                row = {"map": name, "agents": n, "weights": w,
+                       "fallback_steps": stats["fallback_steps"]}
+                if paths is None:
+                    row["status"] = "fail"
+                else:
+                    states = {i: [(r * m.cols + c,) * 2 for r, c in q]
+                              for i, q in enumerate(paths)}
+                    ok = not validate_states(states, m.obstacles, max_conflicts=1)
+                    soc, makespan = _soc(paths, goals)
+                    row.update(status="ok" if ok else "invalid", soc_lb=round(soc / lb, 3),
+                               makespan=makespan)
+                rows.append(row)
+                print(json.dumps(row), flush=True)
+    return rows
+
+
+if __name__ == "__main__":
+    import argparse
+
+    ap = argparse.ArgumentParser(description="time one epoch of each training back end "
+                                 "(or compare weights: --compare)")
+    ap.add_argument("--samples", type=int, default=51_200)
+    ap.add_argument("--hidden", type=int, default=256)
+    ap.add_argument("--batch", type=int, default=512)
+    ap.add_argument("--compare", nargs="+", metavar="NPZ",
+                    help="instead: one-shot SoC / LB of the learned planner with these weights")
+    ap.add_argument("--agents", type=int, nargs="+", default=[50, 100])
+    a = ap.parse_args()
+    if a.compare:
+        compare(a.compare, a.agents)
+    else:
+        print(json.dumps({"load": os.getloadavg(), **bench(a.samples, a.hidden, a.batch)}))
