@@ -13,9 +13,10 @@ one for the training loop). Two back ends for the training steps (``--backend``)
 
 Both read the same samples, draw the same held-out instances, shuffles, symmetries and
 initial weights from the same numpy generator, and write the same ``.npz``; only the float
-sums differ, so their weights are close, not equal. Inference never needs torch. The first weights, ``learned_v1.npz``, were trained
-by the earlier version of this script, the equivalent of ``--features 1 --dagger-rounds 1``
-(not rerun with this version).
+sums differ, so their weights are close, not equal. Inference never needs torch.
+
+The first weights, ``learned_v1.npz``, were trained by the earlier version of this script,
+the equivalent of ``--features 1 --dagger-rounds 1`` (not rerun with this version).
 
 1. Instances: procedurally generated grids, never the MovingAI benchmark maps the table
    reports on: random maps (16-40 cells a side, 5-30 % obstacles, largest connected part
