@@ -1,12 +1,22 @@
 """Train the ``learned`` planner's policy by imitation of the project's PIBT / LaCAM solutions.
 
 Reproducible from ``--seed`` (one root ``SeedSequence``; one child per generated instance and
-one for the training loop), numpy only (no torch needed: the network is a three-layer
-perceptron and its gradients are written out below). The defaults reproduce the shipped
-``learned_v2.npz`` (feature set 2, two DAgger rounds): 3,006 s on the shared 2-core box at
-load 7-10 (``learned_v2.json``). The first weights, ``learned_v1.npz``, were trained
-by the earlier version of this script, the equivalent of ``--features 1 --dagger-rounds 1``
-(not rerun with this version).
+one for the training loop). Two back ends for the training steps (``--backend``):
+
+- ``torch`` (the default when PyTorch is importable; ``pip install -e '.[train]'``):
+  :mod:`train_torch`, autograd and ``torch.optim.Adam``, seeded, deterministic algorithms,
+  one thread;
+- ``numpy`` (the default without PyTorch): the gradients written out below. With
+  ``--backend numpy`` the other defaults reproduce the shipped ``learned_v2.npz`` (feature
+  set 2, two DAgger rounds): 3,006 s on the shared 2-core box at load 7-10
+  (``learned_v2.json``).
+
+Both read the same samples, draw the same held-out instances, shuffles, symmetries and
+initial weights from the same numpy generator, and write the same ``.npz``; only the float
+sums differ, so their weights are close, not equal. Inference never needs torch.
+
+The first weights, ``learned_v1.npz``, were trained by the earlier version of this script,
+the equivalent of ``--features 1 --dagger-rounds 1`` (not rerun with this version).
 
 1. Instances: procedurally generated grids, never the MovingAI benchmark maps the table
    reports on: random maps (16-40 cells a side, 5-30 % obstacles, largest connected part
@@ -27,7 +37,7 @@ by the earlier version of this script, the equivalent of ``--features 1 --dagger
 5. Output: the weights as ``.npz`` (see :mod:`warerover_phys.planning.policy`) and a JSON
    log next to it.
 
-    PYTHONPATH=. .venv/bin/python tools/train_learned.py                # the shipped weights
+    PYTHONPATH=. .venv/bin/python tools/train_learned.py --backend numpy  # the shipped weights
     PYTHONPATH=. .venv/bin/python tools/train_learned.py --instances 40 --epochs 2 --out /tmp/w.npz
 """
 
@@ -37,6 +47,7 @@ import argparse
 import json
 import os
 import platform
+import sys
 import time
 from pathlib import Path
 
@@ -336,6 +347,21 @@ def train(x8, sc, y, groups, *, rng, radius, version, hidden, epochs, batch, lr,
     return p, log, {"train": int(len(yt)), "val": int(len(yv))}
 
 
+def _trainer(choice: str):
+    """The training function and the back end's name for ``--backend``."""
+    if choice == "numpy":
+        return train, "numpy"
+    try:
+        import train_torch
+    except ImportError as err:
+        if choice == "torch":
+            print(f"error: --backend torch: PyTorch is not importable ({err}); "
+                  "pip install -e '.[train]'", file=sys.stderr)
+            raise SystemExit(2) from None
+        return train, "numpy"
+    return train_torch.train_torch, "torch"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seed", type=int, default=0)
@@ -354,7 +380,11 @@ def main() -> None:
     ap.add_argument("--dagger-instances", type=int, default=300)
     ap.add_argument("--dagger-epochs", type=int, default=4)
     ap.add_argument("--out", type=Path, default=DEFAULT_WEIGHTS)
+    ap.add_argument("--backend", choices=("auto", "torch", "numpy"), default="auto",
+                    help="training steps in PyTorch (the [train] extra) or numpy; auto: torch "
+                         "when importable (the shipped weights: numpy)")
     args = ap.parse_args()
+    trainer, backend = _trainer(args.backend)
     t_start = time.perf_counter()
     root = np.random.SeedSequence(args.seed)
     data_seed, train_seed, *dagger_seeds = root.spawn(2 + args.dagger_rounds)
@@ -366,7 +396,11 @@ def main() -> None:
     print(f"{len(y)} samples (actions wait/up/down/left/right: {counts}), experts {stats}, "
           f"{t_data:.0f} s")
     train_rng = np.random.default_rng(train_seed)
-    p, log, split = train(x8, sc, y, groups, rng=train_rng, radius=args.radius,
+    if backend != "numpy":
+        import train_torch
+        train_torch.setup(int(train_seed.generate_state(1)[0]))
+    print(f"training with {backend}")
+    p, log, split = trainer(x8, sc, y, groups, rng=train_rng, radius=args.radius,
                           version=args.features, hidden=args.hidden, epochs=args.epochs,
                           batch=args.batch, lr=args.lr)
     for k, seed in enumerate(dagger_seeds):
@@ -378,7 +412,7 @@ def main() -> None:
         print(f"  {len(dy)} new samples")
         x8, sc, y, groups = (np.concatenate([x8, dx]), np.concatenate([sc, ds]),
                              np.concatenate([y, dy]), np.concatenate([groups, dg]))
-        p, more, split = train(x8, sc, y, groups, rng=train_rng, radius=args.radius,
+        p, more, split = trainer(x8, sc, y, groups, rng=train_rng, radius=args.radius,
                                version=args.features, hidden=args.hidden,
                                epochs=args.dagger_epochs,
                                batch=args.batch, lr=args.lr / 2, init=p)
@@ -390,7 +424,10 @@ def main() -> None:
             "samples": split, "action_counts": counts, "experts": stats,
             "data_s": round(t_data, 1), "total_s": round(wall, 1), "epochs": log,
             "params": policy.num_params, "machine": platform.platform(),
-            "unreachable": int(UNREACHABLE)}
+            "unreachable": int(UNREACHABLE), "backend": backend}
+    if backend != "numpy":
+        import torch
+        info["torch"] = torch.__version__
     args.out.with_suffix(".json").write_text(json.dumps(info, indent=2) + "\n")
     print(f"wrote {args.out} ({policy.num_params} parameters, "
           f"{args.out.stat().st_size / 1e3:.0f} kB) in {wall:.0f} s")
