@@ -37,7 +37,10 @@ the equivalent of ``--features 1 --dagger-rounds 1`` (not rerun with this versio
 5. Output: the weights as ``.npz`` (see :mod:`warerover_phys.planning.policy`) and a JSON
    log next to it.
 
-    PYTHONPATH=. .venv/bin/python tools/train_learned.py --backend numpy  # the shipped weights
+    # the shipped weights, written over the shipped file:
+    PYTHONPATH=. .venv/bin/python tools/train_learned.py --backend numpy \
+        --out warerover_phys/planning/weights/learned_v2.npz
+    # default --out: tools/out/learned.npz (never the shipped file)
     PYTHONPATH=. .venv/bin/python tools/train_learned.py --instances 40 --epochs 2 --out /tmp/w.npz
 """
 
@@ -67,7 +70,6 @@ from warerover_phys.planning.pibt import (  # noqa: E402
     update_priorities,
 )
 from warerover_phys.planning.policy import (  # noqa: E402
-    DEFAULT_WEIGHTS,
     NUM_ACTIONS,
     WEIGHTS_VERSION,
     MLPPolicy,
@@ -379,7 +381,10 @@ def main() -> None:
     ap.add_argument("--dagger-rounds", type=int, default=2)
     ap.add_argument("--dagger-instances", type=int, default=300)
     ap.add_argument("--dagger-epochs", type=int, default=4)
-    ap.add_argument("--out", type=Path, default=DEFAULT_WEIGHTS)
+    ap.add_argument("--out", type=Path,
+                    default=Path(__file__).resolve().parent / "out" / "learned.npz",
+                    help="where the weights go (default tools/out/learned.npz; the shipped "
+                         "file only when named)")
     ap.add_argument("--backend", choices=("auto", "torch", "numpy"), default="auto",
                     help="training steps in PyTorch (the [train] extra) or numpy; auto: torch "
                          "when importable (the shipped weights: numpy)")
