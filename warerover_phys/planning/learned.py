@@ -142,72 +142,60 @@ class LearnedPlanner:
 
     def _plan_mixed(self, request: PlanRequest, agents: list[AgentRequest]) -> PlanResult:
         """A fleet of mixed sizes or speeds: one footprint-aware PIBT step
-        (:func:`~warerover_phys.planning.footprint_pibt.footprint_step`, as ``pibt``) in
-        which every 1x1 AGV that moves a cell per tick and stands ranks its moves by the
-        policy (``Mover.prefer``); larger and slower AGVs rank theirs by distance, as the
-        policy was trained on 1x1 AGVs only. The policy sees every AGV on its anchor cell.
-        The liveness fallback plans the tick with no policy ranking."""
-        from dataclasses import replace
+        (:func:`~warerover_phys.planning.pibt_planner.footprint_plan`, as ``pibt``) in which
+        every 1x1 AGV that moves a cell per tick and stands ranks its moves by the policy
+        (``Mover.prefer``); larger and slower AGVs rank theirs by distance, as the policy was
+        trained on 1x1 AGVs only. The policy sees every AGV on its anchor cell. The liveness
+        fallback plans the tick with no policy ranking."""
+        from .pibt_planner import footprint_plan
 
-        from .footprint_pibt import footprint_step, successor
-        from .pibt_planner import (
-            commit_poses,
-            current_pose,
-            headings_for,
-            last_turns,
-            movers_for,
-        )
-
-        res, tick = request.reservations, request.tick
-        movers = movers_for(request, agents, [a.goal for a in agents])
-        poses = [current_pose(res, a, tick) for a in agents]
+        unloaded = request.graphs.get(1, False)
         prio = [float(a.priority[0]) if a.priority else 0.0 for a in agents]
-        held = {i: a.start for i, a in enumerate(agents) if a.hold and poses[i][2] == 0}
-        rng = request.rng if request.rng is not None else np.random.default_rng(0)
-        tie = rng.random(len(movers[0].dist)) * 0.5
-        unloaded, loaded = request.graphs.get(1, False), request.graphs.get(1, True)
         limit = (2 * (unloaded.rows + unloaded.cols) if self.fallback_age is None
                  else self.fallback_age)
-        stale = any(p > limit and not a.hold and a.start != a.goal
-                    for p, a in zip(prio, agents, strict=True))
-        result = PlanResult()
-        if stale:
+        if any(p > limit and not a.hold and a.start != a.goal
+               for p, a in zip(prio, agents, strict=True)):
+            result = footprint_plan(request, agents)
             result.budget_hits += 1
-        else:
-            small = [i for i, (a, mv) in enumerate(zip(agents, movers, strict=True))
-                     if mv.k == 1 and mv.m == 1 and mv.rot is None and not mv.turns
-                     and poses[i][2] == 0 and i not in held]
-            if small:
-                grid = _obs_grid(unloaded, loaded, self.policy.fov_radius)
-                config = np.array([p[1] for p in poses], dtype=np.int64)
-                goals = np.array([a.goal for a in agents], dtype=np.int64)
-                dists = [mv.dist if mv.k == 1 else unloaded.dist_to(unloaded.cell(a.goal))
-                         for a, mv in zip(agents, movers, strict=True)]
-                classes = np.array([1 if a.loaded else 0 for a in agents], dtype=np.int64)
-                logits = self.policy.logits(self.policy.features(
-                    grid, config, goals, dists, prio, classes))
-                cols = unloaded.cols
-                for i in small:
-                    here = int(config[i])
-                    pref = {}
-                    for act, (dr, dc) in enumerate(ACTIONS.tolist()):
-                        r, c = divmod(here, cols)
-                        v = (r + dr) * cols + (c + dc)
-                        if act == 0 or (0 <= r + dr < unloaded.rows and 0 <= c + dc < cols
-                                        and v in movers[i].neighbors[here]):
-                            pref[here if act == 0 else v] = -float(logits[i, act])
-                    movers[i] = replace(movers[i], prefer=pref)
-        heads = headings_for(agents, res, tick)
-        out_heads: list[int] = []
-        nxt = footprint_step(movers, poses, prio, tie, res.cols, forced=held,
-                             headings=heads, out_headings=out_heads,
-                             undo=last_turns(res, agents, tick))
-        if nxt is None:  # holds never contradict each other; be safe and keep still
-            nxt = [successor(p, p[1], mv.m) for p, mv in zip(poses, movers, strict=True)]
-            out_heads = list(heads) if heads is not None else []
-        commit_poses(result, res, agents, [tuple(poses), tuple(nxt)],
-                     [heads, tuple(out_heads)] if heads is not None else None, tick)
-        return result
+            return result
+
+        def rank(movers, poses, prio, held):
+            return self._ranked(request, agents, movers, poses, prio, held)
+
+        return footprint_plan(request, agents, rank=rank)
+
+    def _ranked(self, request: PlanRequest, agents: list[AgentRequest], movers: list,
+                poses: list, prio: list[float], held: dict[int, int]) -> list:
+        """``movers`` with the policy's ranking of moves for the standing 1x1 AGVs that move
+        a cell per tick (``Mover.prefer``: minus the logit of each move's action)."""
+        from dataclasses import replace
+
+        small = [i for i, mv in enumerate(movers)
+                 if mv.k == 1 and mv.m == 1 and mv.rot is None and not mv.turns
+                 and poses[i][2] == 0 and i not in held]
+        if not small:
+            return movers
+        unloaded, loaded = request.graphs.get(1, False), request.graphs.get(1, True)
+        grid = _obs_grid(unloaded, loaded, self.policy.fov_radius)
+        config = np.array([p[1] for p in poses], dtype=np.int64)
+        goals = np.array([a.goal for a in agents], dtype=np.int64)
+        dists = [mv.dist if mv.k == 1 else unloaded.dist_to(unloaded.cell(a.goal))
+                 for a, mv in zip(agents, movers, strict=True)]
+        classes = np.array([1 if a.loaded else 0 for a in agents], dtype=np.int64)
+        logits = self.policy.logits(self.policy.features(grid, config, goals, dists, prio,
+                                                         classes))
+        rows, cols = unloaded.rows, unloaded.cols
+        out = list(movers)
+        for i in small:
+            here = int(config[i])
+            r, c = divmod(here, cols)
+            pref = {here: -float(logits[i, 0])}
+            for act, (dr, dc) in enumerate(ACTIONS.tolist()[1:], start=1):
+                v = (r + dr) * cols + (c + dc)
+                if 0 <= r + dr < rows and 0 <= c + dc < cols and v in movers[i].neighbors[here]:
+                    pref[v] = -float(logits[i, act])
+            out[i] = replace(movers[i], prefer=pref)
+        return out
 
 
 _GRIDS: dict[tuple[int, int, int], tuple[MotionGraph, MotionGraph, ObsGrid]] = {}

@@ -25,7 +25,7 @@ whole and read back from the path like a slow move.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -38,7 +38,7 @@ from .sweep import turn_aware
 from .turns import heading_index
 
 __all__ = ["PIBTPlanner", "uniform_fleet", "movers_for", "current_pose", "headings_for",
-           "last_turns", "commit_poses"]
+           "last_turns", "commit_poses", "footprint_plan"]
 
 
 def uniform_fleet(agents: Sequence[AgentRequest]) -> bool:
@@ -196,26 +196,38 @@ class PIBTPlanner:
 
     def _plan_footprints(self, request: PlanRequest, agents: list[AgentRequest]) -> PlanResult:
         """One footprint-aware PIBT step for a fleet of mixed sizes and speeds."""
-        res, tick = request.reservations, request.tick
-        movers = movers_for(request, agents, [a.goal for a in agents])
-        poses = [current_pose(res, a, tick) for a in agents]
-        prio = [float(a.priority[0]) if a.priority else 0.0 for a in agents]
-        held = {i: a.start for i, a in enumerate(agents) if a.hold and poses[i][2] == 0}
-        rng = request.rng if request.rng is not None else np.random.default_rng(0)
-        tie = rng.random(len(movers[0].dist)) * 0.5
-        heads = headings_for(agents, res, tick)
-        out_heads: list[int] = []
-        nxt = footprint_step(movers, poses, prio, tie, res.cols, forced=held,
-                             headings=heads, out_headings=out_heads,
-                             rotation=self.rotation, undo=last_turns(res, agents, tick))
-        if nxt is None:  # holds never contradict each other; be safe and keep still
-            nxt = [successor(p, p[1], mv.m) for p, mv in zip(poses, movers, strict=True)]
-            out_heads = list(heads) if heads is not None else []
-        result = PlanResult()
-        configs = [tuple(poses), tuple(nxt)]
-        commit_poses(result, res, agents, configs,
-                     [heads, tuple(out_heads)] if heads is not None else None, tick)
-        return result
+        return footprint_plan(request, agents, self.rotation)
+
+
+def footprint_plan(request: PlanRequest, agents: list[AgentRequest], rotation: str = "cascade",
+                   rank: Callable[[list[Mover], list[Pose], list[float], dict[int, int]],
+                                  list[Mover]] | None = None) -> PlanResult:
+    """One footprint-aware PIBT step (:func:`footprint_step`) for ``agents`` (sorted by
+    id), committed into the request's scratch reservations and returned. ``rank`` may
+    replace movers before the step (given movers, poses, priorities and held AGVs), e.g.
+    with a ``Mover.prefer`` ranking (the ``learned`` planner)."""
+    res, tick = request.reservations, request.tick
+    movers = movers_for(request, agents, [a.goal for a in agents])
+    poses = [current_pose(res, a, tick) for a in agents]
+    prio = [float(a.priority[0]) if a.priority else 0.0 for a in agents]
+    held = {i: a.start for i, a in enumerate(agents) if a.hold and poses[i][2] == 0}
+    rng = request.rng if request.rng is not None else np.random.default_rng(0)
+    tie = rng.random(len(movers[0].dist)) * 0.5
+    if rank is not None:
+        movers = rank(movers, poses, prio, held)
+    heads = headings_for(agents, res, tick)
+    out_heads: list[int] = []
+    nxt = footprint_step(movers, poses, prio, tie, res.cols, forced=held,
+                         headings=heads, out_headings=out_heads,
+                         rotation=rotation, undo=last_turns(res, agents, tick))
+    if nxt is None:  # holds never contradict each other; be safe and keep still
+        nxt = [successor(p, p[1], mv.m) for p, mv in zip(poses, movers, strict=True)]
+        out_heads = list(heads) if heads is not None else []
+    result = PlanResult()
+    configs = [tuple(poses), tuple(nxt)]
+    commit_poses(result, res, agents, configs,
+                 [heads, tuple(out_heads)] if heads is not None else None, tick)
+    return result
 
 
 def commit_poses(result: PlanResult, res: ReservationTable, agents: Sequence[AgentRequest],
