@@ -169,6 +169,7 @@ def test_adg_execution_with_delays_fifty_seeds(scenario):
     assert bad == []
 
 
+@pytest.mark.slow  # 34 s; the ADG runs with delays stay in the default set
 def test_without_the_adg_delays_cause_contacts_or_blocking():
     """The same delayed episodes, followed naively by the clock: the report counts what
     the ADG prevents."""
@@ -235,6 +236,7 @@ def small_scenarios(draw):
     })
 
 
+@pytest.mark.slow  # 29 s (15 physics episodes)
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(small_scenarios())
 def test_random_small_instances_finish_without_contacts(scenario):

@@ -33,10 +33,12 @@ def check_corridor_figures(m: dict) -> None:
     assert 0 <= m["corridor_intrusion_agv_s"] <= m["corridor_inside_agv_s"], m
 
 
-# cbs and pibt on physics take ~30 s each: in the slow set (the random fuzz test of
-# tests/faults/test_fuzz_physics.py draws planners on physics in the default set).
+# On physics each takes 30-40 s: in the slow set (the random fuzz test of
+# tests/faults/test_fuzz_physics.py draws planners on physics in the default set, and
+# tests/test_dwells.py runs paper_fault with astar on physics).
 @pytest.mark.parametrize("planner,executor", [
-    ("astar", "grid"), ("cbs", "grid"), ("pibt", "grid"), ("astar", "physics"),
+    ("astar", "grid"), ("cbs", "grid"), ("pibt", "grid"),
+    pytest.param("astar", "physics", marks=pytest.mark.slow),
     pytest.param("cbs", "physics", marks=pytest.mark.slow),
     pytest.param("pibt", "physics", marks=pytest.mark.slow)])
 def test_paper_fault_scenario_finishes(planner, executor):
