@@ -89,9 +89,6 @@ class _ActionPlanner:
     name = "env-actions"
     replans_all = True
 
-    def __init__(self) -> None:
-        self.result: PlanResult | None = None
-
     def plan(self, request: PlanRequest) -> PlanResult:  # pragma: no cover - not called
         raise RuntimeError("the environment plans through Simulation.finish_tick")
 
@@ -158,6 +155,8 @@ class WarehouseLoopEnv(ParallelEnv):
         not write it)."""
         self.request: PlanRequest | None = None
         """The loop's planning request for the coming step (every AGV, in id order)."""
+        self._seed = int(sc.seed)
+        """The seed of the next reset (a reset without one repeats the last)."""
 
     def observation_space(self, agent: str) -> spaces.Box:
         return self._obs_space
@@ -174,8 +173,6 @@ class WarehouseLoopEnv(ParallelEnv):
 
         if seed is not None:
             self._seed = int(seed)
-        elif not hasattr(self, "_seed"):
-            self._seed = int(self.scenario.seed)
         self.sim = Simulation(self.scenario, self._seed, planner=_ActionPlanner())
         self.agents = list(self.possible_agents)
         self._begin()
