@@ -180,8 +180,7 @@ class Accounting:
         self.turn_time += (st.mode == TURN) * st.dt
         self._active += int(np.count_nonzero(st.mode != HOLD))
         # A running action's kinematic lag leaves out the time it was held by an injected
-        # delay or a failure (a down AGV's action is still running: on main its repair time
-        # was counted as kinematic lag).
+        # delay or a failure (a down AGV's action is still running; its repair is not lag).
         self._act_injected += ((injected | st.failed) & (st.mode == DRIVE)) * st.dt
         self.causes.step(injected)
         self._swept_check(raw)
