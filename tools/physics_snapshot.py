@@ -7,7 +7,11 @@ compares them exactly (float arrays bit for bit):
 
     python tools/physics_snapshot.py --out before.pkl [--plans DIR]
     ... change ...
-    python tools/physics_snapshot.py --out after.pkl --compare before.pkl
+    python tools/physics_snapshot.py --out after.pkl --compare before.pkl [--atol 1e-9]
+
+(``--atol``: floats may differ by that much, for a change that moves results by float
+error only; the largest difference of each case is printed.) Or compare two saved
+snapshots: ``--out after.pkl --compare before.pkl --reuse``.
 
 Cases: ``layouts/paper_homogeneous`` / ``paper_heterogeneous`` / ``paper_fault`` on physics,
 seeds 0 and 1; with ``--plans DIR`` also ``warerover execute``-style runs of the lacam3
@@ -19,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import pickle
 import sys
 import time
@@ -108,19 +113,58 @@ def _same(a, b) -> bool:
     return a == b
 
 
-def compare(old: dict, new: dict) -> list[str]:
+def _gap(a, b) -> float:
+    """Largest absolute difference between two equally shaped values (floats, arrays,
+    nested lists / dicts / tuples); inf where their shape, keys or non-float parts
+    differ."""
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        a, b = np.asarray(a), np.asarray(b)
+        if a.shape != b.shape:
+            return math.inf
+        if a.dtype.kind in "fc" or b.dtype.kind in "fc":
+            d = np.abs(a.astype(float) - b.astype(float))
+            d[np.isnan(a) & np.isnan(b)] = 0.0
+            return float(d.max()) if d.size else 0.0
+        return 0.0 if np.array_equal(a, b) else math.inf
+    if isinstance(a, float) or isinstance(b, float):
+        if isinstance(a, (int, float)) and isinstance(b, (int, float)):
+            return 0.0 if a == b else abs(a - b)
+        return math.inf
+    if isinstance(a, dict) and isinstance(b, dict):
+        if set(a) != set(b):
+            return math.inf
+        return max((_gap(a[k], b[k]) for k in a), default=0.0)
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        if len(a) != len(b):
+            return math.inf
+        return max((_gap(x, y) for x, y in zip(a, b, strict=True)), default=0.0)
+    return 0.0 if a == b else math.inf
+
+
+def compare(old: dict, new: dict, atol: float = 0.0) -> list[str]:
+    """What differs between two snapshots of a case; with ``atol`` > 0 floats (and float
+    arrays, and the numbers in the events) may differ by that much."""
     diffs = []
     for part in ("metrics", "trajectory", "causes"):
         o, n = old[part], new[part]
         for k in sorted(set(o) | set(n)):
             if k not in o or k not in n:
                 diffs.append(f"{part}.{k}: only in {'after' if k in n else 'before'}")
-            elif not _same(o[k], n[k]):
+            elif not _same(o[k], n[k]) and not (atol > 0 and _gap(o[k], n[k]) <= atol):
                 diffs.append(f"{part}.{k}: {str(o[k])[:80]} -> {str(n[k])[:80]}")
-    for part in ("events", "actual"):
-        if old[part] != new[part]:
-            diffs.append(f"{part} differ")
+    if old["events"] != new["events"] and not (
+            atol > 0 and _gap(json.loads(old["events"]), json.loads(new["events"])) <= atol):
+        diffs.append("events differ")
+    if old["actual"] != new["actual"]:
+        diffs.append("actual differ")
     return diffs
+
+
+def largest_gap(old: dict, new: dict) -> float:
+    """The largest difference of any float between two snapshots of a case."""
+    gaps = [_gap(old[p], new[p]) for p in ("metrics", "trajectory", "causes")]
+    gaps.append(_gap(json.loads(old["events"]), json.loads(new["events"])))
+    return max(gaps)
 
 
 def main() -> int:
@@ -132,6 +176,10 @@ def main() -> int:
     ap.add_argument("--agents", type=int, nargs="+", default=[100, 500])
     ap.add_argument("--dt", type=float, nargs="+", default=[0.02, 0.05])
     ap.add_argument("--only", help="run only the cases whose key contains this")
+    ap.add_argument("--atol", type=float, default=0.0,
+                    help="floats may differ by this much (default 0: bit for bit)")
+    ap.add_argument("--reuse", action="store_true",
+                    help="compare the snapshot already in --out instead of running")
     args = ap.parse_args()
     cases = [(f"{lay}/physics/{s}", run_case, (lay, s)) for lay in LAYOUTS for s in args.seeds]
     if args.plans:
@@ -140,12 +188,17 @@ def main() -> int:
     if args.only:
         cases = [c for c in cases if args.only in c[0]]
     out = {}
+    if args.reuse:
+        with args.out.open("rb") as f:
+            out = pickle.load(f)
+        cases = []
     for key, fn, a in cases:
         t0 = time.process_time()
         out[key] = fn(*a)
         print(f"{key}: {time.process_time() - t0:.1f} s CPU", file=sys.stderr, flush=True)
-    with args.out.open("wb") as f:
-        pickle.dump(out, f)
+    if not args.reuse:
+        with args.out.open("wb") as f:
+            pickle.dump(out, f)
     if args.compare is None:
         return 0
     with args.compare.open("rb") as f:
@@ -156,10 +209,12 @@ def main() -> int:
         if old is None:
             print(f"{key}: not in {args.compare}")
             continue
-        diffs = compare(old, snap)
+        diffs = compare(old, snap, args.atol)
         if diffs:
             bad += 1
             print(f"DIFF {key}:\n  " + "\n  ".join(diffs[:20]))
+        elif args.atol > 0:
+            print(f"{key}: largest float difference {largest_gap(old, snap):.3g}")
     print(f"{len(out) - bad} of {len(out)} cases identical")
     return 1 if bad else 0
 

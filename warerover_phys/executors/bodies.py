@@ -122,6 +122,17 @@ def unsolved_agv_contacts(space: pymunk.Space, agv_of_shape: dict[int, int],
     space.on_collision(AGV, None, pre_solve=pre_solve)
 
 
+def _set_type(body: pymunk.Body, body_type: int) -> None:
+    """Change ``body``'s type with Chipmunk's ``cpBodySetType`` (which moves it between
+    the space's body lists and its shapes between the spatial indexes). pymunk's
+    ``Body.body_type`` setter refuses it for a body that ever had a joint to a
+    non-dynamic body, whether or not the joint is still in the space; the drive joints
+    are out of the space whenever this is called (:meth:`PhysicalFleet.park`)."""
+    from pymunk._chipmunk import lib
+
+    lib.cpBodySetType(body._body, body_type)
+
+
 def _grid_square(h: float, angle: float) -> list[tuple[float, float]]:
     """Body-frame vertices of a square of half side ``h`` whose sides are along the world
     axes while the body is turned by ``angle``."""
@@ -158,13 +169,18 @@ class PhysicalFleet:
     joints: list[tuple[pymunk.PivotJoint, pymunk.GearJoint]] = field(default_factory=list)
     """Each AGV's drive joints (pivot, gear) to its control body."""
     parked: np.ndarray | None = None
-    """(N,) AGVs standing still with their drive joints out of the space (:meth:`park`)."""
+    """(N,) AGVs standing still, static, with their drive joints out of the space
+    (:meth:`park`)."""
+    mass: np.ndarray | None = None
+    """(N,) each body's mass (kg), kept here while it is static (:meth:`park`)."""
+    moment: np.ndarray | None = None
+    """(N,) each body's moment of inertia, likewise."""
 
     @classmethod
     def add_to(cls, space: pymunk.Space, poses: list[tuple[float, float, float]],
                sizes: list[tuple[float, float]], masses: list[float],
                accels: list[float]) -> PhysicalFleet:
-        bodies, ctrls, shapes, joints = [], [], [], []
+        bodies, ctrls, shapes, joints, moments = [], [], [], [], []
         for (x, y, heading), (length, width), mass, accel in zip(poses, sizes, masses, accels,
                                                                 strict=True):
             moment = pymunk.moment_for_box(mass, (length, width))
@@ -189,26 +205,48 @@ class PhysicalFleet:
             ctrls.append(ctrl)
             shapes.append(shape)
             joints.append((pivot, gear))
+            moments.append(moment)
         half = np.array(sizes, dtype=float) / 2
         return cls(bodies, ctrls, shapes, half, {id(s): i for i, s in enumerate(shapes)},
-                   joints=joints, parked=np.zeros(len(bodies), dtype=bool))
+                   joints=joints, parked=np.zeros(len(bodies), dtype=bool),
+                   mass=np.array(masses, dtype=float), moment=np.array(moments, dtype=float))
 
-    def park(self, space: pymunk.Space, i: int) -> None:
-        """AGV ``i`` stands still on its hold point: take its drive joints out of the space
-        and zero its velocity. Nothing then moves it (AGV-AGV contacts are not solved, and
-        it rests clear of obstacles), and the solver no longer iterates over its joints:
-        at 1,000 AGVs most of pymunk's step is those joints. Call it after the step's
+    def park(self, space: pymunk.Space, i: int, x: float, y: float, angle: float) -> None:
+        """AGV ``i`` stands still on its hold point ``(x, y)`` facing ``angle``: take its
+        drive joints out of the space, put it exactly there (it is within
+        :data:`~.physics.PARK_EPS_M` of it: the deadbeat command of the next step would
+        take it there) and make it and its control body static. Nothing then moves it
+        (AGV-AGV contacts are not solved, and it rests clear of obstacles), pymunk neither
+        integrates it nor re-indexes its shape each step, and the solver no longer iterates
+        over its joints: at 1,000 AGVs, most of them parked at their goals, that is most of
+        pymunk's step. A moving AGV that touches it still meets it (static-dynamic pairs
+        are collided). Changing a body's type reorders the space's body list: call
+        :meth:`BodyIO.reorder` after a batch of parks and unparks. Call it after the step's
         velocities were written, before the step."""
-        body = self.bodies[i]
+        body, ctrl = self.bodies[i], self.ctrl[i]
+        space.remove(*self.joints[i])
         body.velocity = (0.0, 0.0)
         body.angular_velocity = 0.0
-        space.remove(*self.joints[i])
+        body.position = (x, y)
+        body.angle = angle
+        _set_type(body, pymunk.Body.STATIC)
+        _set_type(ctrl, pymunk.Body.STATIC)
+        space.reindex_shapes_for_body(body)
         self.parked[i] = True
 
     def unpark(self, space: pymunk.Space, i: int) -> None:
-        """Put AGV ``i``'s drive joints back (it is about to move). The joints correct
-        velocities only (``max_bias = 0``), so where its control body drifted meanwhile
-        does not matter."""
+        """Make AGV ``i`` and its control body movable again, with the velocities this
+        step's command gave them, and put its drive joints back (it is about to move). The
+        joints correct velocities only (``max_bias = 0``), so where its control body was
+        meanwhile does not matter. Call :meth:`BodyIO.reorder` after."""
+        body, ctrl = self.bodies[i], self.ctrl[i]
+        v, w = body.velocity, body.angular_velocity  # this step's command
+        _set_type(body, pymunk.Body.DYNAMIC)  # keeps v and w; mass comes from the shapes
+        body.mass = float(self.mass[i])
+        body.moment = float(self.moment[i])
+        _set_type(ctrl, pymunk.Body.KINEMATIC)  # zeroes v and w
+        ctrl.velocity = v
+        ctrl.angular_velocity = w
         space.add(*self.joints[i])
         self.parked[i] = False
 
@@ -253,10 +291,14 @@ class PhysicalFleet:
 
     def set_mass(self, i: int, mass: float) -> None:
         """Give AGV ``i``'s body a new mass (kg; a shelf picked up or put down), its moment
-        of inertia scaled with it. The drive force (the pivot's ``max_force``) stays."""
-        body = self.bodies[i]
-        body.moment = body.moment * mass / body.mass
-        body.mass = mass
+        of inertia scaled with it. The drive force (the pivot's ``max_force``) stays. A
+        parked (static) body gets it when it is unparked."""
+        self.moment[i] = self.moment[i] * mass / self.mass[i]
+        self.mass[i] = mass
+        if not self.parked[i]:
+            body = self.bodies[i]
+            body.moment = float(self.moment[i])
+            body.mass = mass
 
 
 class BodyIO:
@@ -272,14 +314,23 @@ class BodyIO:
     def __init__(self, space: pymunk.Space, fleet: PhysicalFleet) -> None:
         self.space = space
         self.buf = batch.Buffer()
-        batch.get_space_bodies(space, self._GET | batch.BodyFields.BODY_ID, self.buf)
-        ids = np.frombuffer(self.buf.int_buf(), dtype=np.uintp).copy()
-        row = {int(i): r for r, i in enumerate(ids)}
-        self.n_rows = len(ids)
-        self.body_rows = np.array([row[b.id] for b in fleet.bodies], dtype=np.intp)
-        self.ctrl_rows = np.array([row[b.id] for b in fleet.ctrl], dtype=np.intp)
+        self._body_ids = np.array([b.id for b in fleet.bodies], dtype=np.uintp)
+        self._ctrl_ids = np.array([b.id for b in fleet.ctrl], dtype=np.uintp)
+        self.reorder()
         self.out = np.zeros((self.n_rows, 3))
         self.set_buf = batch.Buffer()
+
+    def reorder(self) -> None:
+        """Find which row is which body (the space lists its bodies in an order that
+        changes when a body changes type: :meth:`PhysicalFleet.park`)."""
+        self.buf.clear()
+        batch.get_space_bodies(self.space, batch.BodyFields.BODY_ID, self.buf)
+        ids = np.frombuffer(self.buf.int_buf(), dtype=np.uintp)
+        order = np.argsort(ids, kind="stable")
+        where = order[np.searchsorted(ids, self._body_ids, sorter=order)]
+        self.body_rows = where.astype(np.intp)
+        self.ctrl_rows = order[np.searchsorted(ids, self._ctrl_ids, sorter=order)].astype(np.intp)
+        self.n_rows = len(ids)
 
     def read(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(positions (N, 2), angles (N,), velocities (N, 2), angular velocities (N,)) of

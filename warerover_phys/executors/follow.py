@@ -456,7 +456,7 @@ class PlanFollower:
         off = np.hypot(poses[:, 0] - st.hold_xy[:, 0], poses[:, 1] - st.hold_xy[:, 1])
         turn = np.abs(wrap(poses[:, 2] - st.heading))
         ok = idle & (off <= DWELL_POS_TOL_M) & (turn <= DWELL_HEADING_TOL_RAD)
-        return frozenset(int(i) for i in np.flatnonzero(ok))
+        return frozenset(np.flatnonzero(ok).tolist())
 
     # ------------------------------------------------------------------------- fault hooks
 

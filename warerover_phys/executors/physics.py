@@ -246,16 +246,26 @@ class PhysicsExecutor:
         st, fleet = self.state, self.fleet
         parked = fleet.parked
         self.parked_steps += self._n_parked
+        changed = False
         if self._n_parked:
             for i in np.flatnonzero(parked & (st.mode != HOLD)):
                 fleet.unpark(self.space, int(i))
                 self._n_parked -= 1
-        if not look:
-            return
-        cand = (st.mode == HOLD) & ~parked
+                changed = True
+        if look:
+            changed |= self._park_settled(pos, ang, v, w)
+        if changed:
+            self.io.reorder()
+
+    def _park_settled(self, pos: np.ndarray, ang: np.ndarray, v: np.ndarray,
+                      w: np.ndarray) -> bool:
+        """Park the standing AGVs whose bodies have settled on their hold points; whether
+        any was."""
+        st, fleet = self.state, self.fleet
+        cand = (st.mode == HOLD) & ~fleet.parked
         idx = np.flatnonzero(cand)
         if len(idx) == 0:
-            return
+            return False
         err = st.hold_xy[idx] - pos[idx]
         ok = ((np.einsum("ij,ij->i", err, err) < PARK_EPS_M ** 2)
               & (np.einsum("ij,ij->i", v[idx], v[idx]) < PARK_SPEED ** 2)
@@ -263,8 +273,13 @@ class PhysicsExecutor:
               & (np.abs(wrap(st.heading[idx] - ang[idx])) < PARK_EPS_RAD)
               & (st.speed[idx] == 0.0))
         for i in idx[ok]:
-            fleet.park(self.space, int(i))
+            i = int(i)
+            # Where the next step's deadbeat command would put it (control.steer).
+            x, y = st.hold_xy[i]
+            fleet.park(self.space, i, float(x), float(y),
+                       float(ang[i] + wrap(st.heading[i] - ang[i])))
             self._n_parked += 1
+        return bool(ok.any())
 
     # ------------------------------------------------------------------------- fault hooks
 
