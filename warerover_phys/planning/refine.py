@@ -106,6 +106,14 @@ class _Plan:
         self.parked[path[-1]] = len(path) - 1
         self.paths[i] = path
 
+    def who(self, t: int, v: int) -> int | None:
+        """The agent at node v at tick t (None if nobody's path is there then)."""
+        return self.occ.get(t * self.n + v)
+
+    def ticks_at(self, v: int) -> list[int]:
+        """The ticks at which some kept path is at v (before parking), ascending."""
+        return sorted(self.visits.get(v, ()))
+
     def remove(self, i: int) -> list[int]:
         path = self.paths[i]
         n, occ, visits, safe = self.n, self.occ, self.visits, self.safe
@@ -230,9 +238,10 @@ def _sipp(neighbors: Sequence[Sequence[int]], plan: _Plan, start: int, goal: int
     while heap:
         _f, _h, neg_t, v, k, par = pop(heap)
         key = (v << 16) | k
-        if key in closed:
-            continue
         t = -neg_t
+        seen = closed.get(key)
+        if seen is not None and seen[1] <= t:
+            continue  # reached no later already (ties prefer later ticks: it can happen)
         closed[key] = (par, t)
         hi_v = cache[v][k][1]
         if v == goal and hi_v == _INF:
@@ -258,8 +267,6 @@ def _sipp(neighbors: Sequence[Sequence[int]], plan: _Plan, start: int, goal: int
                 lo, hi = ivs[k2]
                 if lo > last:
                     break
-                if (ukey | k2) in closed:
-                    continue
                 t2 = lo if lo > t1 else t1
                 f = t2 + h
                 if f > ub:
@@ -271,6 +278,9 @@ def _sipp(neighbors: Sequence[Sequence[int]], plan: _Plan, start: int, goal: int
                         break
                     t2 += 1
                 if t2 > hi or t2 > last:
+                    continue
+                seen = closed.get(ukey | k2)
+                if seen is not None and seen[1] <= t2:
                     continue
                 f = t2 + h
                 if f < earliest:
@@ -302,7 +312,8 @@ def refine(neighbors: Sequence[Sequence[int]], paths: Sequence[Sequence[int]],
            rng: np.random.Generator, *, size: int | None = None,
            max_iterations: int | None = None,
            max_expansions: int = 200_000,
-           on_improve: Callable[[float, int], None] | None = None) -> RefineResult:
+           on_improve: Callable[[float, int], None] | None = None,
+           search: str = "auto") -> RefineResult:
     """Refine a valid plan (``paths``: node lists from the starts to ``goals``, any length)
     until ``deadline`` (``time.monotonic()``) or ``max_iterations`` neighbourhoods.
 
@@ -310,14 +321,29 @@ def refine(neighbors: Sequence[Sequence[int]], paths: Sequence[Sequence[int]],
     number of agents per neighbourhood (default: chosen among :data:`SIZES` with adaptive
     weights, like the rules); ``on_improve(seconds, soc)`` is called after each
     improvement. The returned plan is valid whenever the given one is, and its SoC is never
-    higher.
+    higher. ``search``: ``"nb"`` the compiled space-time A* over a dense occupancy table
+    (:mod:`~.refine_nb`), ``"sipp"`` the Python interval search (:func:`_sipp`), ``"auto"``
+    the first where numba is there. Both find the same costs; the paths may differ among
+    equals, so the two give different (each deterministic) runs.
     """
+    if search == "auto":
+        from . import refine_nb
+        search = "nb" if refine_nb.AVAILABLE else "sipp"
+    if search not in ("nb", "sipp"):
+        raise ValueError(f"search must be 'nb', 'sipp' or 'auto', not {search!r}")
     t0 = time.monotonic()
     num = len(paths)
     num_nodes = len(neighbors)
     trimmed = [_trim(p, g) for p, g in zip(paths, goals, strict=True)]
-    plan = _Plan(num_nodes, trimmed)
-    lists = [None] * num  # distance tables as lists, made when an agent is first re-planned
+    if search == "nb":
+        from .refine_nb import DensePlan, csr
+        plan: _Plan | DensePlan = DensePlan(num_nodes, trimmed)
+        ptr, idx = csr(neighbors)
+    else:
+        plan = _Plan(num_nodes, trimmed)
+    # distance tables as lists (sipp) or int32 arrays (nb), made when an agent is first
+    # re-planned
+    lists: list = [None] * num
     lb = [int(dists[i][trimmed[i][0]]) for i in range(num)]
     costs = [len(p) - 1 for p in trimmed]
     soc = sum(costs)
@@ -349,7 +375,7 @@ def refine(neighbors: Sequence[Sequence[int]], paths: Sequence[Sequence[int]],
         which = int(rng.choice(len(sizes), p=[w / total_w for w in size_w]))
         size = sizes[which]
         if rule == 1:
-            group = _agent_based(plan, lists, dists, costs, lb, tabu, size, rng, neighbors)
+            group = _agent_based(plan, dists, costs, lb, tabu, size, rng, neighbors)
         elif rule == 2 and crossings:
             group = _map_based(plan, crossings, neighbors, size, rng)
         else:
@@ -371,10 +397,16 @@ def refine(neighbors: Sequence[Sequence[int]], paths: Sequence[Sequence[int]],
             rest_lb -= lb[a]
             ub = old_cost - 1 - new_cost - rest_lb
             d = lists[a]
-            if d is None:
-                d = lists[a] = dists[a].tolist()
-            path = _sipp(neighbors, plan, olds[a][0], goals[a], d, ub, deadline,
-                         max_expansions, work)
+            if search == "nb":
+                if d is None:
+                    d = lists[a] = np.ascontiguousarray(dists[a], dtype=np.int32)
+                path = plan.search(ptr, idx, olds[a][0], goals[a], d, ub, max_expansions,
+                                   work)
+            else:
+                if d is None:
+                    d = lists[a] = dists[a].tolist()
+                path = _sipp(neighbors, plan, olds[a][0], goals[a], d, ub, deadline,
+                             max_expansions, work)
             if path is None:
                 ok = False
                 break
@@ -410,7 +442,7 @@ def refine(neighbors: Sequence[Sequence[int]], paths: Sequence[Sequence[int]],
     return RefineResult(list(plan.paths), costs, history, stats)
 
 
-def _agent_based(plan: _Plan, lists: list, dists: Sequence[np.ndarray], costs: list[int],
+def _agent_based(plan, dists: Sequence[np.ndarray], costs: list[int],
                  lb: list[int], tabu: set[int], size: int, rng: np.random.Generator,
                  neighbors: Sequence[Sequence[int]]) -> list[int]:
     """The most delayed agent outside ``tabu`` and the agents in its way: those at the
@@ -426,14 +458,14 @@ def _agent_based(plan: _Plan, lists: list, dists: Sequence[np.ndarray], costs: l
     tabu.add(best)
     group = [best]
     seen = {best}
-    n, occ = plan.n, plan.occ
+    who = plan.who
     d = dists[best]
     v = plan.paths[best][0]
     t = 0
     # walk a shortest path (random among equals) and look around the ideal tick
     while len(group) < size:
         for dt in range(best_delay + 1):
-            j = occ.get((t + dt) * n + v)
+            j = who(t + dt, v)
             if j is not None and j not in seen:
                 seen.add(j)
                 group.append(j)
@@ -447,11 +479,11 @@ def _agent_based(plan: _Plan, lists: list, dists: Sequence[np.ndarray], costs: l
     return group
 
 
-def _map_based(plan: _Plan, crossings: list[int], neighbors: Sequence[Sequence[int]],
+def _map_based(plan, crossings: list[int], neighbors: Sequence[Sequence[int]],
                size: int, rng: np.random.Generator) -> list[int]:
     """Agents that pass a random crossing or the cells nearest to it (breadth first)."""
     start = crossings[int(rng.integers(len(crossings)))]
-    n, occ, visits = plan.n, plan.occ, plan.visits
+    who = plan.who
     group: list[int] = []
     seen: set[int] = set()
     frontier, marked = [start], {start}
@@ -460,8 +492,8 @@ def _map_based(plan: _Plan, crossings: list[int], neighbors: Sequence[Sequence[i
         nxt: list[int] = []
         for v in frontier:
             budget -= 1
-            for t in sorted(visits.get(v, ())):
-                j = occ.get(t * n + v)
+            for t in plan.ticks_at(v):
+                j = who(int(t), v)
                 if j is not None and j not in seen:
                     seen.add(j)
                     group.append(j)
