@@ -357,6 +357,9 @@ def refine(neighbors: Sequence[Sequence[int]], paths: Sequence[Sequence[int]],
     crossings = [v for v in range(num_nodes) if len(neighbors[v]) >= 3]
     tried = [0] * len(RULES)
     won = [0] * len(RULES)
+    gained = [0] * len(RULES)
+    size_tried = [0] * len(sizes)
+    size_won = [0] * len(sizes)
     it = 0
     stopped = "time"
     while True:
@@ -385,6 +388,7 @@ def refine(neighbors: Sequence[Sequence[int]], paths: Sequence[Sequence[int]],
             extra = [a for a in rng.permutation(num).tolist() if a not in group]
             group += extra[:size - len(group)]
         tried[rule] += 1
+        size_tried[which] += 1
         old_cost = sum(costs[a] for a in group)
         olds = {a: plan.remove(a) for a in group}
         order = [group[k] for k in rng.permutation(len(group)).tolist()]
@@ -418,6 +422,8 @@ def refine(neighbors: Sequence[Sequence[int]], paths: Sequence[Sequence[int]],
                 costs[a] = len(p) - 1
             soc -= old_cost - new_cost
             won[rule] += 1
+            gained[rule] += old_cost - new_cost
+            size_won[which] += 1
             # reward: SoC gained per 1,000 states expanded (a cost measure that does not
             # depend on the machine, so the choices stay deterministic)
             gain = 1000.0 * (old_cost - new_cost) / (work[0] + 100)
@@ -435,8 +441,9 @@ def refine(neighbors: Sequence[Sequence[int]], paths: Sequence[Sequence[int]],
             weights[rule] = max(1e-3, (1 - reaction) * weights[rule])
             size_w[which] = max(1e-3, (1 - reaction) * size_w[which])
     stats = {"iterations": it, "improvements": len(history) - 1, "stopped": stopped,
-             "sizes": {str(k): round(w, 4) for k, w in zip(sizes, size_w, strict=True)},
-             "rules": {r: {"tried": tried[k], "improved": won[k],
+             "sizes": {str(k): {"tried": size_tried[j], "improved": size_won[j],
+                                "weight": round(size_w[j], 4)} for j, k in enumerate(sizes)},
+             "rules": {r: {"tried": tried[k], "improved": won[k], "gained": gained[k],
                            "weight": round(weights[k], 4)} for k, r in enumerate(RULES)},
              "wall_s": time.monotonic() - t0}
     return RefineResult(list(plan.paths), costs, history, stats)
