@@ -12,7 +12,12 @@ After a first solution (LaCAM or PIBT), the time left is spent lowering its sum 
 2. take their paths out and re-plan them one after the other, in a random order, with
    space-time A* against everybody else's paths (prioritized planning: vertex and swap
    conflicts with every path kept or already re-planned, and no cell on which an agent
-   already stands on its goal for good). The search runs over safe intervals (SIPP,
+   already stands on its goal for good). By default the search is compiled with numba
+   (:mod:`~.refine_nb`: space-time A* over a dense occupancy table kept up to date as
+   paths are taken out and put back; at 700 agents on warehouse-10-20-10-2-1, 3,100-4,100
+   neighbourhoods in 20 s of CPU against 380-530 with the Python search below; it looks at
+   the deadline only between searches, each bounded by ``max_expansions``). In Python (``search="sipp"``,
+   and where numba is missing) it runs over safe intervals (SIPP,
    :func:`_sipp`: waiting folded into intervals) and finds the same costs as the plain
    search over (cell, tick) states (:func:`_astar`, kept as the reference the tests compare
    it with). Both order states by ``f = max(t + h, earliest)``, ``earliest`` the tick from
@@ -208,7 +213,9 @@ def _sipp(neighbors: Sequence[Sequence[int]], plan: _Plan, start: int, goal: int
           work: list[int] | None = None) -> list[int] | None:
     """Space-time A* over safe intervals (SIPP, Phillips and Likhachev 2011): the same
     paths as :func:`_astar` (shortest, avoiding every kept path, cost at most ``ub``) with
-    waiting folded into intervals.
+    waiting folded into intervals. Ties go to later ticks, so a state (node, interval) can
+    be reached late first: it is expanded again when reached earlier (without that the
+    search missed shorter paths, a case hypothesis found).
     ``work[0]`` (if given) grows by the number of states expanded."""
     if work is None:
         work = [0]
