@@ -112,7 +112,7 @@ def test_dense_plan_add_and_remove_restore_the_table():
     assert (plan.occ == occ).all() and (plan.parked == parked).all()
     plan.remove(0)
     plan.add(0, [0] * 40 + [1])
-    assert plan.horizon >= 82 and plan.who(1, 4) == 1 and plan.who(40, 1) == 0
+    assert plan.horizon >= 57 and plan.who(1, 4) == 1 and plan.who(40, 1) == 0
     assert plan.ticks_at(2).tolist() == []
 
 

@@ -6,8 +6,9 @@ else's paths. In Python that search (:func:`~.refine._sipp`) took ~95% of the LN
 runs compiled:
 
 - :class:`DensePlan` keeps the kept paths as one flat ``int32`` array ``occ[t * n + v]``
-  (the agent at node v at tick t, -1 if none; ticks below a horizon ``H`` that grows with
-  the longest path) and ``parked[v]`` (the tick from which an agent stands on its goal v
+  (the agent at node v at tick t, -1 if none; ticks below a horizon ``H``, 1.5x the
+  longest path + 32, grown when a longer path comes in; a search's cost bound is capped
+  below ``H``) and ``parked[v]`` (the tick from which an agent stands on its goal v
   for good). Adding or taking out a path is two numpy assignments, nothing is rebuilt.
 - :func:`st_astar` is space-time A* over (node, tick) states, the search of
   :func:`~.refine._astar` (the reference): vertex and swap conflicts with every kept path,
@@ -61,14 +62,11 @@ class DensePlan:
 
     def __init__(self, num_nodes: int, paths: list[list[int]]) -> None:
         self.n = num_nodes
-        longest = max((len(p) for p in paths), default=1)
-        self.horizon = 2 * longest + 16
-        self.occ = np.full(self.horizon * num_nodes, NONE, dtype=np.int32)
+        self.horizon = 0
+        self.occ = np.zeros(0, dtype=np.int32)
+        self._grow(_room(max((len(p) for p in paths), default=1)))
         self.parked = np.full(num_nodes, NEVER, dtype=np.int32)
         self.paths: list[list[int]] = [[] for _ in paths]
-        self.seen = np.zeros(self.horizon * num_nodes, dtype=np.int32)
-        self.parent = np.zeros(self.horizon * num_nodes, dtype=np.int64)
-        self.gen = 0
         self.heap_pri = np.zeros(1 << 12, dtype=np.int64)
         self.heap_key = np.zeros(1 << 12, dtype=np.int64)
         for i, p in enumerate(paths):
@@ -76,20 +74,22 @@ class DensePlan:
 
     def _grow(self, horizon: int) -> None:
         n = self.n
+        if horizon * n >= 2**31:
+            raise ValueError(f"space-time table too large: {horizon} ticks x {n} nodes")
         occ = np.full(horizon * n, NONE, dtype=np.int32)
         occ[:self.occ.size] = self.occ
         self.occ = occ
         self.horizon = horizon
         self.seen = np.zeros(horizon * n, dtype=np.int32)
-        self.parent = np.zeros(horizon * n, dtype=np.int64)
+        self.parent = np.zeros(horizon * n, dtype=np.int32)
         self.gen = 0
 
     def _keys(self, path: list[int]) -> np.ndarray:
         return np.arange(len(path), dtype=np.int64) * self.n + np.asarray(path, dtype=np.int64)
 
     def add(self, i: int, path: list[int]) -> None:
-        if 2 * len(path) > self.horizon:
-            self._grow(4 * len(path) + 16)
+        if len(path) + 16 > self.horizon:
+            self._grow(_room(len(path)))
         self.occ[self._keys(path)] = i
         self.parked[path[-1]] = len(path) - 1
         self.paths[i] = path
@@ -119,12 +119,9 @@ class DensePlan:
         if ub < 0:
             return None
         need = 5 * max_expansions + 8
-        if self.heap_pri.size < need:
-            size = min(need, max(2 * self.heap_pri.size, 1 << 16))
-            while size < need and size < (1 << 24):
-                size *= 2
-            self.heap_pri = np.zeros(size, dtype=np.int64)
-            self.heap_key = np.zeros(size, dtype=np.int64)
+        if self.heap_pri.size < need:  # at most 5 pushes per expansion: never full
+            self.heap_pri = np.zeros(need, dtype=np.int64)
+            self.heap_key = np.zeros(need, dtype=np.int64)
         self.gen += 1
         if self.gen >= 2**31 - 2:
             self.seen[:] = 0
@@ -135,6 +132,12 @@ class DensePlan:
         if work is not None:
             work[0] += int(expanded)
         return None if path.size == 0 else path.tolist()
+
+
+def _room(longest: int) -> int:
+    """The horizon given to paths of up to ``longest`` nodes: searches may find paths up to
+    it (their bound is capped there); a longer path put in grows the table."""
+    return longest + longest // 2 + 32
 
 
 _TBITS = 21
