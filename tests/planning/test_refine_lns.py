@@ -124,16 +124,17 @@ def warehouse_plan(n):
     return grid.obstacles, starts, goals
 
 
-def test_compiled_refinement_keeps_the_plan_valid_and_is_deterministic():
-    """60 agents on the warehouse map: 40 neighbourhoods with the compiled search lower the
-    sum of costs, the plan passes the validator, and the same seed gives the same plan."""
+@pytest.mark.parametrize("search", ["nb", "sipp"])
+def test_refinement_keeps_the_plan_valid_and_is_deterministic(search):
+    """60 agents on the warehouse map: 40 neighbourhoods with either search lower the sum of
+    costs, the plan passes the validator, and the same seed gives the same plan."""
     obstacles, starts, goals = warehouse_plan(60)
     graph, trimmed, goal_nodes = first_plan(obstacles, starts, goals, 0)
     dists = [graph.dist_to(g) for g in goals]
     runs = []
     for _ in range(2):
         res = refine(graph.neighbors, trimmed, goal_nodes, dists, time.monotonic() + 60,
-                     np.random.default_rng(3), max_iterations=40, search="nb")
+                     np.random.default_rng(3), max_iterations=40, search=search)
         runs.append(res)
     a, b = runs
     assert a.paths == b.paths

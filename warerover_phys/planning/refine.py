@@ -58,6 +58,8 @@ RULES = ("random", "agent", "map")
 """The neighbourhood rules, in the order of their ALNS weights."""
 SIZES = (1, 2, 4, 8)
 """Neighbourhood sizes chosen among (ALNS weights) unless one is given."""
+REACTION = 0.1
+"""The ALNS reaction factor: a choice's weight moves this share towards its latest reward."""
 
 
 @dataclass
@@ -358,7 +360,7 @@ def refine(neighbors: Sequence[Sequence[int]], paths: Sequence[Sequence[int]],
     sizes = [max(1, min(k, num)) for k in (SIZES if size is None else (size,))]
     size_w = [1.0] * len(sizes)
     weights = [1.0] * len(RULES)
-    reaction = 0.1
+    reaction = REACTION
     floor = sum(lb)
     tabu: set[int] = set()
     crossings = [v for v in range(num_nodes) if len(neighbors[v]) >= 3]
