@@ -14,7 +14,7 @@ After a first solution (LaCAM or PIBT), the time left is spent lowering its sum 
    conflicts with every path kept or already re-planned, and no cell on which an agent
    already stands on its goal for good). By default the search is compiled with numba
    (:mod:`~.refine_nb`: space-time A* over a dense occupancy table kept up to date as
-   paths are taken out and put back; at 700 agents on warehouse-10-20-10-2-1, 3,100-4,100
+   paths are taken out and put back; at 700 agents on warehouse-10-20-10-2-1, 3,100-4,300
    neighbourhoods in 20 s of CPU against 380-530 with the Python search below; it looks at
    the deadline only between searches, each bounded by ``max_expansions``). In Python (``search="sipp"``,
    and where numba is missing) it runs over safe intervals (SIPP,
