@@ -413,8 +413,9 @@ def refine(neighbors: Sequence[Sequence[int]], paths: Sequence[Sequence[int]],
             if search == "nb":
                 if d is None:
                     d = lists[a] = np.ascontiguousarray(dists[a], dtype=np.int32)
-                path = plan.search(ptr, idx, olds[a][0], goals[a], d, ub, max_expansions,
-                                   work)
+                # a compiled search does not look at the clock: look before each one
+                path = None if time.monotonic() > deadline else plan.search(
+                    ptr, idx, olds[a][0], goals[a], d, ub, max_expansions, work)
             else:
                 if d is None:
                     d = lists[a] = dists[a].tolist()
