@@ -3,7 +3,7 @@
 say little.
 
     python tools/bench_refine.py [--agents 700] [--lns-cpu 20] [--iterations K] [--scen 1]
-        [--json tools/out/bench_refine.json]
+        [--json tools/out/bench_refine.json] [--profile K]
 
 Prints the CPU seconds (``time.process_time``) of the first solution's parts (distance
 tables, guide paths, LaCAM; ``--seed``, no time limit), then runs the LNS
@@ -17,8 +17,10 @@ the per-tick validator and prints iterations, SoC and SoC / lower bound. Run it 
 from __future__ import annotations
 
 import argparse
+import cProfile
 import json
 import os
+import pstats
 import sys
 import time
 import types
@@ -48,6 +50,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scen", type=int, default=1)
     ap.add_argument("--seed", type=int, default=0, help="as `warerover solve --seed`")
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--profile", type=int, default=0, metavar="K",
+                    help="profile the LNS (cProfile, CPU clock) and print its K costliest "
+                         "functions by own time to stderr")
     args = ap.parse_args(argv)
     cpu = time.process_time
     grid = read_map(DATA / f"{MAP}.map")
@@ -81,9 +86,14 @@ def main(argv: list[str] | None = None) -> int:
     wall_clock = refine_mod.time
     refine_mod.time = types.SimpleNamespace(monotonic=cpu)  # the LNS's clock: CPU time
     try:
+        prof = cProfile.Profile(cpu) if args.profile else None
         c = cpu()
+        if prof is not None:
+            prof.enable()
         res = refine_mod.refine(graph.neighbors, nodes, goals, tables, c + budget, rng,
                                 max_iterations=args.iterations)
+        if prof is not None:
+            prof.disable()
         out["lns_cpu_s"] = cpu() - c
     finally:
         refine_mod.time = wall_clock
@@ -98,6 +108,8 @@ def main(argv: list[str] | None = None) -> int:
     out["endpoints_ok"] = all(p[0] == s and p[-1] == g
                               for p, s, g in zip(full, starts, goals, strict=True))
     out = {k: round(v, 3) if isinstance(v, float) else v for k, v in out.items()}
+    if prof is not None:
+        pstats.Stats(prof, stream=sys.stderr).sort_stats("tottime").print_stats(args.profile)
     print(json.dumps(out))
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)
