@@ -171,6 +171,8 @@ class PhysicalFleet:
     parked: np.ndarray | None = None
     """(N,) AGVs standing still, static, with their drive joints out of the space
     (:meth:`park`)."""
+    static: np.ndarray | None = None
+    """(N,) parked AGVs whose bodies are static (:meth:`park`)."""
     mass: np.ndarray | None = None
     """(N,) each body's mass (kg), kept here while it is static (:meth:`park`)."""
     moment: np.ndarray | None = None
@@ -209,46 +211,58 @@ class PhysicalFleet:
         half = np.array(sizes, dtype=float) / 2
         return cls(bodies, ctrls, shapes, half, {id(s): i for i, s in enumerate(shapes)},
                    joints=joints, parked=np.zeros(len(bodies), dtype=bool),
+                   static=np.zeros(len(bodies), dtype=bool),
                    mass=np.array(masses, dtype=float), moment=np.array(moments, dtype=float))
 
-    def park(self, space: pymunk.Space, i: int, x: float, y: float, angle: float) -> None:
-        """AGV ``i`` stands still on its hold point ``(x, y)`` facing ``angle``: take its
-        drive joints out of the space, put it exactly there (it is within
-        :data:`~.physics.PARK_EPS_M` of it: the deadbeat command of the next step would
-        take it there) and make it and its control body static. Nothing then moves it
-        (AGV-AGV contacts are not solved, and it rests clear of obstacles), pymunk neither
-        integrates it nor re-indexes its shape each step, and the solver no longer iterates
-        over its joints: at 1,000 AGVs, most of them parked at their goals, that is most of
-        pymunk's step. A moving AGV that touches it still meets it (static-dynamic pairs
-        are collided). Changing a body's type reorders the space's body list: call
-        :meth:`BodyIO.reorder` after a batch of parks and unparks. Call it after the step's
-        velocities were written, before the step."""
-        body, ctrl = self.bodies[i], self.ctrl[i]
+    def park(self, space: pymunk.Space, i: int, x: float, y: float, angle: float,
+             static: bool) -> None:
+        """AGV ``i`` stands still on its hold point: take its drive joints out of the space
+        and zero its velocity. Nothing then moves it but the control law's commands (AGV-AGV
+        contacts are not solved, and it rests clear of obstacles), and the solver no longer
+        iterates over its joints: at 1,000 AGVs most of pymunk's step is those joints.
+
+        ``static`` (an AGV with nothing left to do): also put it exactly on its hold point
+        ``(x, y)`` facing ``angle`` (it is within :data:`~.physics.PARK_EPS_M` of it: the
+        deadbeat command of the next step would take it there) and make it and its control
+        body static, so that pymunk neither integrates it nor re-indexes its shape each
+        step. A moving AGV that touches it still meets it (static-dynamic pairs are
+        collided). Changing a body's type reorders the space's body list: call
+        :meth:`BodyIO.reorder` after a batch of such parks and unparks.
+
+        Call it after the step's velocities were written, before the step."""
+        body = self.bodies[i]
         space.remove(*self.joints[i])
         body.velocity = (0.0, 0.0)
         body.angular_velocity = 0.0
-        body.position = (x, y)
-        body.angle = angle
-        _set_type(body, pymunk.Body.STATIC)
-        _set_type(ctrl, pymunk.Body.STATIC)
-        space.reindex_shapes_for_body(body)
         self.parked[i] = True
+        if static:
+            body.position = (x, y)
+            body.angle = angle
+            _set_type(body, pymunk.Body.STATIC)
+            _set_type(self.ctrl[i], pymunk.Body.STATIC)
+            space.reindex_shapes_for_body(body)
+            self.static[i] = True
 
-    def unpark(self, space: pymunk.Space, i: int) -> None:
-        """Make AGV ``i`` and its control body movable again, with the velocities this
-        step's command gave them, and put its drive joints back (it is about to move). The
-        joints correct velocities only (``max_bias = 0``), so where its control body was
-        meanwhile does not matter. Call :meth:`BodyIO.reorder` after."""
-        body, ctrl = self.bodies[i], self.ctrl[i]
-        v, w = body.velocity, body.angular_velocity  # this step's command
-        _set_type(body, pymunk.Body.DYNAMIC)  # keeps v and w; mass comes from the shapes
-        body.mass = float(self.mass[i])
-        body.moment = float(self.moment[i])
-        _set_type(ctrl, pymunk.Body.KINEMATIC)  # zeroes v and w
-        ctrl.velocity = v
-        ctrl.angular_velocity = w
+    def unpark(self, space: pymunk.Space, i: int) -> bool:
+        """Put AGV ``i``'s drive joints back (it is about to move); a static one first gets
+        movable again, it and its control body with the velocities this step's command gave
+        them. The joints correct velocities only (``max_bias = 0``), so where its control
+        body was meanwhile does not matter. Returns whether it was static (then call
+        :meth:`BodyIO.reorder`)."""
+        was_static = bool(self.static[i])
+        if was_static:
+            body, ctrl = self.bodies[i], self.ctrl[i]
+            v, w = body.velocity, body.angular_velocity  # this step's command
+            _set_type(body, pymunk.Body.DYNAMIC)  # keeps v and w; mass from the shapes
+            body.mass = float(self.mass[i])
+            body.moment = float(self.moment[i])
+            _set_type(ctrl, pymunk.Body.KINEMATIC)  # zeroes v and w
+            ctrl.velocity = v
+            ctrl.angular_velocity = w
+            self.static[i] = False
         space.add(*self.joints[i])
         self.parked[i] = False
+        return was_static
 
     def carry_shelves(self, space: pymunk.Space, side: np.ndarray, ang: np.ndarray) -> None:
         """``executor.shelf_contacts``: give each AGV the collision shape of the shelf it
@@ -295,7 +309,7 @@ class PhysicalFleet:
         parked (static) body gets it when it is unparked."""
         self.moment[i] = self.moment[i] * mass / self.mass[i]
         self.mass[i] = mass
-        if not self.parked[i]:
+        if not self.static[i]:
             body = self.bodies[i]
             body.moment = float(self.moment[i])
             body.mass = mass

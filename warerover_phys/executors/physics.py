@@ -249,9 +249,8 @@ class PhysicsExecutor:
         changed = False
         if self._n_parked:
             for i in np.flatnonzero(parked & (st.mode != HOLD)):
-                fleet.unpark(self.space, int(i))
+                changed |= fleet.unpark(self.space, int(i))
                 self._n_parked -= 1
-                changed = True
         if look:
             changed |= self._park_settled(pos, ang, v, w)
         if changed:
@@ -260,7 +259,7 @@ class PhysicsExecutor:
     def _park_settled(self, pos: np.ndarray, ang: np.ndarray, v: np.ndarray,
                       w: np.ndarray) -> bool:
         """Park the standing AGVs whose bodies have settled on their hold points; whether
-        any was."""
+        any body was made static."""
         st, fleet = self.state, self.fleet
         cand = (st.mode == HOLD) & ~fleet.parked
         idx = np.flatnonzero(cand)
@@ -272,14 +271,20 @@ class PhysicsExecutor:
               & (np.abs(w[idx]) < PARK_SPEED)
               & (np.abs(wrap(st.heading[idx] - ang[idx])) < PARK_EPS_RAD)
               & (st.speed[idx] == 0.0))
+        static = False
         for i in idx[ok]:
             i = int(i)
-            # Where the next step's deadbeat command would put it (control.steer).
+            # Nothing left to do: a static body, put where the next step's deadbeat command
+            # would take it (control.steer). (One that waits to go on keeps its dynamic
+            # body: it would soon be made movable again, and every change of a body's type
+            # costs a re-read of the space's body order.)
+            done = not st.has_next[i]
             x, y = st.hold_xy[i]
             fleet.park(self.space, i, float(x), float(y),
-                       float(ang[i] + wrap(st.heading[i] - ang[i])))
+                       float(ang[i] + wrap(st.heading[i] - ang[i])), static=done)
+            static |= done
             self._n_parked += 1
-        return bool(ok.any())
+        return static
 
     # ------------------------------------------------------------------------- fault hooks
 
