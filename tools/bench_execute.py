@@ -11,13 +11,16 @@ Each count runs in its own process so that its peak memory (max RSS) is its own.
 
 ``real_time_factor`` is simulated time over the executor's wall time; ``rtf_cpu`` the
 simulated time over the CPU time of the whole execution (steadier on a loaded machine);
-``load_avg`` the 1-minute load average when it ended. ``--plans DIR`` keeps the plans
+``load_avg`` the 1-minute load average when it ended; ``executed_digest`` a hash of the
+executed per-tick states of every agent (equal digests at two ``--dt``: the same
+execution). ``--plans DIR`` keeps the plans
 (``DIR/planN.txt``) and reuses them, for before / after comparisons on the same plans.
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import os
 import resource
@@ -119,6 +122,8 @@ def one(n: int, plan_file: Path, solver: str, dt_s: float = 0.02) -> dict:
         "min_clearance_m": m["min_clearance_m"], "limit_violations": m["limit_violations"],
         "completed": m["completed"],
         "validator_conflicts": len(conflicts),
+        "executed_digest": hashlib.sha256(json.dumps(
+            [result.executed[i] for i in range(n)]).encode()).hexdigest()[:16],
         "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
     }
 
