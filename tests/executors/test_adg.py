@@ -639,3 +639,38 @@ def test_prune_keeps_every_node_that_reaches_a_cycle():
     assert adg_module._prune_acyclic(graph) == {0: [1], 1: [2], 2: [0], 3: [0], 6: [3]}
     assert adg_module._prune_acyclic({0: [1], 1: [0]}) == {0: [1], 1: [0]}
     assert adg_module._prune_acyclic({0: [1], 1: [2]}) == {}
+
+
+def _progress_from_scratch(g: ActionGraph, n: int, tick: int):
+    states, late, pending, running = [], [], [], []
+    for i in range(n):
+        cur, nxt = g.current(i), g.next_action(i)
+        states.append(g.state(i))
+        late.append(cur.tick + cur.ticks < tick if cur is not None
+                    else nxt is not None and nxt.tick < tick)
+        pending.append(nxt is not None)
+        running.append(cur is not None)
+    return states, late, pending, running
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.data())
+def test_progress_answers_as_a_fresh_pass_whatever_happened_since(data):
+    """``progress`` looks again only at AGVs with something left or a changed record; its
+    answers equal a pass over every AGV after any sequence of starts, finishes and new
+    plans."""
+    g = ActionGraph(cols=8, sizes=dict.fromkeys(range(3), 1))
+    lanes = {0: [0, 1, 2, 3, 4], 1: [8, 9, 10, 11], 2: [16, 17, 18, 19, 20, 21]}
+    for i, cells in lanes.items():
+        g.set_plan(i, TimedPath(i, 0, stand(*cells)))
+    for tick in range(12):
+        for i in data.draw(st.lists(st.sampled_from([0, 1, 2]), max_size=3), label="who"):
+            if g.current(i) is not None:
+                g.finish(i)
+            elif g.ready(i):
+                g.start(i)
+            elif g.done(i) and data.draw(st.booleans(), label="new plan"):
+                here = g.state(i)[0]  # one cell along its own row (rows never meet)
+                g.set_plan(i, TimedPath(i, tick, stand(here, here + 1 if here % 8 < 7
+                                                       else here - 1)))
+        assert g.progress(3, tick) == _progress_from_scratch(g, 3, tick)
