@@ -46,12 +46,14 @@ class _High:
 
 def lacam(graph: MotionGraph, starts: Sequence[Cell], goals: Sequence[Cell], deadline: float,
           seed: int = 0, guide: bool = False, dists: Sequence[Sequence[int]] | None = None,
+          dist_arrays: Sequence[np.ndarray] | None = None,
           ) -> tuple[list[list[Cell]] | None, dict]:
     """Solve; returns (paths or None, stats). None with ``stats["exhausted"]`` True means
     there is no solution; otherwise the deadline passed. ``guide``: PIBT follows guide paths
     (:mod:`~warerover_phys.planning.scatter`, computed in at most half the time left).
     ``dists``: per agent, the moves from every node to its goal (``graph.dist_to(goal)`` as
-    a list), when the caller has them already."""
+    a list), when the caller has them already; ``dist_arrays`` the same tables as numpy
+    arrays (the compiled guide search reads those)."""
     s = [graph.node(c) for c in starts]
     g = [graph.node(c) for c in goals]
     if dists is None:
@@ -60,7 +62,7 @@ def lacam(graph: MotionGraph, starts: Sequence[Cell], goals: Sequence[Cell], dea
     nxt, guide_stats = None, None
     if guide:
         from .scatter import guide_for
-        nxt, guide_stats = guide_for(graph, s, g, dists, seed, deadline)
+        nxt, guide_stats = guide_for(graph, s, g, dists, seed, deadline, arrays=dist_arrays)
     configs, stats = lacam_nodes(graph, s, g, dists, deadline, np.random.default_rng(seed),
                                  guide=nxt)
     if guide_stats is not None:

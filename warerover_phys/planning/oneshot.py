@@ -206,7 +206,7 @@ def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner:
         from .lacam import lacam
         # Python lists: PIBT reads single entries, far faster from a list than from numpy.
         paths, stats = lacam(graph, starts, goals, deadline, seed, guide=guide,
-                             dists=[t.tolist() for t in tables])
+                             dists=[t.tolist() for t in tables], dist_arrays=tables)
     elif planner == "astar":
         paths, stats = _prioritized(graph, starts, goals, deadline)
     elif planner == "learned":
