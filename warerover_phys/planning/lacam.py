@@ -19,6 +19,7 @@ import numpy as np
 
 from .graph import UNREACHABLE, MotionGraph
 from .pibt import _to_paths, initial_priorities, pibt_step, update_priorities
+from .scatter import NUMBA_MIN_AGENTS  # lacam compiles its steps from this many agents
 
 __all__ = ["lacam", "lacam_nodes"]
 
@@ -44,6 +45,13 @@ class _High:
     tree: deque = field(default_factory=lambda: deque([_Low()]))
 
 
+
+
+def _plain_moves(graph: MotionGraph) -> bool:
+    """At most four moves from a cell (the compiled steps' neighbour table)."""
+    return max((len(x) for x in graph.neighbors), default=0) <= 4
+
+
 def lacam(graph: MotionGraph, starts: Sequence[Cell], goals: Sequence[Cell], deadline: float,
           seed: int = 0, guide: bool = False, dists: Sequence[Sequence[int]] | None = None,
           dist_arrays: Sequence[np.ndarray] | None = None,
@@ -53,18 +61,34 @@ def lacam(graph: MotionGraph, starts: Sequence[Cell], goals: Sequence[Cell], dea
     (:mod:`~warerover_phys.planning.scatter`, computed in at most half the time left).
     ``dists``: per agent, the moves from every node to its goal (``graph.dist_to(goal)`` as
     a list), when the caller has them already; ``dist_arrays`` the same tables as numpy
-    arrays (the compiled guide search reads those)."""
+    arrays (the compiled steps read those; either may be given).
+
+    From :data:`NUMBA_MIN_AGENTS` agents on a graph of at most four moves a cell, the
+    guide search and PIBT's steps run compiled (``stats["engine"]``, :mod:`.lacam_numba`):
+    the same plans, without the lists."""
     s = [graph.node(c) for c in starts]
     g = [graph.node(c) for c in goals]
-    if dists is None:
+    engine = "python"
+    if len(s) >= NUMBA_MIN_AGENTS and _plain_moves(graph):
+        from .scatter import _numba_available
+        if _numba_available():
+            engine = "numba"
+    if engine == "numba":  # the compiled steps read arrays
+        if dist_arrays is None:
+            dist_arrays = ([np.asarray(d) for d in dists] if dists is not None
+                           else [graph.dist_to(c) for c in goals])
+        dists = dist_arrays
+    elif dists is None:
         # Python lists: PIBT reads single entries, far faster from a list than from numpy.
-        dists = [graph.dist_to(c).tolist() for c in goals]
+        dists = ([t.tolist() for t in dist_arrays] if dist_arrays is not None
+                 else [graph.dist_to(c).tolist() for c in goals])
     nxt, guide_stats = None, None
     if guide:
         from .scatter import guide_for
         nxt, guide_stats = guide_for(graph, s, g, dists, seed, deadline, arrays=dist_arrays)
     configs, stats = lacam_nodes(graph, s, g, dists, deadline, np.random.default_rng(seed),
-                                 guide=nxt)
+                                 guide=nxt, engine=engine)
+    stats["engine"] = engine
     if guide_stats is not None:
         stats["guide"] = guide_stats
     return (None if configs is None else _to_paths(graph, configs)), stats
@@ -75,7 +99,7 @@ def lacam_nodes(graph: MotionGraph, starts: Sequence[int], goals: Sequence[int],
                 tables: Sequence[Sequence[tuple[int, ...]]] | None = None,
                 held: Sequence[int] = (), prio: list[float] | None = None,
                 max_iterations: int | None = None,
-                guide: Sequence[dict[int, int]] | None = None,
+                guide: Sequence[dict[int, int]] | None = None, engine: str = "python",
                 ) -> tuple[list[list[int]] | None, dict]:
     """LaCAM over node indices: the configurations from ``starts`` to ``goals``.
 
@@ -85,7 +109,9 @@ def lacam_nodes(graph: MotionGraph, starts: Sequence[int], goals: Sequence[int],
 
     ``tables`` gives each agent its own neighbour lists; agents in ``held`` never move (their
     goal must be their start). ``guide``: per agent, the cell PIBT tries first from each
-    cell (:func:`~warerover_phys.planning.pibt.pibt_step`).
+    cell (:func:`~warerover_phys.planning.pibt.pibt_step`). ``engine="numba"``: the steps
+    compiled (:mod:`.lacam_numba`; ``tables`` not supported, ``dists`` numpy arrays, at most
+    four moves a cell): the same result.
     """
     ties = (rng.random(graph.num_nodes + 4099) * 0.5).tolist()  # same values, faster reads
     s, g = tuple(starts), tuple(goals)
@@ -103,6 +129,18 @@ def lacam_nodes(graph: MotionGraph, starts: Sequence[int], goals: Sequence[int],
         # search can succeed, so do not spend the budget proving it.
         return None, {"iterations": 0, "explored": 0, "exhausted": True,
                       "stopped": "unreachable"}
+    compiled = None
+    if engine == "numba":
+        if tables is not None:
+            raise ValueError("lacam_nodes: engine numba takes no per-agent tables")
+        from . import lacam_numba, pibt_numba
+        st = pibt_numba.step_tables(neighbors, graph.cols)
+        compiled = (st, pibt_numba.robot_tables(dists),
+                    np.asarray(g, dtype=np.int64), np.asarray(ties, dtype=np.float64),
+                    *lacam_numba.guide_arrays(guide, graph.num_nodes), lacam_numba.step,
+                    pibt_numba.priority_order)
+    elif engine != "python":
+        raise ValueError(f"lacam_nodes: engine python or numba (got {engine!r})")
     root = make(s, None, prio if prio is not None else initial_priorities(dists, s))
     stack = [root]
     explored = {s: root}
@@ -138,9 +176,18 @@ def lacam_nodes(graph: MotionGraph, starts: Sequence[int], goals: Sequence[int],
             for v in cands:
                 node.tree.append(_Low(low.who + (i,), low.where + (v,)))
         salt = int(rng.integers(4096))
-        nxt = pibt_step(graph, node.config, dists, node.prio, ties[salt:], goals=g,
-                        forced=held_moves + tuple(zip(low.who, low.where, strict=True)),
-                        tables=tables, guide=guide)
+        if compiled is not None:
+            st, robot, goal_arr, tie_arr, gkeys, gvals, step, order_of = compiled
+            who = np.asarray([i for i, _ in held_moves] + list(low.who), dtype=np.int64)
+            where = np.asarray([v for _, v in held_moves] + list(low.where), dtype=np.int64)
+            out = step(st.nbr, st.deg, np.asarray(node.config, dtype=np.int64), goal_arr,
+                       robot, order_of(node.prio), tie_arr[salt:], who, where, gkeys, gvals,
+                       st.cols)
+            nxt = None if out is None else out.tolist()
+        else:
+            nxt = pibt_step(graph, node.config, dists, node.prio, ties[salt:], goals=g,
+                            forced=held_moves + tuple(zip(low.who, low.where, strict=True)),
+                            tables=tables, guide=guide)
         if nxt is None:
             continue
         key = tuple(nxt)

@@ -204,9 +204,10 @@ def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner:
         paths, stats = pibt_oneshot(graph, starts, goals, deadline, seed, guide=guide)
     elif planner == "lacam":
         from .lacam import lacam
-        # Python lists: PIBT reads single entries, far faster from a list than from numpy.
+        # lacam makes Python lists of the tables where its steps run in Python (PIBT reads
+        # single entries, far faster from a list than from numpy); the compiled ones read these.
         paths, stats = lacam(graph, starts, goals, deadline, seed, guide=guide,
-                             dists=[t.tolist() for t in tables], dist_arrays=tables)
+                             dist_arrays=tables)
     elif planner == "astar":
         paths, stats = _prioritized(graph, starts, goals, deadline)
     elif planner == "learned":

@@ -163,9 +163,10 @@ def _search(neighbors: Sequence[Sequence[int]], table: _Table, start: int, goal:
 
 
 ENGINES = ("auto", "numba", "python")
-NUMBA_MIN_AGENTS = 150
+NUMBA_MIN_AGENTS = 300
 """``engine="auto"`` compiles the search (:mod:`.scatter_numba`) from this many agents up;
-below, numba's import and cache load (~0.4 s of CPU) cost more than the Python search."""
+below, numba's import and cache loads (~0.6 s of CPU) cost more than they save (measured:
+the whole `solve` at 250 agents 1.3 s of CPU with Python, 1.6 s compiled; at 350, 1.9 and 1.4 s)."""
 _CHUNK = 32
 """Agents planned per call of the compiled round (the deadline is checked between calls)."""
 
