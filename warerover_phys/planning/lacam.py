@@ -19,7 +19,7 @@ import numpy as np
 
 from .graph import UNREACHABLE, MotionGraph
 from .pibt import _to_paths, initial_priorities, pibt_step, update_priorities
-from .scatter import NUMBA_MIN_AGENTS  # lacam compiles its steps from this many agents
+from .scatter import ENGINES, NUMBA_MIN_AGENTS  # lacam compiles from this many agents
 
 __all__ = ["lacam", "lacam_nodes"]
 
@@ -54,7 +54,7 @@ def _plain_moves(graph: MotionGraph) -> bool:
 
 def lacam(graph: MotionGraph, starts: Sequence[Cell], goals: Sequence[Cell], deadline: float,
           seed: int = 0, guide: bool = False, dists: Sequence[Sequence[int]] | None = None,
-          dist_arrays: Sequence[np.ndarray] | None = None,
+          dist_arrays: Sequence[np.ndarray] | None = None, engine: str = "auto",
           ) -> tuple[list[list[Cell]] | None, dict]:
     """Solve; returns (paths or None, stats). None with ``stats["exhausted"]`` True means
     there is no solution; otherwise the deadline passed. ``guide``: PIBT follows guide paths
@@ -63,16 +63,22 @@ def lacam(graph: MotionGraph, starts: Sequence[Cell], goals: Sequence[Cell], dea
     a list), when the caller has them already; ``dist_arrays`` the same tables as numpy
     arrays (the compiled steps read those; either may be given).
 
-    From :data:`NUMBA_MIN_AGENTS` agents on a graph of at most four moves a cell, the
-    guide search and PIBT's steps run compiled (``stats["engine"]``, :mod:`.lacam_numba`):
-    the same plans, without the lists."""
+    ``engine``: ``python``, ``numba`` (the guide search and PIBT's steps compiled,
+    :mod:`.scatter_numba`, :mod:`.lacam_numba`: the same plans, the tables read as arrays;
+    a graph of at most four moves a cell) or ``auto`` (numba from
+    :data:`~.scatter.NUMBA_MIN_AGENTS` agents where it applies); ``stats["engine"]``."""
     s = [graph.node(c) for c in starts]
     g = [graph.node(c) for c in goals]
-    engine = "python"
-    if len(s) >= NUMBA_MIN_AGENTS and _plain_moves(graph):
-        from .scatter import _numba_available
-        if _numba_available():
-            engine = "numba"
+    if engine not in ENGINES:
+        raise ValueError(f"engine: one of {', '.join(ENGINES)} (got {engine!r})")
+    if engine == "numba" and not _plain_moves(graph):
+        raise ValueError("engine numba: a graph of at most four moves a cell")
+    if engine == "auto":
+        engine = "python"
+        if len(s) >= NUMBA_MIN_AGENTS and _plain_moves(graph):
+            from .scatter import _numba_available
+            if _numba_available():
+                engine = "numba"
     if engine == "numba":  # the compiled steps read arrays
         if dist_arrays is None:
             dist_arrays = ([np.asarray(d) for d in dists] if dists is not None
@@ -85,7 +91,8 @@ def lacam(graph: MotionGraph, starts: Sequence[Cell], goals: Sequence[Cell], dea
     nxt, guide_stats = None, None
     if guide:
         from .scatter import guide_for
-        nxt, guide_stats = guide_for(graph, s, g, dists, seed, deadline, arrays=dist_arrays)
+        nxt, guide_stats = guide_for(graph, s, g, dists, seed, deadline, arrays=dist_arrays,
+                                     engine=engine)
     configs, stats = lacam_nodes(graph, s, g, dists, deadline, np.random.default_rng(seed),
                                  guide=nxt, engine=engine)
     stats["engine"] = engine

@@ -164,7 +164,8 @@ def _search(neighbors: Sequence[Sequence[int]], table: _Table, start: int, goal:
 
 ENGINES = ("auto", "numba", "python")
 NUMBA_MIN_AGENTS = 300
-"""``engine="auto"`` compiles the search (:mod:`.scatter_numba`) from this many agents up;
+"""``engine="auto"`` compiles the search (:mod:`.scatter_numba`), and :func:`.lacam.lacam`
+its steps, from this many agents up;
 below, numba's import and cache loads (~0.6 s of CPU) cost more than they save (measured:
 the whole `solve` at 250 agents 1.3 s of CPU with Python, 1.6 s compiled; at 350, 1.9 and 1.4 s)."""
 _CHUNK = 32
@@ -333,14 +334,15 @@ def _guide_paths_numba(neighbors: Sequence[Sequence[int]], starts: Sequence[int]
 
 def guide_for(graph, starts: Sequence[int], goals: Sequence[int], dists: Sequence[np.ndarray],
               seed: int, deadline: float, share: float = 0.5,
-              arrays: Sequence[np.ndarray] | None = None,
+              arrays: Sequence[np.ndarray] | None = None, engine: str = "auto",
               ) -> tuple[list[dict[int, int]], dict]:
     """Guide paths on a :class:`~warerover_phys.planning.graph.MotionGraph` in at most
     ``share`` of the time left before ``deadline`` (``time.monotonic()``), with their own
-    generator spawned from ``seed``; returns (``next`` per agent, stats). ``arrays``: as
-    for :func:`guide_paths`."""
+    generator spawned from ``seed``; returns (``next`` per agent, stats). ``arrays`` and
+    ``engine``: as for :func:`guide_paths`."""
     rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
     now = time.monotonic()
     guide = guide_paths(graph.neighbors, starts, goals, dists, rng,
-                        deadline=now + share * max(0.0, deadline - now), arrays=arrays)
+                        deadline=now + share * max(0.0, deadline - now), arrays=arrays,
+                        engine=engine)
     return guide.next, guide.stats
