@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 from warerover_phys.movingai import read_map, read_scen
 from warerover_phys.planning.graph import UNREACHABLE
 from warerover_phys.planning.lacam import lacam, lacam_nodes
-from warerover_phys.planning.oneshot import grid_graph
+from warerover_phys.planning.oneshot import goal_tables, grid_graph
 from warerover_phys.planning.scatter import guide_paths
 from warerover_phys.validate import validate_states
 
@@ -166,6 +166,24 @@ def test_compiled_lacam_on_the_warehouse_map():
     assert ref is not None and nb == ref
     assert nb_stats["guide"]["collisions"] == ref_stats["guide"]["collisions"]
     _valid(grid.obstacles, starts, goals, nb)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.integers(1, 12), st.integers(1, 12), st.integers(0, 2**31 - 1),
+       st.sampled_from([0.0, 0.2, 0.4]), st.integers(1, 6))
+def test_compiled_goal_tables_are_the_bit_parallel_ones(rows, cols, seed, density, count):
+    """``goal_tables(engine="numba")`` against the bit-parallel search and ``dist_to``,
+    goals on obstacles (reached from nowhere) included."""
+    rng = np.random.default_rng(seed)
+    obstacles = rng.random((rows, cols)) < density
+    goals = [(int(rng.integers(rows)), int(rng.integers(cols))) for _ in range(count)]
+    ref = goal_tables(grid_graph(obstacles), goals)
+    nb = goal_tables(grid_graph(obstacles), goals, engine="numba")
+    graph = grid_graph(obstacles)
+    for a, b, goal in zip(ref, nb, goals, strict=True):
+        assert b.dtype == a.dtype and np.array_equal(a, b)
+        assert np.array_equal(b, graph.dist_to(goal))
+        assert not b.flags.writeable
 
 
 def test_engine_names_are_checked():

@@ -30,7 +30,7 @@ from numba import njit
 
 from .graph import UNREACHABLE
 
-__all__ = ["NbTable", "csr", "run_agents"]
+__all__ = ["NbTable", "csr", "goal_bfs", "run_agents"]
 
 _BIG = 1 << 24  # as scatter._BIG
 
@@ -309,3 +309,59 @@ def run_agents(table: NbTable, order: np.ndarray, indptr: np.ndarray, indices: n
                   t.link, t.after, t.end_head, t.end_link, t.end_last, t.paths, t.lengths,
                   t.best, t.best_stamp, t.parent, t.closed_stamp, t.heap, t.state, t.n,
                   t.horizon)
+
+
+@njit(cache=True)
+def _goal_bfs(valid, enter, rows, cols, goals, out):
+    """Breadth-first search from each goal over the 4-neighbour grid: a cell is reached
+    from a reached 4-neighbour when it is ``valid`` (expandable); a goal that is not
+    ``enter``-able is reached from nowhere (``out`` holds UNREACHABLE there)."""
+    queue = np.empty(rows * cols, dtype=np.int64)
+    for j in range(goals.shape[0]):
+        d = out[j]
+        g = goals[j]
+        if not enter[g]:
+            continue
+        d[g] = 0
+        head = 0
+        tail = 1
+        queue[0] = g
+        while head < tail:
+            v = queue[head]
+            head += 1
+            r = v // cols
+            c = v - r * cols
+            nd = d[v] + 1
+            for k in range(4):
+                if k == 0:
+                    if c + 1 >= cols:
+                        continue
+                    u = v + 1
+                elif k == 1:
+                    if c == 0:
+                        continue
+                    u = v - 1
+                elif k == 2:
+                    if r + 1 >= rows:
+                        continue
+                    u = v + cols
+                else:
+                    if r == 0:
+                        continue
+                    u = v - cols
+                if valid[u] and d[u] == UNREACHABLE:
+                    d[u] = nd
+                    queue[tail] = u
+                    tail += 1
+
+
+def goal_bfs(valid: np.ndarray, enter: np.ndarray, rows: int, cols: int,
+             goals: Sequence[int]) -> np.ndarray:
+    """``(len(goals), rows * cols)`` int32 tables of moves to each goal, the same as
+    :func:`.oneshot._grid_bfs` (a plain grid: the moves are from each expandable cell,
+    ``valid``, to each 4-neighbour that is enterable)."""
+    out = np.full((len(goals), rows * cols), UNREACHABLE, dtype=np.int32)
+    _goal_bfs(np.ascontiguousarray(valid, dtype=np.bool_).ravel(),
+              np.ascontiguousarray(enter, dtype=np.bool_).ravel(), rows, cols,
+              np.asarray(goals, dtype=np.int64), out)
+    return out
