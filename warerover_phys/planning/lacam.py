@@ -43,6 +43,8 @@ class _High:
     prio: list[float]
     order: list[int]
     tree: deque = field(default_factory=lambda: deque([_Low()]))
+    ranked: np.ndarray | None = None
+    """All agents, highest priority first (the compiled steps' order)."""
 
 
 
@@ -128,6 +130,13 @@ def lacam_nodes(graph: MotionGraph, starts: Sequence[int], goals: Sequence[int],
     movable = [i for i in range(len(s)) if i not in held_set]
 
     def make(config: tuple[int, ...], parent: _High | None, prio: list[float]) -> _High:
+        if engine == "numba":  # the same order by numpy's stable sort
+            from .pibt_numba import priority_order
+            ranked = priority_order(prio)
+            order = ranked.tolist()
+            if held_set:
+                order = [i for i in order if i not in held_set]
+            return _High(config, parent, prio, order, ranked=ranked)
         order = sorted(movable, key=lambda i: -prio[i])
         return _High(config, parent, prio, order)
 
@@ -144,8 +153,7 @@ def lacam_nodes(graph: MotionGraph, starts: Sequence[int], goals: Sequence[int],
         st = pibt_numba.step_tables(neighbors, graph.cols)
         compiled = (st, pibt_numba.robot_tables(dists),
                     np.asarray(g, dtype=np.int64), np.asarray(ties, dtype=np.float64),
-                    *lacam_numba.guide_arrays(guide, graph.num_nodes), lacam_numba.step,
-                    pibt_numba.priority_order)
+                    *lacam_numba.guide_arrays(guide, graph.num_nodes), lacam_numba.step)
     elif engine != "python":
         raise ValueError(f"lacam_nodes: engine python or numba (got {engine!r})")
     root = make(s, None, prio if prio is not None else initial_priorities(dists, s))
@@ -184,11 +192,11 @@ def lacam_nodes(graph: MotionGraph, starts: Sequence[int], goals: Sequence[int],
                 node.tree.append(_Low(low.who + (i,), low.where + (v,)))
         salt = int(rng.integers(4096))
         if compiled is not None:
-            st, robot, goal_arr, tie_arr, gkeys, gvals, step, order_of = compiled
+            st, robot, goal_arr, tie_arr, gkeys, gvals, step = compiled
             who = np.asarray([i for i, _ in held_moves] + list(low.who), dtype=np.int64)
             where = np.asarray([v for _, v in held_moves] + list(low.where), dtype=np.int64)
             out = step(st.nbr, st.deg, np.asarray(node.config, dtype=np.int64), goal_arr,
-                       robot, order_of(node.prio), tie_arr[salt:], who, where, gkeys, gvals,
+                       robot, node.ranked, tie_arr[salt:], who, where, gkeys, gvals,
                        st.cols)
             nxt = None if out is None else out.tolist()
         else:
