@@ -186,6 +186,32 @@ def test_compiled_goal_tables_are_the_bit_parallel_ones(rows, cols, seed, densit
         assert not b.flags.writeable
 
 
+def test_auto_compiles_only_with_time_for_it(monkeypatch):
+    """``auto``: Python below NUMBA_MIN_AGENTS; above, the compiled kernels when numba's cache
+    holds them, else only with COLD_COMPILE_S seconds left (a short limit stays honoured)."""
+    from warerover_phys.planning import scatter, scatter_numba
+
+    n = scatter.NUMBA_MIN_AGENTS
+    now = time.monotonic()
+    assert not scatter.use_numba(n - 1, None)
+    monkeypatch.setattr(scatter_numba, "compiled_ready", lambda: True)
+    assert scatter.use_numba(n, now + 1.0)
+    monkeypatch.setattr(scatter_numba, "compiled_ready", lambda: False)
+    assert not scatter.use_numba(n, now + 0.5 * scatter.COLD_COMPILE_S)
+    assert scatter.use_numba(n, now + 2 * scatter.COLD_COMPILE_S)
+    assert scatter.use_numba(n, None)
+
+
+def test_the_kernels_are_in_numbas_cache_once_run():
+    from warerover_phys.planning import scatter_numba
+
+    graph = grid_graph(np.zeros((3, 3), dtype=bool))
+    lacam(graph, [(0, 0), (2, 2)], [(2, 2), (0, 0)], time.monotonic() + 60, guide=True,
+          engine="numba")
+    goal_tables(graph, [(1, 1)], engine="numba")
+    assert scatter_numba.compiled_ready()
+
+
 def test_engine_names_are_checked():
     graph = grid_graph(np.zeros((2, 2), dtype=bool))
     with pytest.raises(ValueError, match="engine"):

@@ -19,7 +19,7 @@ import numpy as np
 
 from .graph import UNREACHABLE, MotionGraph
 from .pibt import _to_paths, initial_priorities, pibt_step, update_priorities
-from .scatter import ENGINES, NUMBA_MIN_AGENTS  # lacam compiles from this many agents
+from .scatter import ENGINES
 
 __all__ = ["lacam", "lacam_nodes"]
 
@@ -68,7 +68,8 @@ def lacam(graph: MotionGraph, starts: Sequence[Cell], goals: Sequence[Cell], dea
     ``engine``: ``python``, ``numba`` (the guide search and PIBT's steps compiled,
     :mod:`.scatter_numba`, :mod:`.lacam_numba`: the same plans, the tables read as arrays;
     a graph of at most four moves a cell) or ``auto`` (numba from
-    :data:`~.scatter.NUMBA_MIN_AGENTS` agents where it applies); ``stats["engine"]``."""
+    :data:`~.scatter.NUMBA_MIN_AGENTS` agents where it applies, :func:`.scatter.use_numba`);
+    ``stats["engine"]``."""
     s = [graph.node(c) for c in starts]
     g = [graph.node(c) for c in goals]
     if engine not in ENGINES:
@@ -76,11 +77,8 @@ def lacam(graph: MotionGraph, starts: Sequence[Cell], goals: Sequence[Cell], dea
     if engine == "numba" and not _plain_moves(graph):
         raise ValueError("engine numba: a graph of at most four moves a cell")
     if engine == "auto":
-        engine = "python"
-        if len(s) >= NUMBA_MIN_AGENTS and _plain_moves(graph):
-            from .scatter import _numba_available
-            if _numba_available():
-                engine = "numba"
+        from .scatter import use_numba
+        engine = "numba" if _plain_moves(graph) and use_numba(len(s), deadline) else "python"
     if engine == "numba":  # the compiled steps read arrays
         if dist_arrays is None:
             dist_arrays = ([np.asarray(d) for d in dists] if dists is not None

@@ -208,9 +208,9 @@ def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner:
     start_mono = time.monotonic()
     deadline = start_mono + time_limit_s
     graph = grid_graph(obstacles)
-    # lacam compiles its guide search and steps from NUMBA_MIN_AGENTS agents: the tables too
-    from .scatter import NUMBA_MIN_AGENTS, _numba_available
-    compiled = planner == "lacam" and len(goals) >= NUMBA_MIN_AGENTS and _numba_available()
+    # where lacam compiles its guide search and steps, the tables are compiled too
+    from .scatter import use_numba
+    compiled = planner == "lacam" and use_numba(len(goals), deadline)
     tables = goal_tables(graph, goals, engine="numba" if compiled else "python")
     lb = 0
     for s, g, table in zip(starts, goals, tables, strict=True):

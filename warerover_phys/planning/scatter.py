@@ -168,6 +168,10 @@ NUMBA_MIN_AGENTS = 300
 its steps, from this many agents up;
 below, numba's import and cache loads (~0.6 s of CPU) cost more than they save (measured:
 the whole `solve` at 250 agents 1.3 s of CPU with Python, 1.6 s compiled; at 350, 1.9 and 1.4 s)."""
+COLD_COMPILE_S = 45.0
+"""``auto`` compiles the kernels (numba's cache empty or stale: 20-30 s of CPU, once) only
+when at least this many seconds are left before the deadline; otherwise it runs Python
+(the same plans), so that a short ``--time-limit`` is still honoured."""
 _CHUNK = 32
 """Agents planned per call of the compiled round (the deadline is checked between calls)."""
 
@@ -195,7 +199,7 @@ def guide_paths(neighbors: Sequence[Sequence[int]], starts: Sequence[int],
     if engine not in ENGINES:
         raise ValueError(f"engine: one of {', '.join(ENGINES)} (got {engine!r})")
     if engine == "auto":
-        engine = "numba" if len(starts) >= NUMBA_MIN_AGENTS and _numba_available() else "python"
+        engine = "numba" if use_numba(len(starts), deadline) else "python"
     if engine == "numba":
         return _guide_paths_numba(neighbors, starts, goals,
                                   dists if arrays is None else arrays, rng, margin=margin,
@@ -255,6 +259,18 @@ def _finish(out: list[list[int]], history: list[int], stopped: str, margin: int,
              "margin": margin, "wall_s": time.perf_counter() - t0,
              "unplanned": sum(1 for p in out if not p), "engine": engine}
     return GuidePaths(out, nxt, stats)
+
+
+def use_numba(num_agents: int, deadline: float | None = None) -> bool:
+    """``engine="auto"``'s choice: the compiled kernels from :data:`NUMBA_MIN_AGENTS`
+    agents where numba imports, and, where they are not in numba's cache yet, only with
+    :data:`COLD_COMPILE_S` seconds left before ``deadline`` (``time.monotonic()``)."""
+    if num_agents < NUMBA_MIN_AGENTS or not _numba_available():
+        return False
+    from .scatter_numba import compiled_ready
+
+    return compiled_ready() or deadline is None or \
+        deadline - time.monotonic() >= COLD_COMPILE_S
 
 
 def _numba_available() -> bool:

@@ -30,7 +30,7 @@ from numba import njit
 
 from .graph import UNREACHABLE
 
-__all__ = ["NbTable", "csr", "goal_bfs", "run_agents"]
+__all__ = ["NbTable", "compiled_ready", "csr", "goal_bfs", "run_agents"]
 
 _BIG = 1 << 24  # as scatter._BIG
 
@@ -365,3 +365,17 @@ def goal_bfs(valid: np.ndarray, enter: np.ndarray, rows: int, cols: int,
               np.ascontiguousarray(enter, dtype=np.bool_).ravel(), rows, cols,
               np.asarray(goals, dtype=np.int64), out)
     return out
+
+
+def compiled_ready() -> bool:
+    """Whether numba's on-disk cache holds machine code of the one-shot kernels (this
+    module's and :mod:`.lacam_numba`'s), so that using them costs a load, not a compile
+    (20-30 s of CPU on the 2-core box). Reads numba's cache index (not a public API: where
+    it cannot be read, assumed ready)."""
+    from . import lacam_numba
+
+    try:
+        return all(bool(f._cache._cache_file._load_index())
+                   for f in (_run, _goal_bfs, lacam_numba._step))
+    except Exception:  # pragma: no cover - another numba's cache internals  # noqa: BLE001
+        return True
