@@ -116,16 +116,25 @@ def test_compiled_guide_paths_count_the_same_swaps(rows, cols, blocked, pairs):
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(instances(max_agents=14), st.booleans())
 def test_compiled_lacam_gives_the_reference_plan(inst, guide):
+    """LaCAM's search with either step, the guide paths or none: the same configurations
+    and counts, within 3,000 iterations (some random instances have no solution)."""
     obstacles, graph, starts, goals, seed = inst
-    far = time.monotonic() + 60
-    ref, ref_stats = lacam(graph, starts, goals, far, seed, guide=guide, engine="python")
-    nb, nb_stats = lacam(graph, starts, goals, far, seed, guide=guide, engine="numba")
+    s = [graph.node(c) for c in starts]
+    g = [graph.node(c) for c in goals]
+    arrays = [graph.dist_to(c) for c in goals]
+    nxt = None
+    if guide:
+        nxt = guide_paths(graph.neighbors, s, g, arrays, np.random.default_rng(seed)).next
+    far = time.monotonic() + 600
+    ref = lacam_nodes(graph, s, g, [a.tolist() for a in arrays], far,
+                      np.random.default_rng(seed), guide=nxt, max_iterations=3000)
+    nb = lacam_nodes(graph, s, g, arrays, far, np.random.default_rng(seed), guide=nxt,
+                     max_iterations=3000, engine="numba")
     assert nb == ref
-    assert (nb_stats["iterations"], nb_stats["explored"]) == \
-        (ref_stats["iterations"], ref_stats["explored"])
-    assert nb_stats["engine"] == "numba" and ref_stats["engine"] == "python"
-    if ref is not None:
-        _valid(obstacles, starts, goals, nb)
+    if ref[0] is not None:
+        cols = graph.cols
+        _valid(obstacles, starts, goals, [[divmod(q[i], cols) for q in ref[0]]
+                                          for i in range(len(s))])
 
 
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
