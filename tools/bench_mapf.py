@@ -27,6 +27,12 @@ JSON (default ``tools/out/bench_mapf.json``).
     .venv/bin/python tools/bench_mapf.py --quick            # N = 100 400 on random-1
     .venv/bin/python tools/bench_mapf.py                    # N = 100 200 400 700 1000, random-1
     .venv/bin/python tools/bench_mapf.py --agents 400 --modes refined --refine-time 30
+    .venv/bin/python tools/bench_mapf.py --parts 400 700 [--parts-engine python]
+
+``--parts N ...`` instead times our first solution part by part (CPU seconds each, a fresh
+interpreter per N: start-up, imports, reading, numba's import, distance tables, guide paths,
+LaCAM, validation, plan file), with the one-shot kernels as ``solve`` chooses them or as
+``--parts-engine`` says.
 """
 
 from __future__ import annotations
@@ -401,6 +407,100 @@ def _jsonable(obj):
 # ----------------------------------------------------------------------------- main
 
 
+PARTS_SCRIPT = r"""
+import json, sys, time
+cpu = time.process_time
+parts = {"interpreter": cpu()}
+c = cpu()
+import numpy as np
+from warerover_phys.movingai import read_map, read_scen
+from warerover_phys.planning import scatter
+from warerover_phys.planning.lacam import _to_paths, lacam_nodes
+from warerover_phys.planning.oneshot import OneShotResult, _costs, goal_tables, grid_graph, write_plan
+from warerover_phys.validate import validate_states
+parts["imports"] = cpu() - c
+map_file, scen_file, n, seed, engine, out = sys.argv[1:]
+n, seed = int(n), int(seed)
+c = cpu()
+grid = read_map(map_file)
+scen = read_scen(scen_file, n, grid)
+graph = grid_graph(grid.obstacles)
+parts["read map + scen, grid graph"] = cpu() - c
+import gc
+gc.freeze()
+gc.set_threshold(50_000, 50, 100)
+c = cpu()
+if engine == "auto":
+    engine = "numba" if scatter.use_numba(n, None) else "python"
+if engine == "numba":
+    from warerover_phys.solve_cli import numba_without_blas_probe
+    numba_without_blas_probe()
+parts["numba import"] = cpu() - c
+goals = [a.goal for a in scen]
+c = cpu()
+tables = goal_tables(graph, goals, engine=engine)
+parts["distance tables (+ numba's first load)"] = cpu() - c
+s = [graph.node(a.start) for a in scen]
+g = [graph.node(x) for x in goals]
+c = cpu()
+dists = tables if engine == "numba" else [t.tolist() for t in tables]
+parts["tables as lists"] = cpu() - c
+c = cpu()
+rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
+guide = scatter.guide_paths(graph.neighbors, s, g, dists, rng, engine=engine, arrays=tables)
+parts["guide paths (+ load)"] = cpu() - c
+c = cpu()
+configs, stats = lacam_nodes(graph, s, g, dists, time.monotonic() + 1e9,
+                             np.random.default_rng(seed), guide=guide.next, engine=engine)
+parts["LaCAM (+ load)"] = cpu() - c
+c = cpu()
+paths = _to_paths(graph, configs)
+soc, makespan = _costs(paths, goals)
+parts["paths + costs"] = cpu() - c
+c = cpu()
+cols = grid.cols
+conflicts = validate_states({i: [(r * cols + x,) * 2 for r, x in p] for i, p in enumerate(paths)},
+                            grid.obstacles)
+parts["validation"] = cpu() - c
+c = cpu()
+write_plan(out, OneShotResult(True, paths, soc, makespan, 0, 0.0, "lacam"))
+parts["plan file"] = cpu() - c
+parts["total"] = cpu()
+print(json.dumps({"engine": engine, "soc": soc, "conflicts": len(conflicts), "parts": parts}))
+"""
+"""Our whole ``solve --planner lacam`` (random-k, first solution) as separate parts in a
+fresh interpreter, each part's CPU time (``--parts``); the interpreter's own start-up is the
+CPU time already spent when the script starts."""
+
+
+def run_parts(counts: list[int], scens: list[int], seed: int, engine: str,
+              env: dict) -> list[dict]:
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="bench_mapf_parts_") as tmp:
+        for k in scens:
+            for n in counts:
+                cmd = [sys.executable, "-c", PARTS_SCRIPT, str(MAP_PATH), str(scen_path(k)),
+                       str(n), str(seed), engine, str(Path(tmp) / "plan.txt")]
+                load = os.getloadavg()[0]
+                proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
+                if proc.returncode != 0:
+                    raise SystemExit(f"--parts N={n}: {proc.stderr.strip()[-500:]}")
+                out = json.loads(proc.stdout.strip().splitlines()[-1])
+                rows.append({"scen": k, "agents": n, "load_1min": load, **out})
+    return rows
+
+
+def print_parts(rows: list[dict]) -> None:
+    names = list(rows[0]["parts"]) if rows else []
+    head = ["part, CPU s"] + [f"N={r['agents']} ({r['engine']})" for r in rows]
+    table = [[name] + [f"{r['parts'][name]:.3f}" for r in rows] for name in names]
+    table.append(["SoC, conflicts"] + [f"{r['soc']}, {r['conflicts']}" for r in rows])
+    table.append(["load (1 min)"] + [f"{r['load_1min']:.2f}" for r in rows])
+    widths = [max(len(str(x)) for x in col) for col in zip(head, *table, strict=True)]
+    for line in [head, *table]:
+        print("  ".join(str(x).rjust(w) for x, w in zip(line, widths, strict=True)))
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--agents", type=int, nargs="+", default=None,
@@ -430,8 +530,22 @@ def main(argv: list[str] | None = None) -> int:
                         help=f"N = {' '.join(map(str, QUICK_AGENTS))} (unless --agents)")
     parser.add_argument("--json", type=Path, default=ROOT / "tools" / "out" / "bench_mapf.json",
                         help="where to write the figures (default: tools/out/bench_mapf.json)")
+    parser.add_argument("--parts", type=int, nargs="+", default=None, metavar="N",
+                        help="instead of the comparison: our first solution's parts (CPU s "
+                             "each, a fresh interpreter per N)")
+    parser.add_argument("--parts-engine", default="auto", choices=["auto", "numba", "python"],
+                        help="--parts: the engine of the one-shot kernels (default: auto, "
+                             "as solve chooses)")
     args = parser.parse_args(argv)
     agents = sorted(set(args.agents or (QUICK_AGENTS if args.quick else DEFAULT_AGENTS)))
+    if args.parts:
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH")) if p)
+        rows = run_parts(args.parts, args.scens, args.seed, args.parts_engine, env)
+        print(f"our first solution by parts ({MAP_NAME}, random-{args.scens}, seed {args.seed})")
+        print_parts(rows)
+        print(f"load average now: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+        return 0
 
     grid = read_map(MAP_PATH)
     obstacles = np.asarray(grid.obstacles, dtype=bool)
