@@ -128,14 +128,14 @@ def run_solve(map_file: Path, scen_file: Path, agents: int = 100, planner: str =
             if not json_out:
                 _echo(f"refine: {seconds:7.2f} s  sum of costs {soc}", err=True)
 
-        # The search makes many small objects and no cyclic garbage to speak of: the
-        # collector's passes over the objects loaded so far (frozen) and its frequent young
-        # passes are skipped (LaCAM's CPU -10% at 700 agents); restored afterwards.
         if _ENTERED is not None and planner in ("lacam", "pibt"):
             from .planning.scatter import NUMBA_MIN_AGENTS
 
-            if agents >= NUMBA_MIN_AGENTS:
+            if agents >= NUMBA_MIN_AGENTS:  # the compiled kernels may load
                 numba_without_blas_probe()
+        # The search makes many small objects and no cyclic garbage to speak of: the
+        # collector's passes over the objects loaded so far (frozen) and its frequent young
+        # passes are skipped (LaCAM's CPU -10% at 700 agents); restored afterwards.
         import gc
 
         thresholds = gc.get_threshold()

@@ -47,8 +47,6 @@ class _High:
     """All agents, highest priority first (the compiled steps' order)."""
 
 
-
-
 def _plain_moves(graph: MotionGraph) -> bool:
     """At most four moves from a cell (the compiled steps' neighbour table)."""
     return max((len(x) for x in graph.neighbors), default=0) <= 4

@@ -61,8 +61,8 @@ def goal_tables(graph: MotionGraph, goals: list[Cell], engine: str = "python",
     ``dist_to``), and left in ``graph``'s table cache (while it has room) for the planners
     that ask ``graph`` for them. ``engine="numba"``: on a plain grid, one compiled
     breadth-first search per goal instead (:func:`.scatter_numba.goal_bfs`, the same tables;
-    for a process that loads numba anyway: 0.03 s for 700 goals where the bit-parallel
-    search takes 0.2-0.3 s)."""
+    for a process that loads numba anyway: 0.055 s of CPU for 700 goals on the MovingAI
+    warehouse map where the bit-parallel search takes 0.15 s, best of three, load ~4.7)."""
     cache = graph._tables
     wanted = list(dict.fromkeys(graph.node(g) for g in goals))
     out = {g: cache[g] for g in wanted if g in cache}
