@@ -29,6 +29,11 @@ JSON (default ``tools/out/bench_mapf.json``).
     .venv/bin/python tools/bench_mapf.py --agents 400 --modes refined --refine-time 30
     .venv/bin/python tools/bench_mapf.py --parts 400 700 [--parts-engine python]
 
+Before the runs (where some N reaches ``NUMBA_MIN_AGENTS``, 300) our one-shot numba kernels
+are compiled into numba's cache where it is cold (``--no-warm-up``: not), so that the runs
+time the steady state; the warm-up's CPU time is
+printed and kept in the JSON notes.
+
 ``--parts N ...`` instead times our first solution part by part (CPU seconds each, a fresh
 interpreter per N: start-up, imports, reading, numba's import, distance tables, guide paths,
 LaCAM, validation, plan file), with the one-shot kernels as ``solve`` chooses them or as
@@ -56,6 +61,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import shortest_path
 
 from warerover_phys.movingai import read_map, read_scen
+from warerover_phys.planning.scatter import NUMBA_MIN_AGENTS
 from warerover_phys.validate import validate_states
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -407,6 +413,10 @@ def _jsonable(obj):
 # ----------------------------------------------------------------------------- main
 
 
+WARM_UP = ("from warerover_phys.planning.scatter_numba import warm_up\n"
+           "print(warm_up())\n")
+"""Compiles (cold cache) or loads our one-shot numba kernels; prints the CPU seconds."""
+
 PARTS_SCRIPT = r"""
 import json, sys, time
 cpu = time.process_time
@@ -530,6 +540,9 @@ def main(argv: list[str] | None = None) -> int:
                         help=f"N = {' '.join(map(str, QUICK_AGENTS))} (unless --agents)")
     parser.add_argument("--json", type=Path, default=ROOT / "tools" / "out" / "bench_mapf.json",
                         help="where to write the figures (default: tools/out/bench_mapf.json)")
+    parser.add_argument("--no-warm-up", action="store_true",
+                        help="do not fill numba's cache of the one-shot kernels first (a cold "
+                             "cache makes solve run Python unless 150 s are left)")
     parser.add_argument("--parts", type=int, nargs="+", default=None, metavar="N",
                         help="instead of the comparison: our first solution's parts (CPU s "
                              "each, a fresh interpreter per N)")
@@ -541,6 +554,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.parts:
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH")) if p)
+        if not args.no_warm_up and args.parts_engine != "python" and \
+                max(args.parts) >= NUMBA_MIN_AGENTS:
+            subprocess.run([sys.executable, "-c", WARM_UP], capture_output=True, env=env)
         rows = run_parts(args.parts, args.scens, args.seed, args.parts_engine, env)
         print(f"our first solution by parts ({MAP_NAME}, random-{args.scens}, seed {args.seed})")
         print_parts(rows)
@@ -565,6 +581,17 @@ def main(argv: list[str] | None = None) -> int:
     sides = ([] if args.no_ours else ["ours"]) + ([] if lacam3 is None else ["lacam3"])
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH")) if p)
+
+    if "ours" in sides and not args.no_warm_up and max(agents) >= NUMBA_MIN_AGENTS:
+        # solve compiles its numba kernels only with time to spare (a cold cache costs
+        # 20-30 s of CPU once): fill the cache first, so that the runs time the steady state
+        proc = subprocess.run([sys.executable, "-c", WARM_UP], capture_output=True, text=True,
+                              env=env)
+        msg = (f"numba kernels warmed up: {float(proc.stdout.split()[-1]):.2f} s of CPU "
+               "(a compile where the cache was cold)" if proc.returncode == 0 else
+               f"numba warm-up failed: {proc.stderr.strip()[-300:]}")
+        print(msg, flush=True)
+        notes.append(msg)
 
     runs: list[dict] = []
     with tempfile.TemporaryDirectory(prefix="bench_mapf_") as tmp:

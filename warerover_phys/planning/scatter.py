@@ -168,10 +168,12 @@ NUMBA_MIN_AGENTS = 300
 its steps, from this many agents up;
 below, numba's import and cache loads (~0.6 s of CPU) cost more than they save (measured:
 the whole `solve` at 250 agents 1.3 s of CPU with Python, 1.6 s compiled; at 350, 1.9 and 1.4 s)."""
-COLD_COMPILE_S = 45.0
-"""``auto`` compiles the kernels (numba's cache empty or stale: 20-30 s of CPU, once) only
-when at least this many seconds are left before the deadline; otherwise it runs Python
-(the same plans), so that a short ``--time-limit`` is still honoured."""
+COLD_COMPILE_S = 150.0
+"""``auto`` compiles the kernels (numba's cache empty or stale: 20-30 s of CPU, once; on a
+loaded 2-core box over a minute of wall time) only when at least this many seconds are left
+before the deadline; otherwise it runs Python (the same plans), so that the time limit
+(``solve``'s default 60 s included) is honoured on a cold cache too.
+:func:`.scatter_numba.warm_up` fills the cache ahead."""
 _CHUNK = 32
 """Agents planned per call of the compiled round (the deadline is checked between calls)."""
 
