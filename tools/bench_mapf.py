@@ -61,7 +61,6 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import shortest_path
 
 from warerover_phys.movingai import read_map, read_scen
-from warerover_phys.planning.scatter import NUMBA_MIN_AGENTS
 from warerover_phys.validate import validate_states
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -413,9 +412,28 @@ def _jsonable(obj):
 # ----------------------------------------------------------------------------- main
 
 
-WARM_UP = ("from warerover_phys.planning.scatter_numba import warm_up\n"
-           "print(warm_up())\n")
-"""Compiles (cold cache) or loads our one-shot numba kernels; prints the CPU seconds."""
+WARM_UP = ("import sys\n"
+           "from warerover_phys.planning.scatter import NUMBA_MIN_AGENTS\n"
+           "if int(sys.argv[1]) < NUMBA_MIN_AGENTS:\n"
+           "    print('skipped')\n"
+           "else:\n"
+           "    from warerover_phys.planning.scatter_numba import warm_up\n"
+           "    print(warm_up())\n")
+"""Compiles (cold cache) or loads our one-shot numba kernels where ``solve`` would use them
+for ``argv[1]`` agents (in the checkout measured: its own constant); prints the CPU seconds
+or ``skipped``."""
+
+
+def warm_up(max_agents: int, env: dict) -> str | None:
+    """Run :data:`WARM_UP`; a line to print and note, or None when it was not needed."""
+    proc = subprocess.run([sys.executable, "-c", WARM_UP, str(max_agents)],
+                          capture_output=True, text=True, env=env)
+    if proc.returncode != 0:
+        return f"numba warm-up failed: {proc.stderr.strip()[-300:]}"
+    if proc.stdout.split()[-1] == "skipped":
+        return None
+    return (f"numba kernels warmed up: {float(proc.stdout.split()[-1]):.2f} s of CPU "
+            "(a compile where the cache was cold)")
 
 PARTS_SCRIPT = r"""
 import json, sys, time
@@ -554,9 +572,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.parts:
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH")) if p)
-        if not args.no_warm_up and args.parts_engine != "python" and \
-                max(args.parts) >= NUMBA_MIN_AGENTS:
-            subprocess.run([sys.executable, "-c", WARM_UP], capture_output=True, env=env)
+        if not args.no_warm_up and args.parts_engine != "python":
+            msg = warm_up(max(args.parts), env)
+            if msg is not None:
+                print(msg)
         rows = run_parts(args.parts, args.scens, args.seed, args.parts_engine, env)
         print(f"our first solution by parts ({MAP_NAME}, random-{args.scens}, seed {args.seed})")
         print_parts(rows)
@@ -582,16 +601,13 @@ def main(argv: list[str] | None = None) -> int:
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH")) if p)
 
-    if "ours" in sides and not args.no_warm_up and max(agents) >= NUMBA_MIN_AGENTS:
+    if "ours" in sides and not args.no_warm_up:
         # solve compiles its numba kernels only with time to spare (a cold cache costs
         # 20-30 s of CPU once): fill the cache first, so that the runs time the steady state
-        proc = subprocess.run([sys.executable, "-c", WARM_UP], capture_output=True, text=True,
-                              env=env)
-        msg = (f"numba kernels warmed up: {float(proc.stdout.split()[-1]):.2f} s of CPU "
-               "(a compile where the cache was cold)" if proc.returncode == 0 else
-               f"numba warm-up failed: {proc.stderr.strip()[-300:]}")
-        print(msg, flush=True)
-        notes.append(msg)
+        msg = warm_up(max(agents), env)
+        if msg is not None:
+            print(msg, flush=True)
+            notes.append(msg)
 
     runs: list[dict] = []
     with tempfile.TemporaryDirectory(prefix="bench_mapf_") as tmp:
