@@ -115,3 +115,14 @@ def test_real_lacam3_on_a_tiny_instance(tmp_path):
     assert all(r["success"] and r["conflicts"] == 0 for r in data["runs"])
     for row in data["comparison"]:
         assert row["soc_ours_over_lacam3"] is not None
+
+
+def test_parts_breakdown(capsys):
+    """``--parts``: our first solution part by part in a fresh interpreter, a valid plan."""
+    assert bench.main(["--parts", "6", "--parts-engine", "python"]) == 0
+    text = capsys.readouterr().out
+    for part in ("interpreter", "imports", "distance tables", "guide paths", "LaCAM",
+                 "validation", "plan file", "total"):
+        assert part in text
+    row = next(line for line in text.splitlines() if line.strip().startswith("SoC"))
+    assert row.split()[-1] == "0"  # no conflicts

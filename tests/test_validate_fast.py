@@ -30,3 +30,47 @@ def test_fast_path_reports_what_the_general_one_does(case, start):
     slow = _validate_general(trajectories, obstacles, {}, {}, start, 10_000)
     assert fast == slow
     assert validate_states(trajectories, obstacles, start_tick=start) == slow[:100]
+
+
+@st.composite
+def plans_on_the_grid(draw):
+    """Plans whose cells are all on the grid (the vectorised pre-check decides alone)."""
+    rows, cols = draw(st.integers(1, 4)), draw(st.integers(1, 4))
+    n = draw(st.integers(1, 6))
+    length = draw(st.integers(1, 6))
+    trajectories = {}
+    for agv in range(n):
+        cells = draw(st.lists(st.integers(0, rows * cols - 1), min_size=1, max_size=length))
+        trajectories[agv] = [(v, v) for v in cells]
+    return np.zeros((rows, cols), dtype=bool), trajectories
+
+
+@settings(max_examples=300, deadline=None)
+@given(case=plans_on_the_grid())
+def test_vertex_and_swap_precheck_answers_as_the_loop(case):
+    """The all-ticks pre-check of the fast path says "none" exactly when the general
+    validator finds no vertex or swap conflict; the conflicts stay the same."""
+    from warerover_phys.validate import _any_vertex_or_swap
+
+    obstacles, trajectories = case
+    slow = _validate_general(trajectories, obstacles, {}, {}, 0, 10_000)
+    assert _validate_cells(trajectories, obstacles, 0, 10_000) == slow
+    ids = sorted(trajectories)
+    horizon = max(len(t) for t in trajectories.values())
+    pos = np.array([[trajectories[a][min(t, len(trajectories[a]) - 1)][0] for a in ids]
+                    for t in range(horizon)], dtype=np.int64)
+    found = any(c.kind in ("vertex", "swap") for c in slow)
+    assert _any_vertex_or_swap(pos, obstacles.size) == found
+
+
+def test_a_swap_alone_is_found():
+    """Two agents exchanging cells (no vertex conflict anywhere), beside a third that waits."""
+    obstacles = np.zeros((1, 4), dtype=bool)
+    trajectories = {0: [(0, 0), (1, 1), (2, 2)], 1: [(3, 3), (2, 2), (1, 1)],
+                    2: [(3, 3)] * 3}
+    fast = validate_states({0: trajectories[0], 1: trajectories[1]}, obstacles)
+    assert [c.kind for c in fast] == ["swap"]
+    assert fast == _validate_general({0: trajectories[0], 1: trajectories[1]}, obstacles,
+                                     {}, {}, 0, 100)
+    kinds = [c.kind for c in validate_states(trajectories, obstacles)]
+    assert "swap" in kinds

@@ -27,6 +27,17 @@ JSON (default ``tools/out/bench_mapf.json``).
     .venv/bin/python tools/bench_mapf.py --quick            # N = 100 400 on random-1
     .venv/bin/python tools/bench_mapf.py                    # N = 100 200 400 700 1000, random-1
     .venv/bin/python tools/bench_mapf.py --agents 400 --modes refined --refine-time 30
+    .venv/bin/python tools/bench_mapf.py --parts 400 700 [--parts-engine python]
+
+Before the runs (where some N reaches ``NUMBA_MIN_AGENTS``, 300) our one-shot numba kernels
+are compiled into numba's cache where it is cold (``--no-warm-up``: not), so that the runs
+time the steady state; the warm-up's CPU time is
+printed and kept in the JSON notes.
+
+``--parts N ...`` instead times our first solution part by part (CPU seconds each, a fresh
+interpreter per N: start-up, imports, reading, numba's import, distance tables, guide paths,
+LaCAM, validation, plan file), with the one-shot kernels as ``solve`` chooses them or as
+``--parts-engine`` says.
 """
 
 from __future__ import annotations
@@ -401,6 +412,123 @@ def _jsonable(obj):
 # ----------------------------------------------------------------------------- main
 
 
+WARM_UP = ("import sys\n"
+           "from warerover_phys.planning.scatter import NUMBA_MIN_AGENTS\n"
+           "if int(sys.argv[1]) < NUMBA_MIN_AGENTS:\n"
+           "    print('skipped')\n"
+           "else:\n"
+           "    from warerover_phys.planning.scatter_numba import warm_up\n"
+           "    print(warm_up())\n")
+"""Compiles (cold cache) or loads our one-shot numba kernels where ``solve`` would use them
+for ``argv[1]`` agents (in the checkout measured: its own constant); prints the CPU seconds
+or ``skipped``."""
+
+
+def warm_up(max_agents: int, env: dict) -> str | None:
+    """Run :data:`WARM_UP`; a line to print and note, or None when it was not needed."""
+    proc = subprocess.run([sys.executable, "-c", WARM_UP, str(max_agents)],
+                          capture_output=True, text=True, env=env)
+    if proc.returncode != 0:
+        return f"numba warm-up failed: {proc.stderr.strip()[-300:]}"
+    if proc.stdout.split()[-1] == "skipped":
+        return None
+    return (f"numba kernels warmed up: {float(proc.stdout.split()[-1]):.2f} s of CPU "
+            "(a compile where the cache was cold)")
+
+PARTS_SCRIPT = r"""
+import json, sys, time
+cpu = time.process_time
+parts = {"interpreter": cpu()}
+c = cpu()
+import numpy as np
+from warerover_phys.movingai import read_map, read_scen
+from warerover_phys.planning import scatter
+from warerover_phys.planning.lacam import _to_paths, lacam_nodes
+from warerover_phys.planning.oneshot import OneShotResult, _costs, goal_tables, grid_graph, write_plan
+from warerover_phys.validate import validate_states
+parts["imports"] = cpu() - c
+map_file, scen_file, n, seed, engine, out = sys.argv[1:]
+n, seed = int(n), int(seed)
+c = cpu()
+grid = read_map(map_file)
+scen = read_scen(scen_file, n, grid)
+graph = grid_graph(grid.obstacles)
+parts["read map + scen, grid graph"] = cpu() - c
+import gc
+gc.freeze()
+gc.set_threshold(50_000, 50, 100)
+c = cpu()
+if engine == "auto":
+    engine = "numba" if scatter.use_numba(n, None) else "python"
+if engine == "numba":
+    from warerover_phys.solve_cli import numba_without_blas_probe
+    numba_without_blas_probe()
+parts["numba import"] = cpu() - c
+goals = [a.goal for a in scen]
+c = cpu()
+tables = goal_tables(graph, goals, engine=engine)
+parts["distance tables (+ numba's first load)"] = cpu() - c
+s = [graph.node(a.start) for a in scen]
+g = [graph.node(x) for x in goals]
+c = cpu()
+dists = tables if engine == "numba" else [t.tolist() for t in tables]
+parts["tables as lists"] = cpu() - c
+c = cpu()
+rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
+guide = scatter.guide_paths(graph.neighbors, s, g, dists, rng, engine=engine, arrays=tables)
+parts["guide paths (+ load)"] = cpu() - c
+c = cpu()
+configs, stats = lacam_nodes(graph, s, g, dists, time.monotonic() + 1e9,
+                             np.random.default_rng(seed), guide=guide.next, engine=engine)
+parts["LaCAM (+ load)"] = cpu() - c
+c = cpu()
+paths = _to_paths(graph, configs)
+soc, makespan = _costs(paths, goals)
+parts["paths + costs"] = cpu() - c
+c = cpu()
+cols = grid.cols
+conflicts = validate_states({i: [(r * cols + x,) * 2 for r, x in p] for i, p in enumerate(paths)},
+                            grid.obstacles)
+parts["validation"] = cpu() - c
+c = cpu()
+write_plan(out, OneShotResult(True, paths, soc, makespan, 0, 0.0, "lacam"))
+parts["plan file"] = cpu() - c
+parts["total"] = cpu()
+print(json.dumps({"engine": engine, "soc": soc, "conflicts": len(conflicts), "parts": parts}))
+"""
+"""Our whole ``solve --planner lacam`` (random-k, first solution) as separate parts in a
+fresh interpreter, each part's CPU time (``--parts``); the interpreter's own start-up is the
+CPU time already spent when the script starts."""
+
+
+def run_parts(counts: list[int], scens: list[int], seed: int, engine: str,
+              env: dict) -> list[dict]:
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="bench_mapf_parts_") as tmp:
+        for k in scens:
+            for n in counts:
+                cmd = [sys.executable, "-c", PARTS_SCRIPT, str(MAP_PATH), str(scen_path(k)),
+                       str(n), str(seed), engine, str(Path(tmp) / "plan.txt")]
+                load = os.getloadavg()[0]
+                proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
+                if proc.returncode != 0:
+                    raise SystemExit(f"--parts N={n}: {proc.stderr.strip()[-500:]}")
+                out = json.loads(proc.stdout.strip().splitlines()[-1])
+                rows.append({"scen": k, "agents": n, "load_1min": load, **out})
+    return rows
+
+
+def print_parts(rows: list[dict]) -> None:
+    names = list(rows[0]["parts"]) if rows else []
+    head = ["part, CPU s"] + [f"N={r['agents']} ({r['engine']})" for r in rows]
+    table = [[name] + [f"{r['parts'][name]:.3f}" for r in rows] for name in names]
+    table.append(["SoC, conflicts"] + [f"{r['soc']}, {r['conflicts']}" for r in rows])
+    table.append(["load (1 min)"] + [f"{r['load_1min']:.2f}" for r in rows])
+    widths = [max(len(str(x)) for x in col) for col in zip(head, *table, strict=True)]
+    for line in [head, *table]:
+        print("  ".join(str(x).rjust(w) for x, w in zip(line, widths, strict=True)))
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--agents", type=int, nargs="+", default=None,
@@ -430,8 +558,29 @@ def main(argv: list[str] | None = None) -> int:
                         help=f"N = {' '.join(map(str, QUICK_AGENTS))} (unless --agents)")
     parser.add_argument("--json", type=Path, default=ROOT / "tools" / "out" / "bench_mapf.json",
                         help="where to write the figures (default: tools/out/bench_mapf.json)")
+    parser.add_argument("--no-warm-up", action="store_true",
+                        help="do not fill numba's cache of the one-shot kernels first (a cold "
+                             "cache makes solve run Python unless 150 s are left)")
+    parser.add_argument("--parts", type=int, nargs="+", default=None, metavar="N",
+                        help="instead of the comparison: our first solution's parts (CPU s "
+                             "each, a fresh interpreter per N)")
+    parser.add_argument("--parts-engine", default="auto", choices=["auto", "numba", "python"],
+                        help="--parts: the engine of the one-shot kernels (default: auto, "
+                             "as solve chooses)")
     args = parser.parse_args(argv)
     agents = sorted(set(args.agents or (QUICK_AGENTS if args.quick else DEFAULT_AGENTS)))
+    if args.parts:
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH")) if p)
+        if not args.no_warm_up and args.parts_engine != "python":
+            msg = warm_up(max(args.parts), env)
+            if msg is not None:
+                print(msg)
+        rows = run_parts(args.parts, args.scens, args.seed, args.parts_engine, env)
+        print(f"our first solution by parts ({MAP_NAME}, random-{args.scens}, seed {args.seed})")
+        print_parts(rows)
+        print(f"load average now: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+        return 0
 
     grid = read_map(MAP_PATH)
     obstacles = np.asarray(grid.obstacles, dtype=bool)
@@ -451,6 +600,14 @@ def main(argv: list[str] | None = None) -> int:
     sides = ([] if args.no_ours else ["ours"]) + ([] if lacam3 is None else ["lacam3"])
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH")) if p)
+
+    if "ours" in sides and not args.no_warm_up:
+        # solve compiles its numba kernels only with time to spare (a cold cache costs
+        # 20-30 s of CPU once): fill the cache first, so that the runs time the steady state
+        msg = warm_up(max(agents), env)
+        if msg is not None:
+            print(msg, flush=True)
+            notes.append(msg)
 
     runs: list[dict] = []
     with tempfile.TemporaryDirectory(prefix="bench_mapf_") as tmp:

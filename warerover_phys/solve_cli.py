@@ -20,7 +20,8 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["run_solve", "parse_solve_args", "fast_main", "SOLVE_RESERVE"]
+__all__ = ["run_solve", "parse_solve_args", "fast_main", "SOLVE_RESERVE",
+           "numba_without_blas_probe"]
 
 SOLVE_RESERVE = (0.03, 0.5)
 """Of ``solve --time-limit``: a share and seconds kept for validating and writing the plan
@@ -58,6 +59,40 @@ def command_age_s() -> float:
     return _ENTERED[1] + time.monotonic() - _ENTERED[0]
 
 
+def numba_without_blas_probe() -> bool:
+    """Load numba's numpy support without its BLAS probe; True if it was skipped.
+
+    The compiled guide search and LaCAM steps (from ``NUMBA_MIN_AGENTS`` agents) load from
+    numba's cache, which first imports ``numba.np.arraymath``; that module asks once whether
+    BLAS is there by importing ``scipy.linalg``, whose array-API layer imports most of
+    numpy's submodules (f2py, testing, ma): 0.35-0.7 s of CPU, a fifth of a 700-agent solve.
+    None of the compiled code uses BLAS (no ``np.dot``, no linear algebra). So, in the
+    command's own process only (:func:`run_solve` when :func:`mark_entered` was called), the
+    probe's answer is "no BLAS": numba's own loop is used should a later compile in this
+    process need ``np.convolve`` or ``np.correlate``, and ``np.dot`` / ``np.linalg`` would still
+    import scipy when compiled (the probe function is restored at once). A numba without
+    these names (another version) is left as it is."""
+    if "numba.np.arraymath" in sys.modules:
+        return False
+    try:
+        import numba.np.linalg as nplinalg
+    except ImportError:  # pragma: no cover - numba is a dependency
+        return False
+    probe = getattr(nplinalg, "ensure_blas", None)
+    if probe is None:  # pragma: no cover - another numba
+        return False
+
+    def no_blas() -> None:
+        raise ImportError("BLAS probe skipped by warerover solve")
+
+    nplinalg.ensure_blas = no_blas
+    try:
+        import numba.np.arraymath  # noqa: F401
+    finally:
+        nplinalg.ensure_blas = probe
+    return True
+
+
 def _echo(text: str, err: bool = False) -> None:
     stream = sys.stderr if err else sys.stdout
     stream.write(text + "\n")
@@ -93,6 +128,11 @@ def run_solve(map_file: Path, scen_file: Path, agents: int = 100, planner: str =
             if not json_out:
                 _echo(f"refine: {seconds:7.2f} s  sum of costs {soc}", err=True)
 
+        if _ENTERED is not None and planner in ("lacam", "pibt"):
+            from .planning.scatter import NUMBA_MIN_AGENTS
+
+            if agents >= NUMBA_MIN_AGENTS:  # the compiled kernels may load
+                numba_without_blas_probe()
         # The search makes many small objects and no cyclic garbage to speak of: the
         # collector's passes over the objects loaded so far (frozen) and its frequent young
         # passes are skipped (LaCAM's CPU -10% at 700 agents); restored afterwards.

@@ -162,9 +162,26 @@ def _search(neighbors: Sequence[Sequence[int]], table: _Table, start: int, goal:
     return None
 
 
+ENGINES = ("auto", "numba", "python")
+NUMBA_MIN_AGENTS = 300
+"""``engine="auto"`` compiles the search (:mod:`.scatter_numba`), and :func:`.lacam.lacam`
+its steps, from this many agents up;
+below, numba's import and cache loads (~0.6 s of CPU) cost more than they save (measured:
+the whole `solve` at 250 agents 1.3 s of CPU with Python, 1.6 s compiled; at 350, 1.9 and 1.4 s)."""
+COLD_COMPILE_S = 150.0
+"""``auto`` compiles the kernels (numba's cache empty or stale: 20-30 s of CPU, once; on a
+loaded 2-core box over a minute of wall time) only when at least this many seconds are left
+before the deadline; otherwise it runs Python (the same plans), so that the time limit
+(``solve``'s default 60 s included) is honoured on a cold cache too.
+:func:`.scatter_numba.warm_up` fills the cache ahead."""
+_CHUNK = 32
+"""Agents planned per call of the compiled round (the deadline is checked between calls)."""
+
+
 def guide_paths(neighbors: Sequence[Sequence[int]], starts: Sequence[int],
                 goals: Sequence[int], dists: Sequence[np.ndarray | list[int]], rng: np.random.Generator,
                 *, margin: int = 20, max_rounds: int = 2, deadline: float | None = None,
+                engine: str = "auto", arrays: Sequence[np.ndarray] | None = None,
                 ) -> GuidePaths:
     """Guide paths for agents from ``starts`` to ``goals`` (node indices).
 
@@ -173,7 +190,22 @@ def guide_paths(neighbors: Sequence[Sequence[int]], starts: Sequence[int],
     a round does not lower the number of collisions (the paths with the fewest collisions
     are kept) or at ``deadline`` (a ``time.monotonic()`` value; an agent not planned by then
     has no guide path and PIBT falls back to its distance order for it).
+
+    ``engine``: ``python`` (the reference below), ``numba`` (the same search compiled,
+    :mod:`.scatter_numba`: the same paths; the deadline is checked every ``_CHUNK`` agents
+    instead of every agent) or ``auto`` (numba from :data:`NUMBA_MIN_AGENTS` agents, when it
+    imports). The compiled search reads the tables as numpy arrays: ``arrays``, the same
+    tables as ``dists`` as arrays, when ``dists`` holds lists (else they are converted,
+    which costs time).
     """
+    if engine not in ENGINES:
+        raise ValueError(f"engine: one of {', '.join(ENGINES)} (got {engine!r})")
+    if engine == "auto":
+        engine = "numba" if use_numba(len(starts), deadline) else "python"
+    if engine == "numba":
+        return _guide_paths_numba(neighbors, starts, goals,
+                                  dists if arrays is None else arrays, rng, margin=margin,
+                                  max_rounds=max_rounds, deadline=deadline)
     t0 = time.perf_counter()
     num = len(starts)
     table = _Table(len(neighbors))
@@ -219,21 +251,116 @@ def guide_paths(neighbors: Sequence[Sequence[int]], starts: Sequence[int],
             stopped = "no improvement"
             break
     out = [p if p is not None else [] for p in best]
-    nxt = [{p[t]: p[t + 1] for t in range(len(p) - 1)} for p in out]
+    return _finish(out, history, stopped, margin, t0, "python")
+
+
+def _finish(out: list[list[int]], history: list[int], stopped: str, margin: int, t0: float,
+            engine: str) -> GuidePaths:
+    nxt = [dict(zip(p, p[1:], strict=False)) for p in out]
     stats = {"rounds": len(history), "collisions": history, "stopped": stopped,
              "margin": margin, "wall_s": time.perf_counter() - t0,
-             "unplanned": sum(1 for p in out if not p)}
+             "unplanned": sum(1 for p in out if not p), "engine": engine}
     return GuidePaths(out, nxt, stats)
+
+
+def use_numba(num_agents: int, deadline: float | None = None) -> bool:
+    """``engine="auto"``'s choice: the compiled kernels from :data:`NUMBA_MIN_AGENTS`
+    agents where numba imports, and, where they are not in numba's cache yet, only with
+    :data:`COLD_COMPILE_S` seconds left before ``deadline`` (``time.monotonic()``)."""
+    if num_agents < NUMBA_MIN_AGENTS or not _numba_available():
+        return False
+    from .scatter_numba import compiled_ready
+
+    return compiled_ready() or deadline is None or \
+        deadline - time.monotonic() >= COLD_COMPILE_S
+
+
+def _numba_available() -> bool:
+    try:
+        import numba  # noqa: F401
+    except ImportError:  # pragma: no cover - numba is a dependency
+        return False
+    return True
+
+
+def _guide_paths_numba(neighbors: Sequence[Sequence[int]], starts: Sequence[int],
+                       goals: Sequence[int], dists: Sequence[np.ndarray | list[int]],
+                       rng: np.random.Generator, *, margin: int, max_rounds: int,
+                       deadline: float | None) -> GuidePaths:
+    """:func:`guide_paths` with the rounds run by :func:`.scatter_numba.run_agents`."""
+    from . import scatter_numba as sn
+
+    t0 = time.perf_counter()
+    num = len(starts)
+    # one row per distinct table (agents with one goal share the table object)
+    row_of: dict[int, int] = {}
+    rows = np.empty(num, dtype=np.int64)
+    unique: list = []
+    for i, d in enumerate(dists):
+        r = row_of.get(id(d))
+        if r is None:
+            r = row_of[id(d)] = len(unique)
+            unique.append(d)
+        rows[i] = r
+    matrix = np.stack([np.asarray(d) for d in unique]) if unique else np.zeros((0, 1))
+    if matrix.dtype != np.int32 and matrix.dtype != np.int64:
+        matrix = matrix.astype(np.int64)
+    s = np.asarray(starts, dtype=np.int64)
+    g = np.asarray(goals, dtype=np.int64)
+    from .graph import UNREACHABLE
+
+    ds = matrix[rows, s] if num else np.zeros(0, dtype=np.int64)
+    ds = ds[ds < UNREACHABLE]
+    horizon = int(ds.max()) + margin + 1 if len(ds) else 1
+    table = sn.NbTable(len(neighbors), num, horizon)
+    indptr, indices = sn.csr(neighbors)
+    best: tuple[np.ndarray, np.ndarray] | None = None
+    best_collisions: int | None = None
+    history: list[int] = []
+    stopped = "rounds"
+    for _ in range(max_rounds):
+        order = rng.permutation(num).astype(np.int64)
+        timed_out = False
+        for k in range(0, num, _CHUNK):
+            if deadline is not None and time.monotonic() > deadline:
+                timed_out = True
+                break
+            sn.run_agents(table, order[k:k + _CHUNK], indptr, indices, s, g, matrix, rows,
+                          margin)
+        collisions = int(table.state[0])
+        history.append(collisions)
+        improved = best_collisions is None or collisions < best_collisions
+        if (improved and not timed_out) or (timed_out and best_collisions is None):
+            best = (table.paths.copy(), table.lengths.copy())
+            if not timed_out:
+                best_collisions = collisions
+        if timed_out:
+            stopped = "time"
+            break
+        if collisions == 0:
+            stopped = "no collisions"
+            break
+        if not improved:
+            stopped = "no improvement"
+            break
+    out: list[list[int]] = [[] for _ in range(num)]
+    if best is not None:
+        paths, lengths = best
+        out = [paths[i, :lengths[i]].tolist() for i in range(num)]
+    return _finish(out, history, stopped, margin, t0, "numba")
 
 
 def guide_for(graph, starts: Sequence[int], goals: Sequence[int], dists: Sequence[np.ndarray],
               seed: int, deadline: float, share: float = 0.5,
+              arrays: Sequence[np.ndarray] | None = None, engine: str = "auto",
               ) -> tuple[list[dict[int, int]], dict]:
     """Guide paths on a :class:`~warerover_phys.planning.graph.MotionGraph` in at most
     ``share`` of the time left before ``deadline`` (``time.monotonic()``), with their own
-    generator spawned from ``seed``; returns (``next`` per agent, stats)."""
+    generator spawned from ``seed``; returns (``next`` per agent, stats). ``arrays`` and
+    ``engine``: as for :func:`guide_paths`."""
     rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
     now = time.monotonic()
     guide = guide_paths(graph.neighbors, starts, goals, dists, rng,
-                        deadline=now + share * max(0.0, deadline - now))
+                        deadline=now + share * max(0.0, deadline - now), arrays=arrays,
+                        engine=engine)
     return guide.next, guide.stats
