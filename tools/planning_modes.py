@@ -26,6 +26,12 @@ cannot order) are listed and left out of every mode, so the modes compare the sa
 on ``layouts/industrial.yaml``, whose 320 AGVs on physics take minutes a seed: the gap is
 then that of the plan the ideal run made in its first 100 ticks, stated with the table).
 
+``plain`` and ``motion`` execute the same plan (the grid run does not depend on the timing;
+only the planned side of the figures differs), and so do ``rotations`` and
+``rotations+motion``: when both of a pair are asked for, the plan is run once, with motion
+timing, and the unit-timing mode's figures are its ``*_unit`` figures (``--run-all`` runs
+each mode on its own, e.g. to check that).
+
 Writes ``tools/out/planning_modes.json`` (every seed's figures) and prints a markdown table.
 """
 
@@ -43,6 +49,7 @@ import yaml
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from warerover_phys.config import load_scenario  # noqa: E402
+from warerover_phys.gap_open import MOTION_UNIT_KEYS  # noqa: E402
 from warerover_phys.gap_stats import parse_seeds, run_seeds  # noqa: E402
 from warerover_phys.sweep.report import mean_ci  # noqa: E402
 
@@ -52,6 +59,9 @@ MODES = {
     "motion": [("planner.timing", "motion")],
     "rotations+motion": [("planner.rotations", True), ("planner.timing", "motion")],
 }
+
+UNIT_TWIN = {"plain": "motion", "rotations": "rotations+motion"}
+"""A unit-timing mode and the motion-timed mode that executes the same plan."""
 
 FIGURES = (
     ("executed / planned makespan", "makespan_ratio", 3),
@@ -77,6 +87,26 @@ def _figures(report: dict) -> dict:
     return out
 
 
+def unit_report(report: dict) -> dict:
+    """A motion-timed open-loop report as its unit-timing twin reports it: every figure that
+    motion timing takes from the schedule back at its unit value (``KEY_unit``)."""
+    if report.get("timing") != "motion":
+        return report
+    out = {k: v for k, v in report.items() if not k.endswith("_unit")}
+    for k in MOTION_UNIT_KEYS:
+        if f"{k}_unit" in report:
+            out[k] = report[f"{k}_unit"]
+    out["timing"] = "unit"
+    return out
+
+
+def plan_runs(modes: list[str], run_all: bool = False) -> dict[str, str]:
+    """Each mode -> the mode whose run gives its figures: a unit-timing mode whose motion
+    twin is also asked for is read off the twin's run (:data:`UNIT_TWIN`)."""
+    return {m: (UNIT_TWIN[m] if not run_all and m in UNIT_TWIN and UNIT_TWIN[m] in modes
+                else m) for m in modes}
+
+
 def _cell(values: list[float], digits: int) -> str:
     vals = [v for v in values if v is not None and math.isfinite(v)]
     if not vals:
@@ -93,6 +123,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--modes", nargs="+", default=list(MODES), choices=list(MODES))
     ap.add_argument("--json", default="tools/out/planning_modes.json")
+    ap.add_argument("--run-all", action="store_true",
+                    help="run every mode on its own (default: a unit-timing mode whose "
+                         "motion twin is asked for is read off the twin's run)")
     ap.add_argument("--set", dest="overrides", action="append", default=[],
                     metavar="KEY=VALUE",
                     help="override a scenario field in every mode (YAML value), e.g. "
@@ -113,25 +146,31 @@ def main(argv: list[str] | None = None) -> int:
         per_mode: dict[str, dict[int, dict]] = {}
         failed: dict[str, list] = {}
         walls: dict[str, float] = {}
-        for mode in args.modes:
+        source = plan_runs(args.modes, args.run_all)
+        runs = [m for m in args.modes if source[m] == m]
+        for mode in runs:
             sc = load_scenario(path, extra + MODES[mode])
             t0 = time.perf_counter()
             results, bad = run_seeds(sc, seeds, "open", args.workers)
             walls[mode] = time.perf_counter() - t0
             per_mode[mode] = {r["seed"]: _figures(r["report"]) for r in results}
             failed[mode] = bad
+            for twin in (m for m in args.modes if source[m] == mode and m != mode):
+                per_mode[twin] = {r["seed"]: _figures(unit_report(r["report"]))
+                                  for r in results}
+                failed[twin] = bad
             print(f"{sc.name} {mode}: {len(results)} seeds ({len(bad)} failed) in "
                   f"{walls[mode]:.0f} s", file=sys.stderr, flush=True)
             # every mode's figures on disk as soon as they exist (runs take long)
             partial = dict(rows, **{Path(path).stem: {"partial": True, "per_mode": per_mode,
-                                                      "wall_s": walls,
+                                                      "wall_s": walls, "source": source,
                                                       "overrides": args.overrides}})
             out.parent.mkdir(parents=True, exist_ok=True)
             out.write_text(json.dumps(partial, indent=1, default=str) + "\n",
                            encoding="utf-8")
         common = sorted(set.intersection(*(set(v) for v in per_mode.values())))
         name = Path(path).stem
-        rows[name] = {"seeds": common, "per_mode": per_mode, "wall_s": walls,
+        rows[name] = {"seeds": common, "per_mode": per_mode, "wall_s": walls, "source": source,
                       "overrides": args.overrides,
                       "failed": {m: [list(f) for f in v] for m, v in failed.items()}}
         left = sorted(set(seeds) - set(common))
@@ -143,7 +182,9 @@ def main(argv: list[str] | None = None) -> int:
         for label, key, digits in FIGURES:
             cells = [_cell([per_mode[m][s][key] for s in common], digits) for m in args.modes]
             lines.append(f"| {label} | " + " | ".join(cells) + " |")
-        lines += ["", "wall: " + ", ".join(f"{m} {w:.0f} s" for m, w in walls.items()), ""]
+        read = [f"{m} from {source[m]}'s run" for m in args.modes if source[m] != m]
+        lines += ["", "wall: " + ", ".join(f"{m} {w:.0f} s" for m, w in walls.items())
+                  + (f" ({'; '.join(read)})" if read else ""), ""]
     text = "\n".join(lines)
     print(text)
     out.parent.mkdir(parents=True, exist_ok=True)

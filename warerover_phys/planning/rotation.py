@@ -37,7 +37,7 @@ import numpy as np
 from .motion import MotionModel
 
 __all__ = ["turn_s", "turn_ticks", "agent_turn_ticks", "rotating", "quarters",
-           "rotation_dist", "graph_rotation_dist", "turn_towards", "UNREACHABLE_T"]
+           "rotation_dist", "rotation_graph", "rotation_dist_csr", "graph_rotation_dist", "turn_towards", "UNREACHABLE_T"]
 
 UNREACHABLE_T = 1 << 30
 """Ticks to the goal from a state that cannot reach it (:func:`rotation_dist`)."""
@@ -125,16 +125,89 @@ def rotation_dist(neighbors: Sequence[tuple[int, ...]], expandable: Sequence[boo
     return dist
 
 
+def rotation_graph(neighbors: Sequence[tuple[int, ...]], expandable: Sequence[bool], cols: int,
+                   m: int, quarter: int, half: int):
+    """The *reversed* state graph of :func:`rotation_dist` as a scipy CSR matrix over the
+    ``4 * nodes`` states ``anchor * 4 + heading``: an edge ``s -> s'`` of weight ``w`` says
+    that ``s'`` reaches ``s`` in ``w`` ticks (a move of ``m`` ticks along the heading out of
+    an ``expandable`` anchor; quarter and half turns in place). ``None`` where a cost is not
+    positive (scipy reads an explicit 0 as no edge): :func:`rotation_dist` is used then."""
+    if min(m, quarter, half) <= 0:
+        return None
+    from scipy.sparse import csr_matrix
+
+    n = len(neighbors)
+    step = (1, cols, -1, -cols)
+    src, dst, w = [], [], []
+    for u in range(n):
+        if not expandable[u]:
+            continue
+        for v in neighbors[u]:
+            for d in range(4):
+                if v - u == step[d]:
+                    # forward (u, d) -> (v, d): reversed, (v, d) -> (u, d)
+                    src.append(v * 4 + d)
+                    dst.append(u * 4 + d)
+                    w.append(m)
+    states = np.arange(4 * n, dtype=np.int64)
+    heads = states % 4
+    base = states - heads
+    for off, cost in ((1, quarter), (3, quarter), (2, half)):
+        src.extend(states.tolist())
+        dst.extend((base + (heads + off) % 4).tolist())
+        w.extend([cost] * (4 * n))
+    return csr_matrix((np.asarray(w, dtype=np.float64), (np.asarray(src, dtype=np.int64),
+                                                         np.asarray(dst, dtype=np.int64))),
+                      shape=(4 * n, 4 * n))
+
+
+def rotation_dist_csr(rev, n: int, goal: int) -> np.ndarray:
+    """:func:`rotation_dist` over the reversed state graph ``rev`` (:func:`rotation_graph`,
+    ``n`` anchors) with scipy's Dijkstra from the goal's four states: the same table."""
+    from scipy.sparse.csgraph import dijkstra
+
+    dist = np.full((n, 4), UNREACHABLE_T, dtype=np.int64)
+    if not 0 <= goal < n:
+        return dist
+    d = dijkstra(rev, directed=True, indices=[goal * 4 + h for h in range(4)],
+                 min_only=True)
+    flat = dist.reshape(-1)
+    ok = np.isfinite(d)
+    flat[ok] = d[ok].astype(np.int64)
+    dist.setflags(write=False)
+    return dist
+
+
+ROT_TABLE_BUDGET_BYTES = 1 << 28
+"""Memory the (anchor, heading) distance tables cached on one motion graph may take
+(:func:`graph_rotation_dist`; at least 256 tables are kept)."""
+
+
 def graph_rotation_dist(graph, goal: int, m: int, quarter: int, half: int) -> np.ndarray:
     """:func:`rotation_dist` on a :class:`~warerover_phys.planning.graph.MotionGraph`,
-    cached on the graph (the 256 most recent goals and costs)."""
+    computed with scipy over the graph's cached reversed state graph
+    (:func:`rotation_graph`) and cached on the graph (the most recent goals and costs, as
+    many as :data:`ROT_TABLE_BUDGET_BYTES` allows and at least 256: a fleet of hundreds of
+    AGVs with distinct goals must not evict its own tables every tick)."""
     cache = graph.__dict__.setdefault("_rot_cache", OrderedDict())
     key = (goal, m, quarter, half)
     out = cache.get(key)
     if out is None:
-        out = cache[key] = rotation_dist(graph.neighbors, graph.expandable_flat, graph.cols,
-                                         goal, m, quarter, half)
-        if len(cache) > 256:
+        n = len(graph.neighbors)
+        graphs = graph.__dict__.setdefault("_rot_graphs", {})
+        costs = (m, quarter, half)
+        if costs not in graphs:
+            graphs[costs] = rotation_graph(graph.neighbors, graph.expandable_flat, graph.cols,
+                                           m, quarter, half)
+        rev = graphs[costs]
+        if rev is None:
+            out = rotation_dist(graph.neighbors, graph.expandable_flat, graph.cols, goal, m,
+                                quarter, half)
+        else:
+            out = rotation_dist_csr(rev, n, goal)
+        cache[key] = out
+        cap = max(256, ROT_TABLE_BUDGET_BYTES // max(1, 32 * n))
+        while len(cache) > cap:
             cache.popitem(last=False)
     else:
         cache.move_to_end(key)
