@@ -417,7 +417,7 @@ WARM_UP = ("import sys\n"
            "if int(sys.argv[1]) < NUMBA_MIN_AGENTS:\n"
            "    print('skipped')\n"
            "else:\n"
-           "    from warerover_phys.planning.scatter_numba import warm_up\n"
+           "    from warerover_phys.planning.oneshot import warm_up\n"
            "    print(warm_up())\n")
 """Compiles (cold cache) or loads our one-shot numba kernels where ``solve`` would use them
 for ``argv[1]`` agents (in the checkout measured: its own constant); prints the CPU seconds

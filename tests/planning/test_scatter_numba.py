@@ -206,9 +206,9 @@ def test_auto_compiles_only_with_time_for_it(monkeypatch):
     n = scatter.NUMBA_MIN_AGENTS
     now = time.monotonic()
     assert not scatter.use_numba(n - 1, None)
-    monkeypatch.setattr(scatter_numba, "compiled_ready", lambda: True)
+    monkeypatch.setattr(scatter_numba, "compiled_ready", lambda also=(): True)
     assert scatter.use_numba(n, now + 1.0)
-    monkeypatch.setattr(scatter_numba, "compiled_ready", lambda: False)
+    monkeypatch.setattr(scatter_numba, "compiled_ready", lambda also=(): False)
     assert not scatter.use_numba(n, now + 0.5 * scatter.COLD_COMPILE_S)
     assert scatter.use_numba(n, now + 2 * scatter.COLD_COMPILE_S)
     assert scatter.use_numba(n, None)
@@ -216,9 +216,11 @@ def test_auto_compiles_only_with_time_for_it(monkeypatch):
 
 def test_the_kernels_are_in_numbas_cache_once_warmed_up():
     from warerover_phys.planning import scatter_numba
+    from warerover_phys.planning.lacam import lacam_kernels
+    from warerover_phys.planning.oneshot import warm_up
 
-    assert scatter_numba.warm_up() >= 0
-    assert scatter_numba.compiled_ready()
+    assert warm_up() >= 0
+    assert scatter_numba.compiled_ready(lacam_kernels())
 
 
 def test_engine_names_are_checked():

@@ -76,7 +76,8 @@ def lacam(graph: MotionGraph, starts: Sequence[Cell], goals: Sequence[Cell], dea
         raise ValueError("engine numba: a graph of at most four moves a cell")
     if engine == "auto":
         from .scatter import use_numba
-        engine = "numba" if _plain_moves(graph) and use_numba(len(s), deadline) else "python"
+        engine = "numba" if _plain_moves(graph) and use_numba(
+            len(s), deadline, also=lacam_kernels) else "python"
     if engine == "numba":  # the compiled steps read arrays
         if dist_arrays is None:
             dist_arrays = ([np.asarray(d) for d in dists] if dists is not None
@@ -210,3 +211,11 @@ def lacam_nodes(graph: MotionGraph, starts: Sequence[int], goals: Sequence[int],
         stack.append(new)
         explored[key] = new
     return None, {"iterations": iterations, "explored": len(explored), "exhausted": True}
+
+
+def lacam_kernels() -> tuple:
+    """The compiled functions of LaCAM's numba engine (:mod:`.lacam_numba`), for
+    :func:`.scatter.use_numba`'s cache check."""
+    from . import lacam_numba
+
+    return (lacam_numba._step,)

@@ -20,7 +20,8 @@ from ..errors import PlanningError
 from ..layout import CellType, Layout
 from .graph import UNREACHABLE, MotionGraph
 
-__all__ = ["OneShotResult", "grid_graph", "goal_tables", "solve", "write_plan", "ONESHOT_PLANNERS"]
+__all__ = ["OneShotResult", "grid_graph", "goal_tables", "solve", "write_plan", "ONESHOT_PLANNERS",
+           "warm_up"]
 
 Cell = tuple[int, int]
 
@@ -209,8 +210,9 @@ def solve(obstacles: np.ndarray, starts: list[Cell], goals: list[Cell], planner:
     deadline = start_mono + time_limit_s
     graph = grid_graph(obstacles)
     # where lacam compiles its guide search and steps, the tables are compiled too
+    from .lacam import lacam_kernels
     from .scatter import use_numba
-    compiled = planner == "lacam" and use_numba(len(goals), deadline)
+    compiled = planner == "lacam" and use_numba(len(goals), deadline, also=lacam_kernels)
     tables = goal_tables(graph, goals, engine="numba" if compiled else "python")
     lb = 0
     for s, g, table in zip(starts, goals, tables, strict=True):
@@ -316,3 +318,19 @@ def write_plan(path, result: OneShotResult, *, map_file: str = "", scen_file: st
               for t, column in enumerate(zip(*paths, strict=True))]
     from pathlib import Path
     Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+def warm_up() -> float:
+    """Compile the one-shot kernels (:mod:`.scatter_numba`'s and :mod:`.lacam_numba`'s) into
+    numba's on-disk cache, or load them from it, on a 3 x 3 grid; returns the CPU seconds it
+    took. ``solve`` compiles them by itself only with :data:`~.scatter.COLD_COMPILE_S`
+    seconds to spare; this does it once ahead (``python -c "from
+    warerover_phys.planning.oneshot import warm_up; print(warm_up())"``)."""
+    from .lacam import lacam
+
+    c = time.process_time()
+    graph = grid_graph(np.zeros((3, 3), dtype=bool))
+    goal_tables(graph, [(0, 0)], engine="numba")
+    lacam(graph, [(0, 0), (2, 2)], [(2, 2), (0, 0)], time.monotonic() + 3600, guide=True,
+          engine="numba")
+    return time.process_time() - c

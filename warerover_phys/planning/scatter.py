@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import heapq
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -173,7 +173,7 @@ COLD_COMPILE_S = 150.0
 loaded 2-core box over a minute of wall time) only when at least this many seconds are left
 before the deadline; otherwise it runs Python (the same plans), so that the time limit
 (``solve``'s default 60 s included) is honoured on a cold cache too.
-:func:`.scatter_numba.warm_up` fills the cache ahead."""
+:func:`.oneshot.warm_up` fills the cache ahead."""
 _CHUNK = 32
 """Agents planned per call of the compiled round (the deadline is checked between calls)."""
 
@@ -263,15 +263,18 @@ def _finish(out: list[list[int]], history: list[int], stopped: str, margin: int,
     return GuidePaths(out, nxt, stats)
 
 
-def use_numba(num_agents: int, deadline: float | None = None) -> bool:
+def use_numba(num_agents: int, deadline: float | None = None,
+              also: Callable[[], Sequence] | None = None) -> bool:
     """``engine="auto"``'s choice: the compiled kernels from :data:`NUMBA_MIN_AGENTS`
     agents where numba imports, and, where they are not in numba's cache yet, only with
-    :data:`COLD_COMPILE_S` seconds left before ``deadline`` (``time.monotonic()``)."""
+    :data:`COLD_COMPILE_S` seconds left before ``deadline`` (``time.monotonic()``).
+    ``also``: gives further compiled functions the caller will use
+    (:func:`.lacam.lacam_kernels`), checked in the cache too."""
     if num_agents < NUMBA_MIN_AGENTS or not _numba_available():
         return False
     from .scatter_numba import compiled_ready
 
-    return compiled_ready() or deadline is None or \
+    return compiled_ready(also() if also is not None else ()) or deadline is None or \
         deadline - time.monotonic() >= COLD_COMPILE_S
 
 

@@ -30,7 +30,7 @@ from numba import njit
 
 from .graph import UNREACHABLE
 
-__all__ = ["NbTable", "compiled_ready", "csr", "goal_bfs", "run_agents", "warm_up"]
+__all__ = ["NbTable", "compiled_ready", "csr", "goal_bfs", "run_agents"]
 
 _BIG = 1 << 24  # as scatter._BIG
 
@@ -367,35 +367,14 @@ def goal_bfs(valid: np.ndarray, enter: np.ndarray, rows: int, cols: int,
     return out
 
 
-def compiled_ready() -> bool:
-    """Whether numba's on-disk cache holds machine code of the one-shot kernels (this
-    module's and :mod:`.lacam_numba`'s), so that using them costs a load, not a compile
-    (20-30 s of CPU on the 2-core box). Reads numba's cache index (not a public API: where
-    it cannot be read, assumed ready)."""
-    from . import lacam_numba
-
+def compiled_ready(also: Sequence = ()) -> bool:
+    """Whether numba's on-disk cache holds machine code of this module's kernels and of the
+    compiled functions ``also`` (:func:`.lacam.lacam_kernels`: this module sits below
+    :mod:`.lacam_numba` and does not import it), so that using them costs a load, not a
+    compile (20-30 s of CPU on the 2-core box). Reads numba's cache index (not a public
+    API: where it cannot be read, assumed ready)."""
     try:
         return all(bool(f._cache._cache_file._load_index())
-                   for f in (_run, _goal_bfs, lacam_numba._step))
+                   for f in (_run, _goal_bfs, *also))
     except Exception:  # pragma: no cover - another numba's cache internals  # noqa: BLE001
         return True
-
-
-def warm_up() -> float:
-    """Compile the one-shot kernels (this module's and :mod:`.lacam_numba`'s) into numba's
-    on-disk cache, or load them from it, on a 3 x 3 grid; returns the CPU seconds it took.
-    ``solve`` compiles them by itself only with :data:`~.scatter.COLD_COMPILE_S` seconds to
-    spare; this does it once ahead (``python -c "from warerover_phys.planning.scatter_numba
-    import warm_up; print(warm_up())"``)."""
-    import time
-
-    from .lacam import lacam
-    from .oneshot import goal_tables, grid_graph
-
-    c = time.process_time()
-    graph = grid_graph(np.zeros((3, 3), dtype=bool))
-    goal_tables(graph, [(0, 0)], engine="numba")
-    lacam(graph, [(0, 0), (2, 2)], [(2, 2), (0, 0)], time.monotonic() + 3600, guide=True,
-          engine="numba")
-    return time.process_time() - c
-
