@@ -74,3 +74,28 @@ def test_a_swap_alone_is_found():
                                      {}, {}, 0, 100)
     kinds = [c.kind for c in validate_states(trajectories, obstacles)]
     assert "swap" in kinds
+
+
+@st.composite
+def cell_paths(draw):
+    """One-shot plans as (row, column) paths, cells on the grid or off it."""
+    rows, cols = draw(st.integers(1, 4)), draw(st.integers(1, 4))
+    obstacles = np.array(draw(st.lists(st.booleans(), min_size=rows * cols,
+                                       max_size=rows * cols))).reshape(rows, cols)
+    cell = st.tuples(st.integers(-1, rows), st.integers(0, cols - 1))
+    paths = draw(st.lists(st.lists(cell, min_size=1, max_size=6), min_size=1, max_size=6))
+    return obstacles, paths
+
+
+@settings(max_examples=300, deadline=None)
+@given(case=cell_paths())
+def test_cell_paths_are_checked_as_their_states(case):
+    """``validate_cell_paths`` (what ``warerover solve`` checks its plans with) reports what
+    the general validator reports for the same plan as per-tick states."""
+    from warerover_phys.validate import validate_cell_paths
+
+    obstacles, paths = case
+    cols = obstacles.shape[1]
+    states = {i: [(r * cols + c,) * 2 for r, c in p] for i, p in enumerate(paths)}
+    expected = _validate_general(states, obstacles, {}, {}, 0, 10_000)
+    assert validate_cell_paths(paths, obstacles, max_conflicts=10_000) == expected

@@ -110,7 +110,7 @@ def run_solve(map_file: Path, scen_file: Path, agents: int = 100, planner: str =
     from .movingai import read_map, read_scen
     from .planning.oneshot import solve as solve_instance
     from .planning.oneshot import write_plan
-    from .validate import validate_states
+    from .validate import validate_cell_paths
 
     try:
         if agents < 1:
@@ -151,10 +151,7 @@ def run_solve(map_file: Path, scen_file: Path, agents: int = 100, planner: str =
             gc.unfreeze()
         conflicts = []
         if result.success:
-            cols = grid.cols
-            conflicts = validate_states(
-                {i: [(r * cols + c, r * cols + c) for r, c in path]
-                 for i, path in enumerate(result.paths)}, grid.obstacles)
+            conflicts = validate_cell_paths(result.paths, grid.obstacles)
             ends_ok = all(p[0] == a.start and p[-1] == a.goal
                           for p, a in zip(result.paths, scen, strict=True))
             if conflicts or not ends_ok:

@@ -31,10 +31,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from itertools import chain
 
 import numpy as np
 
-__all__ = ["Conflict", "DwellViolation", "validate_states", "validate_headings", "dwell_intervals",
+__all__ = ["Conflict", "DwellViolation", "validate_states", "validate_cell_paths",
+           "validate_headings", "dwell_intervals",
            "validate_dwells", "DWELL_POS_TOL_M", "DWELL_HEADING_TOL_RAD"]
 
 DWELL_POS_TOL_M = 0.05
@@ -156,11 +158,38 @@ def _validate_general(trajectories: Mapping[int, Sequence[tuple[int, int]]],
     return out[:max_conflicts]
 
 
+def validate_cell_paths(paths: Sequence[Sequence[tuple[int, int]]], obstacles: np.ndarray,
+                        *, max_conflicts: int = 100) -> list[Conflict]:
+    """:func:`validate_states` for one-shot MAPF plans given as cell paths: agent ``i``
+    stands on ``paths[i][t]`` (row, column) at tick ``t`` (and on its last cell after it),
+    1x1. The same conflicts in the same order as :func:`validate_states` on the states
+    ``(cell, cell)``, without building them (what ``warerover solve`` checks its plans
+    with)."""
+    if not paths:
+        return []
+    rows, cols = obstacles.shape
+    lengths = [len(p) for p in paths]
+    if min(lengths) == 0:
+        return validate_states({i: [(r * cols + c,) * 2 for r, c in p]
+                                for i, p in enumerate(paths)}, obstacles,
+                               max_conflicts=max_conflicts)
+    horizon = max(lengths)
+    flat = np.fromiter(chain.from_iterable(chain.from_iterable(paths)), dtype=np.int64,
+                       count=2 * sum(lengths)).reshape(-1, 2)
+    nodes = flat[:, 0] * cols + flat[:, 1]
+    pos = np.empty((horizon, len(paths)), dtype=np.int64)
+    at = 0
+    for j, n in enumerate(lengths):
+        pos[:n, j] = nodes[at:at + n]
+        pos[n:, j] = nodes[at + n - 1]
+        at += n
+    return _check_cells(pos, lengths, list(range(len(paths))), obstacles, 0, max_conflicts)
+
+
 def _validate_cells(trajectories: Mapping[int, Sequence[tuple[int, int]]],
                     obstacles: np.ndarray, start_tick: int, max_conflicts: int,
                     ) -> list[Conflict]:
     """:func:`validate_states` for 1x1 AGVs standing on one cell per tick, vectorised."""
-    rows, cols = obstacles.shape
     ids = sorted(trajectories)
     horizon = max(len(trajectories[a]) for a in ids)
     pos = np.empty((horizon, len(ids)), dtype=np.int64)
@@ -168,6 +197,20 @@ def _validate_cells(trajectories: Mapping[int, Sequence[tuple[int, int]]],
         cells = np.fromiter((a for a, _ in trajectories[agv]), dtype=np.int64)
         pos[:len(cells), j] = cells
         pos[len(cells):, j] = cells[-1]
+    lengths = [len(trajectories[a]) for a in ids]
+    out = _check_cells(pos, lengths, ids, obstacles, start_tick, max_conflicts,
+                       order=list(trajectories))
+    return out
+
+
+def _check_cells(pos: np.ndarray, lengths: list[int], ids: list[int], obstacles: np.ndarray,
+                 start_tick: int, max_conflicts: int, order: list[int] | None = None,
+                 ) -> list[Conflict]:
+    """The checks of :func:`_validate_cells` on ``pos`` (ticks x agents: agent ``ids[j]``'s
+    cell at each tick, its last one repeated past ``lengths[j]``); per-agent conflicts are
+    listed in the agents' ``order`` (default ``ids``)."""
+    rows, cols = obstacles.shape
+    horizon = len(pos)
     r, c = np.divmod(pos, cols)
     per_agent: list[list[Conflict]] = [[] for _ in ids]  # bounds, obstacles, moves
     off = (pos < 0) | (r >= rows)
@@ -175,7 +218,6 @@ def _validate_cells(trajectories: Mapping[int, Sequence[tuple[int, int]]],
     blocked[~off] = obstacles[r[~off], c[~off]]
     step = np.zeros_like(off)
     step[1:] = (np.abs(r[1:] - r[:-1]) + np.abs(c[1:] - c[:-1])) > 1
-    lengths = [len(trajectories[a]) for a in ids]
     bad = np.nonzero((off | blocked | step).T)  # agent by agent, tick by tick
     for j, t in zip(*bad, strict=True):
         if t >= lengths[j]:
@@ -188,7 +230,7 @@ def _validate_cells(trajectories: Mapping[int, Sequence[tuple[int, int]]],
         if step[t, j]:
             per_agent[j].append(Conflict("move", start_tick + int(t), (ids[j],), cell))
     index = {agv: j for j, agv in enumerate(ids)}
-    out = [x for agv in trajectories for x in per_agent[index[agv]]]
+    out = [x for agv in (order if order is not None else ids) for x in per_agent[index[agv]]]
     if not _any_vertex_or_swap(pos, rows * cols):
         return out[:max_conflicts]  # the loop below would add nothing
     for t in range(horizon):
