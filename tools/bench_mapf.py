@@ -445,7 +445,7 @@ from warerover_phys.movingai import read_map, read_scen
 from warerover_phys.planning import scatter
 from warerover_phys.planning.lacam import _to_paths, lacam_nodes
 from warerover_phys.planning.oneshot import OneShotResult, _costs, goal_tables, grid_graph, write_plan
-from warerover_phys.validate import validate_states
+from warerover_phys.validate import validate_cell_paths
 parts["imports"] = cpu() - c
 map_file, scen_file, n, seed, engine, out = sys.argv[1:]
 n, seed = int(n), int(seed)
@@ -486,9 +486,7 @@ paths = _to_paths(graph, configs)
 soc, makespan = _costs(paths, goals)
 parts["paths + costs"] = cpu() - c
 c = cpu()
-cols = grid.cols
-conflicts = validate_states({i: [(r * cols + x,) * 2 for r, x in p] for i, p in enumerate(paths)},
-                            grid.obstacles)
+conflicts = validate_cell_paths(paths, grid.obstacles)  # as solve does
 parts["validation"] = cpu() - c
 c = cpu()
 write_plan(out, OneShotResult(True, paths, soc, makespan, 0, 0.0, "lacam"))
