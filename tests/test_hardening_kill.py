@@ -63,6 +63,7 @@ def test_sigkill_during_run_leaves_a_whole_set(tmp_path):
     assert check_set(out)["seed"] == 5
 
 
+@pytest.mark.slow  # ~18 s; the killed run (test above) keeps the atomic-set check in make test
 def test_sigkill_during_render_keeps_the_old_video(tmp_path):
     run = tmp_path / "run"
     assert run_cli("run", PAPER, "--executor", "physics", "--out", run, "--json",

@@ -147,8 +147,10 @@ def delayed(path: str, adg: bool = True, seed: int = 0, **extra):
     return run_episode(sc, seed=seed).metrics
 
 
-@pytest.mark.parametrize("scenario", ["layouts/paper_homogeneous.yaml",
-                                      "layouts/paper_heterogeneous.yaml"])
+@pytest.mark.parametrize("scenario", [
+    "layouts/paper_homogeneous.yaml",
+    # ~24 s: the mixed fleet under delays is also in the physics fuzz and test_dwells
+    pytest.param("layouts/paper_heterogeneous.yaml", marks=pytest.mark.slow)])
 def test_adg_execution_with_delays_finishes_without_contacts(scenario):
     for seed in range(3):
         m = delayed(scenario, seed=seed)
