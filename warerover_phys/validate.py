@@ -198,9 +198,8 @@ def _validate_cells(trajectories: Mapping[int, Sequence[tuple[int, int]]],
         pos[:len(cells), j] = cells
         pos[len(cells):, j] = cells[-1]
     lengths = [len(trajectories[a]) for a in ids]
-    out = _check_cells(pos, lengths, ids, obstacles, start_tick, max_conflicts,
-                       order=list(trajectories))
-    return out
+    return _check_cells(pos, lengths, ids, obstacles, start_tick, max_conflicts,
+                        order=list(trajectories))
 
 
 def _check_cells(pos: np.ndarray, lengths: list[int], ids: list[int], obstacles: np.ndarray,

@@ -169,8 +169,8 @@ class PhysicalFleet:
     joints: list[tuple[pymunk.PivotJoint, pymunk.GearJoint]] = field(default_factory=list)
     """Each AGV's drive joints (pivot, gear) to its control body."""
     parked: np.ndarray | None = None
-    """(N,) AGVs standing still, static, with their drive joints out of the space
-    (:meth:`park`)."""
+    """(N,) AGVs standing still with their drive joints out of the space (:meth:`park`;
+    :attr:`static` says which of them are static bodies)."""
     static: np.ndarray | None = None
     """(N,) parked AGVs whose bodies are static (:meth:`park`)."""
     mass: np.ndarray | None = None
