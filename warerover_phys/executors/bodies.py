@@ -122,17 +122,6 @@ def unsolved_agv_contacts(space: pymunk.Space, agv_of_shape: dict[int, int],
     space.on_collision(AGV, None, pre_solve=pre_solve)
 
 
-def _set_type(body: pymunk.Body, body_type: int) -> None:
-    """Change ``body``'s type with Chipmunk's ``cpBodySetType`` (which moves it between
-    the space's body lists and its shapes between the spatial indexes). pymunk's
-    ``Body.body_type`` setter refuses it for a body that ever had a joint to a
-    non-dynamic body, whether or not the joint is still in the space; the drive joints
-    are out of the space whenever this is called (:meth:`PhysicalFleet.park`)."""
-    from pymunk._chipmunk import lib
-
-    lib.cpBodySetType(body._body, body_type)
-
-
 def _grid_square(h: float, angle: float) -> list[tuple[float, float]]:
     """Body-frame vertices of a square of half side ``h`` whose sides are along the world
     axes while the body is turned by ``angle``."""
@@ -172,11 +161,17 @@ class PhysicalFleet:
     """(N,) AGVs standing still with their drive joints out of the space (:meth:`park`;
     :attr:`static` says which of them are static bodies)."""
     static: np.ndarray | None = None
-    """(N,) parked AGVs whose bodies are static (:meth:`park`)."""
+    """(N,) parked AGVs whose bodies are out of the space, static stand-ins of their
+    shapes in their place (:meth:`park`)."""
     mass: np.ndarray | None = None
-    """(N,) each body's mass (kg), kept here while it is static (:meth:`park`)."""
+    """(N,) each body's mass (kg)."""
     moment: np.ndarray | None = None
-    """(N,) each body's moment of inertia, likewise."""
+    """(N,) each body's moment of inertia."""
+    stand_ins: dict[int, list[pymunk.Poly]] = field(default_factory=dict)
+    """AGV id -> the static shapes standing in for its shapes while it is out of the
+    space (:meth:`park`)."""
+    n_parked: int = 0
+    """How many AGVs are parked."""
 
     @classmethod
     def add_to(cls, space: pymunk.Space, poses: list[tuple[float, float, float]],
@@ -223,11 +218,14 @@ class PhysicalFleet:
 
         ``static`` (an AGV with nothing left to do): also put it exactly on its hold point
         ``(x, y)`` facing ``angle`` (it is within :data:`~.physics.PARK_EPS_M` of it: the
-        deadbeat command of the next step would take it there) and make it and its control
-        body static, so that pymunk neither integrates it nor re-indexes its shape each
-        step. A moving AGV that touches it still meets it (static-dynamic pairs are
-        collided). Changing a body's type reorders the space's body list: call
-        :meth:`BodyIO.reorder` after a batch of such parks and unparks.
+        deadbeat command of the next step would take it there) and take its body, its
+        shapes and its control body out of the space, leaving in their place static
+        stand-in shapes with the same vertices and collision types (:attr:`stand_ins`), so
+        that pymunk neither integrates it nor re-indexes its shapes each step, and the batch
+        reads and writes (:class:`BodyIO`) no longer visit it. A moving AGV that touches it
+        still meets it (static-dynamic pairs are collided; the stand-ins are in
+        :attr:`agv_of_shape`). Call :meth:`BodyIO.reorder` after a batch of such parks and
+        unparks.
 
         Call it after the step's velocities were written, before the step."""
         body = self.bodies[i]
@@ -235,46 +233,82 @@ class PhysicalFleet:
         body.velocity = (0.0, 0.0)
         body.angular_velocity = 0.0
         self.parked[i] = True
+        self.n_parked += 1
         if static:
             body.position = (x, y)
             body.angle = angle
-            _set_type(body, pymunk.Body.STATIC)
-            _set_type(self.ctrl[i], pymunk.Body.STATIC)
-            space.reindex_shapes_for_body(body)
-            self.static[i] = True
+            self._leave_space(space, i)
 
-    def unpark(self, space: pymunk.Space, i: int) -> bool:
-        """Put AGV ``i``'s drive joints back (it is about to move); a static one first gets
-        movable again, it and its control body with the velocities this step's command gave
-        them. The joints correct velocities only (``max_bias = 0``), so where its control
-        body was meanwhile does not matter. Returns whether it was static (then call
-        :meth:`BodyIO.reorder`)."""
+    def _leave_space(self, space: pymunk.Space, i: int) -> None:
+        """Take parked AGV ``i``'s body, shapes and control body out of the space; static
+        stand-ins of its shapes take their place."""
+        body = self.bodies[i]
+        stand = []
+        shapes = self._shapes_in_space(i)
+        for s in shapes:
+            verts = [body.local_to_world(v) for v in s.get_vertices()]
+            twin = pymunk.Poly(space.static_body, verts, radius=s.radius)
+            twin.collision_type = s.collision_type
+            twin.friction = s.friction
+            twin.elasticity = s.elasticity
+            twin.sensor = s.sensor
+            self.agv_of_shape[id(twin)] = i
+            stand.append(twin)
+        space.remove(body, *shapes, self.ctrl[i])
+        space.add(*stand)
+        self.stand_ins[i] = stand
+        self.static[i] = True
+
+    def _enter_space(self, space: pymunk.Space, i: int) -> None:
+        """Undo :meth:`_leave_space`."""
+        stand = self.stand_ins.pop(i)
+        space.remove(*stand)
+        for twin in stand:
+            self.agv_of_shape.pop(id(twin), None)
+        space.add(self.bodies[i], *self._shapes_in_space(i), self.ctrl[i])
+        self.static[i] = False
+
+    def _shapes_in_space(self, i: int) -> list[pymunk.Poly]:
+        """AGV ``i``'s shapes that belong in the space: its body's, and its carried
+        shelf's (a body keeps the shapes of shelves put down, out of the space)."""
+        shelf = self.shelf_shapes.get(i)
+        return [self.shapes[i]] if shelf is None else [self.shapes[i], shelf]
+
+    def unpark(self, space: pymunk.Space, i: int, velocity: tuple[float, float],
+               angular: float) -> bool:
+        """Put AGV ``i``'s drive joints back (it is about to move), it and its control body
+        with this step's command ``velocity`` / ``angular`` (a static one first goes back
+        into the space). The joints correct velocities only (``max_bias = 0``), so where its
+        control body was meanwhile does not matter. Returns whether it was static (then
+        call :meth:`BodyIO.reorder`)."""
         was_static = bool(self.static[i])
         if was_static:
-            body, ctrl = self.bodies[i], self.ctrl[i]
-            v, w = body.velocity, body.angular_velocity  # this step's command
-            _set_type(body, pymunk.Body.DYNAMIC)  # keeps v and w; mass from the shapes
-            body.mass = float(self.mass[i])
-            body.moment = float(self.moment[i])
-            _set_type(ctrl, pymunk.Body.KINEMATIC)  # zeroes v and w
-            ctrl.velocity = v
-            ctrl.angular_velocity = w
-            self.static[i] = False
+            self._enter_space(space, i)
+        for body in (self.bodies[i], self.ctrl[i]):
+            body.velocity = velocity
+            body.angular_velocity = angular
         space.add(*self.joints[i])
         self.parked[i] = False
+        self.n_parked -= 1
         return was_static
 
-    def carry_shelves(self, space: pymunk.Space, side: np.ndarray, ang: np.ndarray) -> None:
+    def carry_shelves(self, space: pymunk.Space, side: np.ndarray, ang: np.ndarray) -> bool:
         """``executor.shelf_contacts``: give each AGV the collision shape of the shelf it
         carries, a square ``side[i]`` metres on a side (0: none) centred on its body with
         sides along the grid; shapes of shelves put down leave the space. The shape is an
-        :data:`AGV` shape of the AGV's body, so its contacts count as the AGV's."""
+        :data:`AGV` shape of the AGV's body, so its contacts count as the AGV's. A parked AGV
+        out of the space whose shelf changes goes back in (parked, without its joints);
+        returns whether any did (then call :meth:`BodyIO.reorder`)."""
         n = len(self.bodies)
         if self.shelf_side is None:
             self.shelf_side = np.zeros(n)
             self.shelf_ang = np.zeros(n)
+        back = False
         for i in np.flatnonzero(side != self.shelf_side):
             i = int(i)
+            if self.static[i]:  # out of the space: back in, parked (no joints)
+                self._enter_space(space, i)
+                back = True
             old = self.shelf_shapes.pop(i, None)
             if old is not None:
                 space.remove(old)
@@ -289,6 +323,7 @@ class PhysicalFleet:
                 self.shelf_shapes[i] = shape
                 self.agv_of_shape[id(shape)] = i
                 self.shelf_ang[i] = ang[i]
+        return back
 
     def orient_shelves(self, ang: np.ndarray) -> None:
         """Keep carried shelves parallel to the grid while their bodies (at angles ``ang``)
@@ -306,45 +341,57 @@ class PhysicalFleet:
     def set_mass(self, i: int, mass: float) -> None:
         """Give AGV ``i``'s body a new mass (kg; a shelf picked up or put down), its moment
         of inertia scaled with it. The drive force (the pivot's ``max_force``) stays. A
-        parked (static) body gets it when it is unparked."""
+        parked body out of the space moves with it when it is back."""
         self.moment[i] = self.moment[i] * mass / self.mass[i]
         self.mass[i] = mass
-        if not self.static[i]:
-            body = self.bodies[i]
-            body.moment = float(self.moment[i])
-            body.mass = mass
+        body = self.bodies[i]
+        body.moment = float(self.moment[i])
+        body.mass = mass
 
 
 class BodyIO:
     """Read every AGV's pose and velocity, and set every control body's velocity, in one
-    batch call each."""
+    batch call each. AGVs out of the space (parked, :meth:`PhysicalFleet.park`) read as
+    they stood when they left it (standing still) and take no commands."""
 
     _GET = (batch.BodyFields.POSITION | batch.BodyFields.ANGLE
             | batch.BodyFields.VELOCITY | batch.BodyFields.ANGULAR_VELOCITY)
-    """Read per step; the body ids (which row is which body) are read once, at set-up: the
-    space's bodies keep their order."""
+    """Read per step; the body ids (which row is which body) are read again only when
+    bodies leave or enter the space or change type (:meth:`reorder`)."""
     _SET = batch.BodyFields.VELOCITY | batch.BodyFields.ANGULAR_VELOCITY
 
     def __init__(self, space: pymunk.Space, fleet: PhysicalFleet) -> None:
         self.space = space
+        self.fleet = fleet
         self.buf = batch.Buffer()
         self._body_ids = np.array([b.id for b in fleet.bodies], dtype=np.uintp)
         self._ctrl_ids = np.array([b.id for b in fleet.ctrl], dtype=np.uintp)
+        self._still = np.zeros((len(fleet.bodies), 6))
+        """Per AGV: x, y, angle, vx, vy, w as read; rows of AGVs out of the space are
+        their standing poses."""
         self.reorder()
-        self.out = np.zeros((self.n_rows, 3))
         self.set_buf = batch.Buffer()
 
     def reorder(self) -> None:
         """Find which row is which body (the space lists its bodies in an order that
-        changes when a body changes type: :meth:`PhysicalFleet.park`)."""
+        changes when bodies leave or enter it: :meth:`PhysicalFleet.park`)."""
         self.buf.clear()
         batch.get_space_bodies(self.space, batch.BodyFields.BODY_ID, self.buf)
         ids = np.frombuffer(self.buf.int_buf(), dtype=np.uintp)
         order = np.argsort(ids, kind="stable")
-        where = order[np.searchsorted(ids, self._body_ids, sorter=order)]
-        self.body_rows = where.astype(np.intp)
-        self.ctrl_rows = order[np.searchsorted(ids, self._ctrl_ids, sorter=order)].astype(np.intp)
+        out = self.fleet.static
+        self.in_space = np.flatnonzero(~out)
+        """AGVs whose bodies are in the space, in id order."""
+        self.body_rows = order[np.searchsorted(ids, self._body_ids[self.in_space],
+                                               sorter=order)].astype(np.intp)
+        self.ctrl_rows = order[np.searchsorted(ids, self._ctrl_ids[self.in_space],
+                                               sorter=order)].astype(np.intp)
         self.n_rows = len(ids)
+        self.out = np.zeros((self.n_rows, 3))
+        for i in np.flatnonzero(out):
+            b = self.fleet.bodies[i]
+            self._still[i] = (*b.position, b.angle, 0.0, 0.0, 0.0)
+        self._all_in = len(self.in_space) == len(self._body_ids)
 
     def read(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(positions (N, 2), angles (N,), velocities (N, 2), angular velocities (N,)) of
@@ -353,15 +400,25 @@ class BodyIO:
         batch.get_space_bodies(self.space, self._GET, self.buf)
         data = np.frombuffer(self.buf.float_buf(), dtype=np.float64).reshape(self.n_rows, 6)
         self._all = data
-        b = data[self.body_rows]
+        if self._all_in:
+            b = data[self.body_rows]
+        else:
+            b = self._still.copy()
+            b[self.in_space] = data[self.body_rows]
         return b[:, 0:2], b[:, 2], b[:, 3:5], b[:, 5]
 
     def write(self, velocity: np.ndarray, angular: np.ndarray,
               bodies: np.ndarray | None = None) -> None:
         """Set the control bodies' velocities, and those of the AGV bodies where ``bodies``
-        ((N,) bool) is set (every other body keeps what :meth:`read` saw)."""
+        ((N,) bool) is set (every other body keeps what :meth:`read` saw); AGVs out of the
+        space are left out."""
         out = self.out
         out[:] = self._all[:, 3:6]  # velocity (2) and angular velocity, as read
+        ins = self.in_space
+        if not self._all_in:
+            velocity, angular = velocity[ins], angular[ins]
+            if bodies is not None:
+                bodies = bodies[ins]
         out[self.ctrl_rows, 0:2] = velocity
         out[self.ctrl_rows, 2] = angular
         if bodies is not None:

@@ -127,7 +127,6 @@ class PhysicsExecutor:
         self._park = bool(getattr(spec, "park", True))
         self.parked_steps = 0
         """AGV-steps spent parked (``executor.park``)."""
-        self._n_parked = 0
         self._off = np.zeros(n, dtype=bool)
         self._all_bodies = np.ones(n, dtype=bool)
         self.off_reference = 0
@@ -157,8 +156,9 @@ class PhysicsExecutor:
         self._tick = view.tick
         self._apply_payload(view.loaded)
         self.adg.set_loaded([c is not None for c in view.carried])
-        if self._shelf_contacts:
-            self.fleet.carry_shelves(self.space, self.acc.shelf_m[:, 0], self.io.read()[1])
+        if self._shelf_contacts and self.fleet.carry_shelves(
+                self.space, self.acc.shelf_m[:, 0], self.io.read()[1]):
+            self.io.reorder()
         follow.sync_plans(view)
         acc.events.extend(follow.draw_delays())
         follow.sync_failed(view.failed)
@@ -214,7 +214,7 @@ class PhysicsExecutor:
         # changed a body's velocity.
         self.io.write(vel, w, bodies=self._all_bodies)
         if self._park:
-            self._update_parking(raw, raw_ang, v_now, w_now, decide)
+            self._update_parking(raw, raw_ang, v_now, w_now, vel, w, decide)
         self.space.step(st.dt)
         st.sim_s = t + st.dt
         self.acc.after_step(raw, raw_ang, injected, t)
@@ -237,20 +237,21 @@ class PhysicsExecutor:
         return off
 
     def _update_parking(self, pos: np.ndarray, ang: np.ndarray, v: np.ndarray,
-                        w: np.ndarray, look: bool) -> None:
+                        w: np.ndarray, cmd: np.ndarray, cmd_w: np.ndarray,
+                        look: bool) -> None:
         """``executor.park``: give back the drive joints of parked AGVs that are about to
         move (no longer standing), and, when ``look``ing (the follower's decision steps),
         park standing AGVs whose bodies have settled on their hold points (see
-        :data:`PARK_EPS_M`). Runs after this step's commands are written, before the
-        step."""
+        :data:`PARK_EPS_M`). Runs after this step's commands (``cmd``, ``cmd_w``) are
+        written, before the step."""
         st, fleet = self.state, self.fleet
         parked = fleet.parked
-        self.parked_steps += self._n_parked
+        self.parked_steps += fleet.n_parked
         changed = False
-        if self._n_parked:
+        if fleet.n_parked:
             for i in np.flatnonzero(parked & (st.mode != HOLD)):
-                changed |= fleet.unpark(self.space, int(i))
-                self._n_parked -= 1
+                i = int(i)
+                changed |= fleet.unpark(self.space, i, tuple(cmd[i]), float(cmd_w[i]))
         if look:
             changed |= self._park_settled(pos, ang, v, w)
         if changed:
@@ -259,7 +260,7 @@ class PhysicsExecutor:
     def _park_settled(self, pos: np.ndarray, ang: np.ndarray, v: np.ndarray,
                       w: np.ndarray) -> bool:
         """Park the standing AGVs whose bodies have settled on their hold points; whether
-        any body was made static."""
+        any body left the space."""
         st, fleet = self.state, self.fleet
         cand = (st.mode == HOLD) & ~fleet.parked
         idx = np.flatnonzero(cand)
@@ -274,16 +275,15 @@ class PhysicsExecutor:
         static = False
         for i in idx[ok]:
             i = int(i)
-            # Nothing left to do: a static body, put where the next step's deadbeat command
-            # would take it (control.steer). (One that waits to go on keeps its dynamic
-            # body: it would soon be made movable again, and every change of a body's type
-            # costs a re-read of the space's body order.)
+            # Nothing left to do: out of the space, static stand-ins where the next step's
+            # deadbeat command would take it (control.steer). (One that waits to go on
+            # stays in the space: it would soon be back, and every body that leaves or
+            # enters it costs a re-read of the space's body order.)
             done = not st.has_next[i]
             x, y = st.hold_xy[i]
             fleet.park(self.space, i, float(x), float(y),
                        float(ang[i] + wrap(st.heading[i] - ang[i])), static=done)
             static |= done
-            self._n_parked += 1
         return static
 
     # ------------------------------------------------------------------------- fault hooks
