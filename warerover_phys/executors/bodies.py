@@ -33,7 +33,7 @@ import pymunk.batch as batch
 from ..layout import CellType, Layout
 
 __all__ = ["AGV", "OBSTACLE", "SHELF", "FORCE_HEADROOM", "SHELF_SIDE", "BodyIO",
-           "PhysicalFleet", "build_space", "unsolved_agv_contacts"]
+           "ObstacleReach", "PhysicalFleet", "build_space", "unsolved_agv_contacts"]
 
 AGV, OBSTACLE, SHELF = 1, 2, 3
 """Collision types."""
@@ -172,6 +172,8 @@ class PhysicalFleet:
     space (:meth:`park`)."""
     n_parked: int = 0
     """How many AGVs are parked."""
+    jointed: np.ndarray | None = None
+    """(N,) AGVs whose drive joints are in the space (:meth:`set_joints`)."""
 
     @classmethod
     def add_to(cls, space: pymunk.Space, poses: list[tuple[float, float, float]],
@@ -206,6 +208,7 @@ class PhysicalFleet:
         half = np.array(sizes, dtype=float) / 2
         return cls(bodies, ctrls, shapes, half, {id(s): i for i, s in enumerate(shapes)},
                    joints=joints, parked=np.zeros(len(bodies), dtype=bool),
+                   jointed=np.ones(len(bodies), dtype=bool),
                    static=np.zeros(len(bodies), dtype=bool),
                    mass=np.array(masses, dtype=float), moment=np.array(moments, dtype=float))
 
@@ -229,7 +232,9 @@ class PhysicalFleet:
 
         Call it after the step's velocities were written, before the step."""
         body = self.bodies[i]
-        space.remove(*self.joints[i])
+        if self.jointed[i]:
+            space.remove(*self.joints[i])
+            self.jointed[i] = False
         body.velocity = (0.0, 0.0)
         body.angular_velocity = 0.0
         self.parked[i] = True
@@ -276,21 +281,43 @@ class PhysicalFleet:
 
     def unpark(self, space: pymunk.Space, i: int, velocity: tuple[float, float],
                angular: float) -> bool:
-        """Put AGV ``i``'s drive joints back (it is about to move), it and its control body
-        with this step's command ``velocity`` / ``angular`` (a static one first goes back
-        into the space). The joints correct velocities only (``max_bias = 0``), so where its
-        control body was meanwhile does not matter. Returns whether it was static (then
-        call :meth:`BodyIO.reorder`)."""
+        """AGV ``i`` is about to move: it and its control body get this step's command
+        ``velocity`` / ``angular`` (a static one first goes back into the space); its drive
+        joints come back with the next :meth:`set_joints` that finds it near an obstacle.
+        The joints correct velocities only (``max_bias = 0``), so where its control body was
+        meanwhile does not matter. Returns whether it was static (then call
+        :meth:`BodyIO.reorder`)."""
         was_static = bool(self.static[i])
         if was_static:
             self._enter_space(space, i)
         for body in (self.bodies[i], self.ctrl[i]):
             body.velocity = velocity
             body.angular_velocity = angular
-        space.add(*self.joints[i])
         self.parked[i] = False
         self.n_parked -= 1
         return was_static
+
+    def set_joints(self, space: pymunk.Space, want: np.ndarray) -> None:
+        """Put the drive joints of AGVs ``want`` ((N,) bool) into the space and take every
+        other AGV's out.
+
+        A body's joints act only on a body that something else pushed within the step: the
+        control law gives a body and its control body the same velocity (kinematic drive),
+        so a joint's velocity error is exactly zero and so is its impulse, unless a solved
+        contact changed the body's velocity in the step. AGV-AGV contacts are not solved
+        (:func:`unsolved_agv_contacts`) and shelves are sensors, so only a contact with an
+        obstacle needs them: the executor keeps the joints of bodies that could reach one
+        within the step (:class:`ObstacleReach`) and of no other, which gives the same
+        velocities as keeping all joints (checked bit for bit by
+        ``tools/physics_snapshot.py``), without the solver's iterations over the joints
+        of bodies out in the aisles."""
+        for i in np.flatnonzero(want != self.jointed):
+            i = int(i)
+            if want[i]:
+                space.add(*self.joints[i])
+            else:
+                space.remove(*self.joints[i])
+        self.jointed[:] = want
 
     def carry_shelves(self, space: pymunk.Space, side: np.ndarray, ang: np.ndarray) -> bool:
         """``executor.shelf_contacts``: give each AGV the collision shape of the shelf it
@@ -347,6 +374,35 @@ class PhysicalFleet:
         body = self.bodies[i]
         body.moment = float(self.moment[i])
         body.mass = mass
+
+
+class ObstacleReach:
+    """Which bodies could touch an obstacle (or the map's border) within a physics step:
+    those whose axis-aligned box, grown by ``margin`` metres, overlaps an obstacle cell.
+    One summed-area table of the obstacle grid (cells off the map count as obstacles)
+    answers each box with four look-ups, for the whole fleet at once."""
+
+    def __init__(self, layout: Layout) -> None:
+        rows, cols = layout.rows, layout.cols
+        grid = np.ones((rows + 2, cols + 2), dtype=np.int64)
+        grid[1:-1, 1:-1] = layout.obstacles
+        self._sat = np.zeros((rows + 3, cols + 3), dtype=np.int64)
+        self._sat[1:, 1:] = grid.cumsum(0).cumsum(1)
+        self._rows, self._cols, self._m = rows, cols, layout.cell_m
+
+    def near(self, pos: np.ndarray, half: np.ndarray) -> np.ndarray:
+        """(P,) bool: whether the boxes centred at ``pos`` (P, 2) with half extents ``half``
+        (P, 2) (metres) overlap an obstacle cell or leave the map."""
+        m = self._m
+        lo = np.floor((pos - half) / m).astype(np.int64)
+        hi = np.floor((pos + half) / m).astype(np.int64)
+        # Padded indices: cell (r, c) is row r + 1, column c + 1 of the padded grid.
+        c0 = np.clip(lo[:, 0] + 1, 0, self._cols + 1)
+        c1 = np.clip(hi[:, 0] + 1, 0, self._cols + 1) + 1
+        r0 = np.clip(lo[:, 1] + 1, 0, self._rows + 1)
+        r1 = np.clip(hi[:, 1] + 1, 0, self._rows + 1) + 1
+        sat = self._sat
+        return (sat[r1, c1] - sat[r0, c1] - sat[r1, c0] + sat[r0, c0]) > 0
 
 
 class BodyIO:

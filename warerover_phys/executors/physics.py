@@ -43,7 +43,14 @@ from ..planning.sweep import agv_sweeps
 from .accounting import Accounting
 from .adg import ActionGraph
 from .base import ExecutorSetup, StepReport, TickView
-from .bodies import BodyIO, PhysicalFleet, build_space, cell_centre, unsolved_agv_contacts
+from .bodies import (
+    BodyIO,
+    ObstacleReach,
+    PhysicalFleet,
+    build_space,
+    cell_centre,
+    unsolved_agv_contacts,
+)
 from .control import OFF_REFERENCE_M, steer, wrap
 from .fleet_state import DRIVE, HOLD, FleetState
 from .follow import DECIDE_S, PlanFollower
@@ -60,6 +67,9 @@ PARK_SPEED = 1e-3
 """... moves slower than this (m/s, and turns slower than this in rad/s) ..."""
 PARK_EPS_RAD = 1e-3
 """... and faces its heading to within this (radians)."""
+REACH_SLOP_M = 0.05
+"""Extra reach (metres) of the obstacle test that keeps a body's drive joints in the space
+(:meth:`PhysicalFleet.set_joints`), beyond twice the farthest it can move in a step."""
 
 
 class PhysicsExecutor:
@@ -86,6 +96,7 @@ class PhysicsExecutor:
             self.space, poses, [tuple(a.spec.body_m) for a in agvs],
             [a.spec.mass_kg for a in agvs], [a.spec.max_accel_mps2 for a in agvs])
         self.io = BodyIO(self.space, self.fleet)
+        self._reach = ObstacleReach(layout)
         self.rng = rng = setup.rng
         lo, hi = spec.speed_scale
         self.scale = rng.uniform(lo, hi, n) if hi > lo else np.full(n, lo)
@@ -131,6 +142,10 @@ class PhysicsExecutor:
         self._all_bodies = np.ones(n, dtype=bool)
         self.off_reference = 0
         """Times a body was found off its reference (:meth:`_off_reference`)."""
+        half = self.fleet.half_size
+        self._reach_margin = (2.0 * self.state.vmax + 2.0 * self.state.wmax
+                              * np.hypot(half[:, 0], half[:, 1])) * self.dt + REACH_SLOP_M
+        """Per AGV: how far (metres) beyond its box an obstacle keeps its drive joints in."""
         self._bound = True
 
     def _contact(self, a: int, b: int, point: tuple[float, float]) -> None:
@@ -215,9 +230,26 @@ class PhysicsExecutor:
         self.io.write(vel, w, bodies=self._all_bodies)
         if self._park:
             self._update_parking(raw, raw_ang, v_now, w_now, vel, w, decide)
+        self._keep_joints(raw, raw_ang)
         self.space.step(st.dt)
         st.sim_s = t + st.dt
         self.acc.after_step(raw, raw_ang, injected, t)
+
+    def _keep_joints(self, pos: np.ndarray, ang: np.ndarray) -> None:
+        """Drive joints in the space for the moving bodies that could touch an obstacle in
+        this step, out for every other (:meth:`.bodies.PhysicalFleet.set_joints`)."""
+        fleet = self.fleet
+        idx = np.flatnonzero(~fleet.parked)
+        want = np.zeros(self.n, dtype=bool)
+        if len(idx):
+            h = fleet.half_size[idx]
+            c, s = np.abs(np.cos(ang[idx])), np.abs(np.sin(ang[idx]))
+            ext = np.stack([h[:, 0] * c + h[:, 1] * s, h[:, 0] * s + h[:, 1] * c], axis=1)
+            if self._shelf_contacts:
+                ext = np.maximum(ext, self.acc.shelf_m[idx] / 2)
+            ext += self._reach_margin[idx, None]
+            want[idx] = self._reach.near(pos[idx], ext)
+        self.fleet.set_joints(self.space, want)
 
     def _off_reference(self, pos: np.ndarray) -> np.ndarray:
         """Driving bodies more than :data:`~.control.OFF_REFERENCE_M` behind their
