@@ -93,10 +93,11 @@ def _numba_available() -> bool:
 
 COMPILED = _numba_available()
 """Run the control law compiled (:mod:`.control_nb`; the same numbers as the numpy
-reference). Its kernels compile once per numba cache (about 3 s of CPU) and load in about
-0.5 s per process; per physics step they save about a millisecond whatever the fleet size
-(the numpy law is bound by its number of numpy calls), so they are always used. Tests set it
-False to run the numpy reference."""
+reference). The kernels compile once per numba cache (2.8-3.7 s of CPU measured); a later
+process pays numba's import (~0.5 s of CPU) and loads them (~0.6 s). Per physics step they
+save about half a millisecond whatever the fleet size (the numpy law is bound by its number
+of numpy calls, not by its rows), so they are always used. Tests set it False to run the
+numpy reference."""
 
 
 def wrap(a: np.ndarray | float) -> np.ndarray | float:

@@ -21,8 +21,9 @@ the sign of zero): :func:`_mx`, :func:`_mn` and :func:`_clip` copy that
 (``tests/executors/test_control_nb.py`` checks every kernel against numpy, bit for bit,
 signed zeros included).
 
-Compile time: the first call without numba's cache compiles the kernels (a few seconds,
-see ``tools/README.md``, issue 12); later processes load them from ``__pycache__``.
+Compile time: the first call without numba's cache compiles the kernels (2.8-3.7 s of CPU,
+see ``tools/README.md``, issue 12); later processes load them from ``__pycache__`` (~0.6 s
+of CPU, after numba's import).
 :func:`.control.use_compiled` says when they are used.
 """
 
