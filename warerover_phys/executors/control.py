@@ -95,7 +95,7 @@ COMPILED = _numba_available()
 """Run the control law compiled (:mod:`.control_nb`; the same numbers as the numpy
 reference). The kernels compile once per numba cache (2.8-3.7 s of CPU measured); a later
 process pays numba's import (~0.5 s of CPU) and loads them (~0.6 s). Per physics step they
-save about half a millisecond whatever the fleet size (the numpy law is bound by its number
+save 0.5-0.7 ms of CPU whatever the fleet size (the numpy law is bound by its number
 of numpy calls, not by its rows), so they are always used. Tests set it False to run the
 numpy reference."""
 
