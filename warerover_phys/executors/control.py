@@ -27,6 +27,12 @@ AGVs hold their cell centre (deadbeat within a few millimetres, on the braking c
 out). With ``executor.no_slip`` a differential-drive body that is off its path gets velocity
 only along its heading and steers back onto the path line (:func:`_no_slip`); on the path
 the deadbeat command is projected onto the heading.
+
+The numpy functions here are the reference. The executor runs the same arithmetic compiled
+(:mod:`.control_nb`, bit for bit the same numbers): :func:`steer` and the follower's event
+loop use the kernels whenever :data:`COMPILED` is set (the default where numba imports;
+:func:`steer_numpy` and :func:`run_references` are the numpy versions,
+:func:`run_references_compiled` the compiled one with the same interface).
 """
 
 from __future__ import annotations
@@ -37,9 +43,9 @@ import numpy as np
 
 from .fleet_state import DRIVE, TURN, FleetState
 
-__all__ = ["ARRIVE_EPS_M", "TURN_EPS_RAD", "ALIGN_EPS_RAD", "OFF_REFERENCE_M", "LATERAL_GAIN", "ALONG_GAIN",
+__all__ = ["COMPILED", "ARRIVE_EPS_M", "TURN_EPS_RAD", "ALIGN_EPS_RAD", "OFF_REFERENCE_M", "LATERAL_GAIN", "ALONG_GAIN",
            "HEADING_GAIN", "HOLD_SPEED", "limit_command", "run_references", "steer",
-           "stop_speed", "wrap"]
+           "stop_speed", "wrap", "run_references_compiled", "steer_compiled", "steer_numpy"]
 
 ARRIVE_EPS_M = 0.02
 """A run continues into its next action without stopping only if its stop point lies more
@@ -75,6 +81,23 @@ NO_SLIP_EXACT_MPS = 0.01
 """No-slip drive: a deadbeat command whose sideways part (across the body's heading) is
 below this (m/s) is projected onto the heading; a larger one means the body is off its
 path, and it steers back."""
+
+
+def _numba_available() -> bool:
+    try:
+        import numba  # noqa: F401
+    except ImportError:  # pragma: no cover - numba is a dependency
+        return False
+    return True
+
+
+COMPILED = _numba_available()
+"""Run the control law compiled (:mod:`.control_nb`; the same numbers as the numpy
+reference). The kernels compile once per numba cache (2.8-3.7 s of CPU measured); a later
+process pays numba's import (~0.5 s of CPU) and loads them (~0.6 s). Per physics step they
+save 0.5-0.7 ms of CPU whatever the fleet size (the numpy law is bound by its number
+of numpy calls, not by its rows), so they are always used. Tests set it False to run the
+numpy reference."""
 
 
 def wrap(a: np.ndarray | float) -> np.ndarray | float:
@@ -221,11 +244,60 @@ def run_references(st: FleetState, idx: np.ndarray, h: np.ndarray, braking: np.n
     return used, event
 
 
+def run_references_compiled(st: FleetState, idx: np.ndarray, h: np.ndarray,
+                            braking: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`run_references` compiled (:func:`.control_nb.advance_rows`): the same
+    results and the same writes (``idx``: distinct AGVs)."""
+    from .control_nb import advance_rows
+
+    idx = np.asarray(idx, dtype=np.int64)
+    left = np.zeros(st.n)
+    left[idx] = h
+    brk = np.zeros(st.n, dtype=bool)
+    brk[idx] = braking
+    used = np.zeros(st.n)
+    events = np.empty(len(idx), dtype=np.int64)
+    k = advance_rows(False, idx, left, brk, st.mode, st.heading, st.ang_ref, st.wmax, st.amax,
+                     st.vmax, st.s_ref, st.stop_s, st.cur_end, st.speed, used, events)
+    return used[idx], np.isin(idx, events[:k])
+
+
 # ----------------------------------------------------------------------------- the body
 
 
 def steer(st: FleetState, pos: np.ndarray, ang: np.ndarray, v_now: np.ndarray,
           ref0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`steer_numpy`'s commands, compiled (:func:`.control_nb.steer_rows`) when
+    :data:`COMPILED` is set."""
+    if not COMPILED:
+        return steer_numpy(st, pos, ang, v_now, ref0)
+    return steer_compiled(st, pos, ang, v_now, ref0)
+
+
+def steer_compiled(st: FleetState, pos: np.ndarray, ang: np.ndarray, v_now: np.ndarray,
+                   ref0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`steer_numpy` compiled (:func:`.control_nb.steer_rows`; the no-slip rows then
+    in numpy, :func:`_no_slip`): the same commands."""
+    from .control_nb import steer_rows
+
+    n = st.n
+    cmd = np.empty((n, 2))
+    w = np.empty(n)
+    pos = np.ascontiguousarray(pos, dtype=np.float64)
+    ang = np.ascontiguousarray(ang, dtype=np.float64)
+    steer_rows(float(st.dt), st.mode, st.origin, st.direction, st.s_ref, st.hold_xy, st.ang_ref,
+               st.heading, st.vmax, st.amax, st.wmax, pos, ang,
+               np.ascontiguousarray(v_now, dtype=np.float64),
+               np.ascontiguousarray(ref0, dtype=np.float64), cmd, w)
+    if st.no_slip is not None and st.no_slip.any():
+        ns = np.flatnonzero(st.no_slip)
+        cmd[ns], w[ns] = _no_slip(st, ns, pos[ns], ang[ns], v_now[ns], cmd[ns], w[ns],
+                                  st.mode[ns] == DRIVE)
+    return cmd, w
+
+
+def steer_numpy(st: FleetState, pos: np.ndarray, ang: np.ndarray, v_now: np.ndarray,
+                ref0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Velocities ``(N, 2)`` and turn rates ``(N,)`` that take bodies at ``pos`` / ``ang``
     (moving at ``v_now``, (N, 2)) onto their references at the end of this step (the
     references already advanced by :func:`run_references`; ``ref0``: the reference points

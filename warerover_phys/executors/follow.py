@@ -34,6 +34,7 @@ from ..freeze import FreezeDetector
 from ..planning.base import TimedPath
 from ..planning.paths import footprint_nodes, occupancy
 from ..validate import DWELL_HEADING_TOL_RAD, DWELL_POS_TOL_M
+from . import control
 from .bodies import cell_centre
 from .control import ARRIVE_EPS_M, TURN_EPS_RAD, run_references, wrap
 from .fleet_state import DRIVE, HOLD, TURN, FleetState
@@ -58,6 +59,7 @@ DECIDE_S = 0.1
 every ``FleetState.decide_every = round(DECIDE_S / dt)`` physics steps, so that decisions
 fall at the same simulated times whatever ``dt_s`` (a fixed number of steps made the
 look-ahead and the waits five times longer at dt 0.05 s than at 0.01 s)."""
+_NO_ROWS = np.zeros(0, dtype=np.int64)
 WORK_TASK_STATES = (2, 4, 6)
 """``TickView.task_state`` values of AGVs working in place (``world.AgvState`` PICKING,
 HANDOVER, PLACING)."""
@@ -219,25 +221,55 @@ class PlanFollower:
                         and not st.failed[i]:
                     self._turn_in_place(i, float(ang[i]))
         left = np.full(st.n, st.dt)
-        busy = st.mode != HOLD
-        for _ in range(MAX_EVENTS):
-            idx = np.flatnonzero(busy)
-            if len(idx) == 0:
-                break
-            used, event = run_references(st, idx, left[idx], delayed[idx])
-            left[idx] -= used
-            busy[:] = False
-            for i in idx[event]:
-                i = int(i)
-                t_ev = t + st.dt - left[i]
-                self.adg.now = t_ev
-                if st.mode[i] == TURN:
-                    st.mode[i] = HOLD
-                    self._decide(i, t_ev, bool(delayed[i]), float(st.heading[i]))
-                else:
-                    self._arrive(i, t_ev)
-                busy[i] = st.mode[i] != HOLD and left[i] > 0
+        if control.COMPILED:
+            self._run_compiled(t, left, delayed)
+        else:
+            busy = st.mode != HOLD
+            for _ in range(MAX_EVENTS):
+                idx = np.flatnonzero(busy)
+                if len(idx) == 0:
+                    break
+                used, event = run_references(st, idx, left[idx], delayed[idx])
+                left[idx] -= used
+                busy[:] = False
+                for i in idx[event]:
+                    busy[i] = self._event(int(i), t, left, delayed)
         self.adg.now = t
+
+    def _run_compiled(self, t: float, left: np.ndarray, delayed: np.ndarray) -> None:
+        """:meth:`advance`'s event loop with the compiled references
+        (:func:`.control_nb.advance_rows`): one kernel call for the whole fleet, then one
+        per round of events (the AGVs that go on after an event, in ascending order, as the
+        numpy loop takes them)."""
+        from .control_nb import advance_rows
+
+        st = self.st
+        used = np.empty(st.n)
+        events = np.empty(st.n, dtype=np.int64)
+        idx, all_rows = _NO_ROWS, True
+        delayed = np.ascontiguousarray(delayed, dtype=np.bool_)
+        for _ in range(MAX_EVENTS):
+            k = advance_rows(all_rows, idx, left, delayed, st.mode, st.heading, st.ang_ref,
+                             st.wmax, st.amax, st.vmax, st.s_ref, st.stop_s, st.cur_end,
+                             st.speed, used, events)
+            all_rows = False
+            nxt = [i for i in events[:k].tolist() if self._event(i, t, left, delayed)]
+            if not nxt:
+                break
+            idx = np.array(nxt, dtype=np.int64)
+
+    def _event(self, i: int, t: float, left: np.ndarray, delayed: np.ndarray) -> bool:
+        """AGV ``i``'s reference stopped at an event (``left[i]`` seconds before the step's
+        end): finish its turn or action there. Returns whether it goes on in this step."""
+        st = self.st
+        t_ev = t + st.dt - left[i]
+        self.adg.now = t_ev
+        if st.mode[i] == TURN:
+            st.mode[i] = HOLD
+            self._decide(i, t_ev, bool(delayed[i]), float(st.heading[i]))
+        else:
+            self._arrive(i, t_ev)
+        return bool(st.mode[i] != HOLD and left[i] > 0)
 
     def _decide(self, i: int, t: float, delayed: bool, angle: float) -> None:
         """A standing (or turning) AGV: turn towards its next move, then start it once the
