@@ -12,6 +12,11 @@
 - delay shares (dependency waits, injected delays, turns, kinematic lag) are summed per step;
 - poses are recorded at ``trajectory_hz`` into a :class:`~.recording.TrajectoryStore`.
 
+The per-step loops (monitors, delay shares, cause labels) run compiled
+(:mod:`.step_kernels`, ``engine="numba"``) for fleets of at least :data:`ENGINE_MIN_AGVS`
+AGVs, else as numpy (``engine="numpy"``, the reference); both give the same figures bit for
+bit.
+
 :meth:`Accounting.summary` gives the figures for ``metrics.json`` and
 :meth:`Accounting.trajectory` the recorded poses.
 """

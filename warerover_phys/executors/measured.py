@@ -13,6 +13,10 @@
   may be lower, ``executor.payload``) by more than :data:`LIMIT_TOLERANCE`; also the peak
   lateral speed (velocity across the heading: how much a body slips sideways).
 
+Both take ``engine="numpy"`` (the code here, the reference) or ``engine="numba"`` (the
+same steps compiled, :mod:`.step_kernels`; bit for bit the same figures; the neighbour list
+then comes from a cell grid instead of a k-d tree: the same pairs).
+
 Example: two unit squares 0.5 m apart edge to edge, and the same with one turned 45 degrees
 (its corner then reaches ``sqrt(0.5) - 0.5`` m further)::
 
