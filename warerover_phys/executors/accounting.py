@@ -12,6 +12,11 @@
 - delay shares (dependency waits, injected delays, turns, kinematic lag) are summed per step;
 - poses are recorded at ``trajectory_hz`` into a :class:`~.recording.TrajectoryStore`.
 
+The per-step loops (monitors, delay shares, cause labels) run compiled
+(:mod:`.step_kernels`, ``engine="numba"``) for fleets of at least :data:`ENGINE_MIN_AGVS`
+AGVs, else as numpy (``engine="numpy"``, the reference); both give the same figures bit for
+bit.
+
 :meth:`Accounting.summary` gives the figures for ``metrics.json`` and
 :meth:`Accounting.trajectory` the recorded poses.
 """
@@ -37,7 +42,16 @@ if TYPE_CHECKING:
     from .base import TickView
     from .bodies import BodyIO, PhysicalFleet
 
-__all__ = ["Accounting"]
+__all__ = ["ENGINE_MIN_AGVS", "Accounting", "engine_for"]
+
+ENGINE_MIN_AGVS = 0
+"""Fleets of at least this many AGVs run the per-step accounting compiled
+(:mod:`.step_kernels`); smaller ones the numpy reference (the same figures)."""
+
+
+def engine_for(n: int) -> str:
+    """The accounting engine for a fleet of ``n`` AGVs (``numba`` or ``numpy``)."""
+    return "numba" if n >= ENGINE_MIN_AGVS else "numpy"
 
 
 class Accounting:
@@ -45,7 +59,7 @@ class Accounting:
 
     def __init__(self, st: FleetState, space: pymunk.Space, fleet: PhysicalFleet, io: BodyIO,
                  adg: ActionGraph, layout: Layout, shelf_of: dict[int, int],
-                 trajectory_hz: float) -> None:
+                 trajectory_hz: float, engine: str | None = None) -> None:
         n = st.n
         self.st, self.space, self.fleet, self.io, self.adg = st, space, fleet, io, adg
         self.layout = layout
@@ -64,8 +78,11 @@ class Accounting:
         self.steps = 0
         self.agv_contacts = 0
         self.static_contacts = 0
-        self.clearance = ClearanceMonitor(fleet.half_size)
-        self.limits = LimitMonitor(st.vmax, st.amax, st.wmax)
+        self.engine = engine_for(n) if engine is None else engine
+        """``numba``: the per-step work runs in :mod:`.step_kernels`; ``numpy``: the
+        reference (the same figures)."""
+        self.clearance = ClearanceMonitor(fleet.half_size, engine=self.engine)
+        self.limits = LimitMonitor(st.vmax, st.amax, st.wmax, engine=self.engine)
         self._shelf_side = {sh.id: SHELF_SIDE * sh.size * layout.cell_m for sh in layout.shelves}
         self.shelf_m = np.zeros((n, 2))
         """(N, 2) length and width of the shelf each AGV carries this tick (0: none)."""
@@ -74,6 +91,8 @@ class Accounting:
         self.deviations = 0
         self.swept_checks = 0
         self.swept_hits = 0
+        self._swept_key: tuple | None = None
+        self._swept_need = False
         self.dep_wait = np.zeros(n)
         self.injected = np.zeros(n)
         self.turn_time = np.zeros(n)
@@ -174,6 +193,21 @@ class Accounting:
         st = self.st
         self.steps += 1
         self.measure(raw, raw_ang, t)
+        if self.engine == "numba":
+            self._active += self.causes.step_with_shares(
+                injected, self.dep_wait, self.injected, self.turn_time, self._act_injected)
+        else:
+            self._shares_numpy(injected)
+        self._swept_check(raw)
+        if self._corridor_keys:
+            self._check_corridors(raw, raw_ang)
+        if self.steps % self._traj_every == 0:
+            self._due = (st.sim_s, self._task_state, self._loaded, self.shelf_m)
+
+    def _shares_numpy(self, injected: np.ndarray) -> None:
+        """The step's delay shares and cause labels, the numpy reference of
+        :meth:`.causes.CauseRecorder.step_with_shares`."""
+        st = self.st
         busy = (st.mode != HOLD) | st.waiting
         self.dep_wait += st.waiting * st.dt
         self.injected += (injected & (busy | st.pending)) * st.dt
@@ -183,11 +217,6 @@ class Accounting:
         # delay or a failure (a down AGV's action is still running; its repair is not lag).
         self._act_injected += ((injected | st.failed) & (st.mode == DRIVE)) * st.dt
         self.causes.step(injected)
-        self._swept_check(raw)
-        if self._corridor_keys:
-            self._check_corridors(raw, raw_ang)
-        if self.steps % self._traj_every == 0:
-            self._due = (st.sim_s, self._task_state, self._loaded, self.shelf_m)
 
     def _swept_check(self, prev: np.ndarray) -> None:
         """Bodies that moved farther than half their width in one step: look along the
@@ -208,8 +237,16 @@ class Accounting:
                 self.swept_hits += 1
 
     def _need_swept(self) -> bool:
-        """Cheap bound: no body can move farther than v_max x headroom x dt."""
-        return bool((self.st.vmax * 2.0 * self.st.dt > self.fleet.half_size.min(axis=1)).any())
+        """Cheap bound: no body can move farther than v_max x headroom x dt (computed once
+        for the limits and step in force)."""
+        st = self.st
+        key = (st.vmax, st.dt)  # the array itself is kept: a new one is a new key
+        if self._swept_key is None or key[0] is not self._swept_key[0] or (
+                key[1] != self._swept_key[1]):
+            self._swept_key = key
+            self._swept_need = bool(
+                (st.vmax * 2.0 * st.dt > self.fleet.half_size.min(axis=1)).any())
+        return self._swept_need
 
     def _check_corridors(self, pos: np.ndarray, ang: np.ndarray) -> None:
         """fcl check of every AGV body against the open corridors' protected zones."""

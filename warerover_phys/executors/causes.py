@@ -25,7 +25,9 @@ the label counts of its interval, which add up to the interval's length exactly.
 waits are also counted per blocker. :mod:`warerover_phys.gap_open` credits the plan's
 durations against these counts to split lost time into causes.
 
-Costs a few vectorised numpy operations per physics step; an AGV's blocker is looked up when
+Costs a few vectorised numpy operations per physics step (:meth:`CauseRecorder.step`, the
+reference), or one compiled loop over the fleet together with the accounting's delay shares
+(:meth:`CauseRecorder.step_with_shares`, the same labels); an AGV's blocker is looked up when
 it starts to wait and then every ``refresh`` steps (one tick at the default step) while it
 waits, so a blocker that changes mid-wait is credited from the next look-up.
 """
@@ -96,6 +98,7 @@ class CauseRecorder:
         self._done: list[tuple] = []
         self._blocker = np.full(n, -1, dtype=np.int64)
         self._wait_run = np.zeros(n, dtype=np.int64)
+        self._look = np.zeros(n, dtype=np.intp)
         self.blockers: dict[tuple[int, int], int] = {}
 
     # ------------------------------------------------------------------------- hooks
@@ -141,6 +144,33 @@ class CauseRecorder:
             self._wait_run[waiting] += 1
         self._was_waiting = waiting
         self.step_no += 1
+
+    def step_with_shares(self, injected: np.ndarray, dep_wait: np.ndarray,
+                         injected_s: np.ndarray, turn_time: np.ndarray,
+                         act_injected: np.ndarray) -> int:
+        """:meth:`step` and the accounting's per-AGV delay shares of the step (seconds
+        waiting on a dependency, held by an injected delay while busy or pending, turning,
+        and held while driving: ``Accounting.after_step``'s numpy reference) in one
+        compiled pass (:func:`.step_kernels.step_shares`, the same labels and sums).
+        Returns the number of AGVs not holding."""
+        from .step_kernels import step_shares
+
+        st = self.st
+        active, nl = step_shares(
+            st.mode, st.waiting, injected, st.pending, st.failed, st.has_next,
+            st.hold_until, st.last_finish, st.sim_s - 0.5 * st.dt, st.dt, dep_wait,
+            injected_s, turn_time, act_injected, self._cur, self._was_waiting,
+            self._wait_run, self.step_no % self.refresh == 0, self._look)
+        # The blocker look-ups (their waits were not counted yet: a changed blocker gets
+        # the run so far first), as in step().
+        for i in self._look[:nl].tolist():
+            b = self._find_blocker(i)
+            if b != self._blocker[i]:
+                self._flush_wait(i)
+                self._blocker[i] = b
+            self._wait_run[i] += 1
+        self.step_no += 1
+        return int(active)
 
     # ------------------------------------------------------------------------- helpers
 

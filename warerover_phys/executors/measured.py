@@ -13,6 +13,10 @@
   may be lower, ``executor.payload``) by more than :data:`LIMIT_TOLERANCE`; also the peak
   lateral speed (velocity across the heading: how much a body slips sideways).
 
+Both take ``engine="numpy"`` (the code here, the reference) or ``engine="numba"`` (the
+same steps compiled, :mod:`.step_kernels`; bit for bit the same figures; the neighbour list
+then comes from a cell grid instead of a k-d tree: the same pairs).
+
 Example: two unit squares 0.5 m apart edge to edge, and the same with one turned 45 degrees
 (its corner then reaches ``sqrt(0.5) - 0.5`` m further)::
 
@@ -33,7 +37,7 @@ import math
 
 import numpy as np
 
-__all__ = ["CLEARANCE_HORIZON_M", "LIMIT_TOLERANCE", "ClearanceMonitor", "LimitMonitor",
+__all__ = ["CLEARANCE_HORIZON_M", "ENGINES", "LIMIT_TOLERANCE", "ClearanceMonitor", "LimitMonitor",
            "rect_distance"]
 
 CLEARANCE_HORIZON_M = 1.0
@@ -46,6 +50,17 @@ LIMIT_TOLERANCE = 0.05
 violation."""
 
 _CORNERS = np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, -1.0], [-1.0, 1.0]])
+
+
+ENGINES = ("numpy", "numba")
+"""How the monitors run a step: ``numpy`` (the reference) or ``numba``
+(:mod:`.step_kernels`, the same figures)."""
+
+
+def _engine(engine: str) -> str:
+    if engine not in ENGINES:
+        raise ValueError(f"engine {engine!r}: expected one of {', '.join(ENGINES)}")
+    return engine
 
 
 def _rot(angle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -114,9 +129,10 @@ class ClearanceMonitor:
     under the shelf, as Kiva-type robots counter-rotate their turntable); the clearance of
     a pair is the smallest over those parts."""
 
-    def __init__(self, body_half: np.ndarray) -> None:
-        self.body_half = np.asarray(body_half, dtype=float)
+    def __init__(self, body_half: np.ndarray, engine: str = "numpy") -> None:
+        self.body_half = np.ascontiguousarray(body_half, dtype=float)
         self.n = len(self.body_half)
+        self.engine = _engine(engine)
         self.shelf_half = np.zeros_like(self.body_half)
         self.min_m = math.inf
         """Smallest clearance so far (metres; inf until a pair comes within reach)."""
@@ -129,12 +145,19 @@ class ClearanceMonitor:
         self._t = -math.inf
         self._prev: tuple[np.ndarray, np.ndarray] | None = None
         """Poses at the last measured time."""
+        if self.engine == "numba":  # the kernels' buffers (see _measure_numba)
+            n = self.n
+            self._prev_pos, self._prev_ang = np.full((n, 2), np.nan), np.full(n, np.nan)
+            self._moved = np.zeros(n, dtype=bool)
+            self._ext, self._stamp = np.zeros((n, 2)), np.full(n, -1, dtype=np.int64)
+            self._out = np.zeros(0, dtype=np.intp)
+            self._step = 0
 
     def set_shelves(self, shelf_half: np.ndarray) -> None:
         """Half sizes (N, 2) of the shelves carried now (zeros: none)."""
         shelf_half = np.asarray(shelf_half, dtype=float)
         if not np.array_equal(shelf_half, self.shelf_half):
-            self.shelf_half = shelf_half.copy()
+            self.shelf_half = np.ascontiguousarray(shelf_half).copy()
             self._built_at = None  # reaches changed: rebuild the list
 
     def measure(self, pos: np.ndarray, ang: np.ndarray, t: float) -> None:
@@ -142,6 +165,9 @@ class ClearanceMonitor:
         if self.n < 2 or t <= self._t:
             return
         self._t = t
+        if self.engine == "numba":
+            self._measure_numba(np.ascontiguousarray(pos), np.ascontiguousarray(ang), t)
+            return
         prev = self._prev
         self._prev = (pos.copy(), ang.copy())
         pairs, ends = self._pairs, self._ends
@@ -173,7 +199,33 @@ class ClearanceMonitor:
             near = np.einsum("ij,ij->i", g, g) < best * best
         else:
             near = g.max(axis=1) < best
-        k = np.flatnonzero(near)
+        self._exact_min(pos, ang, t, pairs, np.flatnonzero(near))
+
+    def _measure_numba(self, pos: np.ndarray, ang: np.ndarray, t: float) -> None:
+        """:meth:`measure` through :mod:`.step_kernels`: the same pairs, bounds and exact
+        distances, with one loop over the fleet and one over the listed pairs."""
+        from .step_kernels import clearance_candidates, clearance_moved
+
+        had_prev = self._prev is not None
+        self._prev = (self._prev_pos, self._prev_ang)
+        built = self._built_at
+        far = clearance_moved(pos, ang, self._prev_pos, self._prev_ang,
+                              pos if built is None else built, self._moved)
+        rebuild = built is None or far > SKIN_M / 2
+        if rebuild:
+            self._build(pos)
+        if len(self._pairs) == 0:
+            return
+        self._step += 1
+        cnt = clearance_candidates(pos, ang, self.body_half, self.shelf_half, self._pairs,
+                                   self._moved, had_prev and not rebuild, self.min_m,
+                                   self._ext, self._stamp, self._step, self._out)
+        if cnt:
+            self._exact_min(pos, ang, t, self._pairs, self._out[:cnt])
+
+    def _exact_min(self, pos: np.ndarray, ang: np.ndarray, t: float, pairs: np.ndarray,
+                   k: np.ndarray) -> None:
+        """Exact clearances of ``pairs[k]``; a new minimum is kept with its time."""
         if len(k) == 0:
             return
         i, j = pairs[k, 0], pairs[k, 1]
@@ -201,14 +253,22 @@ class ClearanceMonitor:
         return d
 
     def _build(self, pos: np.ndarray) -> None:
-        from scipy.spatial import cKDTree
-
         self._built_at = pos.copy()
         self._radius = np.hypot(*np.maximum(self.body_half, self.shelf_half).T)
         # Pairs farther apart than the smallest clearance so far cannot lower it: once one
         # is known the list needs only pairs within it (plus the skin).
         horizon = min(CLEARANCE_HORIZON_M, max(self.min_m, 0.0)) + SKIN_M
         reach = 2 * float(self._radius.max()) + horizon
+        if self.engine == "numba":
+            from .step_kernels import near_pairs
+
+            self._pairs = near_pairs(pos, self._radius, horizon, reach)
+            self._ends = np.zeros(0, dtype=np.intp)  # unused by the kernels
+            if len(self._out) < len(self._pairs):
+                self._out = np.zeros(len(self._pairs), dtype=np.intp)
+            return
+        from scipy.spatial import cKDTree
+
         pairs = cKDTree(pos).query_pairs(reach, output_type="ndarray")
         if len(pairs):
             # Only pairs whose circumscribed circles come within the horizon plus the skin.
@@ -226,17 +286,26 @@ class LimitMonitor:
 
     KINDS = ("speed", "accel", "turn_rate")
 
-    def __init__(self, vmax: np.ndarray, amax: np.ndarray, wmax: np.ndarray) -> None:
+    def __init__(self, vmax: np.ndarray, amax: np.ndarray, wmax: np.ndarray,
+                 engine: str = "numpy") -> None:
         n = len(vmax)
+        self.engine = _engine(engine)
         self.limits = {"speed": np.asarray(vmax, float), "accel": np.asarray(amax, float),
                        "turn_rate": np.asarray(wmax, float)}
-        self._peak = {k: np.zeros(n) for k in self.KINDS}
+        # Per-kind arrays are rows of (3, N) arrays (row = index in KINDS), for the kernel.
+        self._peak_a = np.zeros((3, n))
+        self._peak = {k: self._peak_a[r] for r, k in enumerate(self.KINDS)}
         """Peaks, speed and acceleration squared."""
-        self._bound = {k: (v * (1 + LIMIT_TOLERANCE)) ** (1 if k == "turn_rate" else 2)
-                       for k, v in self.limits.items()}
+        self._bound_a = np.zeros((3, n))
+        self._bound: dict[str, np.ndarray] = {}
+        for kind in self.KINDS:
+            self._set_bound(kind)
         self.violations = 0
         self._over = {k: np.zeros(n, dtype=bool) for k in self.KINDS}
         self._any_over = dict.fromkeys(self.KINDS, False)
+        self._ratio_a = np.zeros((3, n))
+        self._lim_p = np.zeros((3, n))
+        self._use_ratio = np.zeros(3, dtype=bool)
         self._ratio: dict[str, np.ndarray] = {}
         """Peak measured / limit in force, per kind whose limit has changed (squared for
         speed and acceleration); the other kinds' ratios are their peak / fixed limit."""
@@ -248,19 +317,35 @@ class LimitMonitor:
         self._moved = np.zeros(n, dtype=bool)
         """AGVs whose pose changed between the last two measured times."""
         self._t = -math.inf
+        if self.engine == "numba":  # the kernel's buffers (see _measure_numba)
+            self._pos, self._ang = np.zeros((n, 2)), np.zeros(n)
+            self._vel_b = np.zeros((n, 2))
+            self._over_a = np.zeros((3, n), dtype=bool)
+            self._new_val = np.full((3, n), np.nan)
+            self._started = self._have_vel = False
+
+    def _set_bound(self, kind: str) -> None:
+        r = self.KINDS.index(kind)
+        self._bound_a[r] = (self.limits[kind] * (1 + LIMIT_TOLERANCE)) ** (
+            1 if kind == "turn_rate" else 2)
+        self._bound[kind] = self._bound_a[r]
 
     def set_limit(self, kind: str, limit: np.ndarray) -> None:
         """A new per-AGV limit of ``kind`` from now on (a payload picked up or put down):
         later values are checked against it, and the peak ratio is taken against the limit
         in force when each value was measured."""
         old = self.limits[kind]
+        r = self.KINDS.index(kind)
+        p = 1 if kind == "turn_rate" else 2
         if kind not in self._ratio:
             peak = self._peak[kind]
-            self._ratio[kind] = np.divide(peak, old ** (1 if kind == "turn_rate" else 2),
-                                          out=np.zeros_like(peak), where=old > 0)
+            self._ratio_a[r] = np.divide(peak, old ** p, out=np.zeros_like(peak),
+                                         where=old > 0)
+            self._ratio[kind] = self._ratio_a[r]
+            self._use_ratio[r] = True
         self.limits[kind] = np.asarray(limit, dtype=float).copy()
-        self._bound[kind] = (self.limits[kind] * (1 + LIMIT_TOLERANCE)) ** (
-            1 if kind == "turn_rate" else 2)
+        self._lim_p[r] = self.limits[kind] ** p
+        self._set_bound(kind)
 
     def measure(self, pos: np.ndarray, ang: np.ndarray, t: float) -> list[tuple[str, dict]]:
         """Take the poses at simulated time ``t`` (once per time); returns
@@ -269,6 +354,9 @@ class LimitMonitor:
             return []
         dt = t - self._t
         self._t = t
+        if self.engine == "numba":
+            return self._measure_numba(np.ascontiguousarray(pos), np.ascontiguousarray(ang),
+                                       t, dt)
         prev_pos, prev_ang, prev_vel = self._pos, self._ang, self._vel
         self._pos, self._ang = pos.copy(), ang.copy()
         if prev_pos is None:
@@ -305,7 +393,7 @@ class LimitMonitor:
             peak = self._peak[kind]
             peak[idx] = np.maximum(peak[idx], value)
             if kind in self._ratio:
-                lim = self.limits[kind][idx] ** (1 if kind == "turn_rate" else 2)
+                lim = self._lim_p[self.KINDS.index(kind)][idx]
                 ratio = self._ratio[kind]
                 ratio[idx] = np.maximum(ratio[idx], np.divide(
                     value, lim, out=np.zeros_like(value), where=lim > 0))
@@ -325,6 +413,35 @@ class LimitMonitor:
                     events.append(("limit_violation", {
                         "agv": i, "kind": kind, "value": round(float(value[r]), 4),
                         "limit": float(self.limits[kind][i]), "t_s": round(t, 4)}))
+        return events
+
+    def _measure_numba(self, pos: np.ndarray, ang: np.ndarray, t: float,
+                       dt: float) -> list[tuple[str, dict]]:
+        """:meth:`measure` through :func:`.step_kernels.limit_step`: the same values,
+        peaks, ratios and violations, in one loop over the fleet."""
+        if not self._started:
+            self._pos[:], self._ang[:] = pos, ang
+            self._started = True
+            return []
+        from .step_kernels import limit_step
+
+        new = limit_step(pos, ang, self._pos, self._ang, self._vel_b, self._moved,
+                         self._have_vel, dt, self._peak_a, self._bound_a, self._over_a,
+                         self.lateral, self._use_ratio, self._lim_p, self._ratio_a,
+                         self._new_val)
+        self._have_vel = True
+        if not new:
+            return []
+        events: list[tuple[str, dict]] = []
+        for kind in ("speed", "turn_rate", "accel"):  # the reference's order
+            row = self._new_val[self.KINDS.index(kind)]
+            for i in np.flatnonzero(~np.isnan(row)):
+                value = float(row[i]) if kind == "turn_rate" else math.sqrt(row[i])
+                row[i] = np.nan
+                self.violations += 1
+                events.append(("limit_violation", {
+                    "agv": int(i), "kind": kind, "value": round(value, 4),
+                    "limit": float(self.limits[kind][i]), "t_s": round(t, 4)}))
         return events
 
     @property

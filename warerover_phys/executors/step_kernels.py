@@ -1,0 +1,267 @@
+"""The physics executor's per-step accounting loops compiled with numba: the same figures.
+
+At 1,000 AGVs a physics step's accounting was some twenty numpy calls over the whole fleet
+(limit monitor, clearance bound, delay shares, cause labels), a cost set by the number of
+calls, not by the few AGVs that move. Here each part is one loop over the fleet (or over the
+listed pairs), compiled with ``numba.njit(cache=True)``. Every value is computed with the
+same float operations in the same order as the numpy reference it replaces
+(:class:`~.measured.ClearanceMonitor`, :class:`~.measured.LimitMonitor`,
+:class:`~.causes.CauseRecorder`, :meth:`~.accounting.Accounting.after_step` with
+``engine="numpy"``), without fused multiply-adds (numba's default), so results are bit for
+bit the same (``tests/executors/test_step_kernels.py``).
+
+``_npmax`` is ``np.maximum`` (a NaN on either side wins). Compile time: the first process
+without numba's cache compiles (seconds); later ones load the machine code from
+``__pycache__``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__ = ["clearance_candidates", "clearance_moved", "limit_step", "near_pairs",
+           "step_shares"]
+
+_HOLD, _TURN, _DRIVE = 0, 1, 2  # as .fleet_state
+# label codes, as .causes.LABELS
+_DWELL, _FAILED, _INJECTED, _DRIVE_L, _TURN_L, _DEPENDENCY, _CONTROL = range(7)
+
+
+@njit(cache=True, inline="always")
+def _npmax(a, b):
+    if b > a or b != b:
+        return b
+    return a
+
+
+@njit(cache=True)
+def step_shares(mode, waiting, injected, pending, failed, has_next, hold_until, last_finish,
+                mid, dt, dep_wait, injected_s, turn_time, act_injected, counts, was_waiting,
+                wait_run, look_all, look):
+    """One physics step's delay shares (``Accounting.after_step``) and cause labels
+    (``CauseRecorder.step``) in one pass. Fills ``look`` with the AGVs whose blocker is to
+    be looked up (they start to wait, or all waiting ones if ``look_all``) and adds the
+    step to ``wait_run`` for the other waiting ones (the caller adds it for the looked-up
+    ones after the look-up). Returns (AGVs not holding, AGVs to look up)."""
+    n = len(mode)
+    active = 0
+    nl = 0
+    for i in range(n):
+        m = mode[i]
+        w = waiting[i]
+        inj = injected[i]
+        if w:
+            dep_wait[i] += dt
+        if inj and (m != _HOLD or w or pending[i]):
+            injected_s[i] += dt
+        if m == _TURN:
+            turn_time[i] += dt
+        if m != _HOLD:
+            active += 1
+        if (inj or failed[i]) and m == _DRIVE:
+            act_injected[i] += dt
+        # labels: the highest priority wins
+        if hold_until[i] > mid and last_finish[i] <= mid:
+            lab = _DWELL
+        elif failed[i]:
+            lab = _FAILED
+        elif inj and (m != _HOLD or has_next[i]):
+            lab = _INJECTED
+        elif m == _DRIVE:
+            lab = _DRIVE_L
+        elif m == _TURN:
+            lab = _TURN_L
+        elif w:
+            lab = _DEPENDENCY
+        else:
+            lab = _CONTROL
+        counts[i, lab] += 1
+        dep = lab == _DEPENDENCY
+        if dep:
+            if look_all or not was_waiting[i]:
+                look[nl] = i
+                nl += 1
+            else:
+                wait_run[i] += 1
+        was_waiting[i] = dep
+    return active, nl
+
+
+@njit(cache=True)
+def limit_step(pos, ang, prev_pos, prev_ang, vel, moved, have_vel, dt, peak, bound, over,
+               lateral, use_ratio, lim_p, ratio, new_val):
+    """One step of ``LimitMonitor.measure`` over the AGVs whose pose changed in this step
+    or the one before (all of them while ``have_vel`` is False: no velocity yet). Kinds are
+    rows 0 speed (squared), 1 accel (squared), 2 turn_rate. Updates the previous poses,
+    velocities, ``moved``, peaks, lateral peaks, ratios and over-limit flags in place; a
+    value that has just gone over its bound is written to ``new_val[kind, agv]`` (others
+    are left NaN). Returns the number of such new violations."""
+    n = len(ang)
+    two_pi = 2 * math.pi
+    dt2 = dt * dt
+    new = 0
+    for i in range(n):
+        x0, y0 = pos[i, 0], pos[i, 1]
+        a1, a0 = ang[i], prev_ang[i]
+        mv = x0 != prev_pos[i, 0] or y0 != prev_pos[i, 1] or a1 != a0
+        act = mv or moved[i] or not have_vel
+        moved[i] = mv
+        vx = (x0 - prev_pos[i, 0]) / dt
+        vy = (y0 - prev_pos[i, 1]) / dt
+        pvx, pvy = vel[i, 0], vel[i, 1]
+        vel[i, 0], vel[i, 1] = vx, vy
+        prev_pos[i, 0], prev_pos[i, 1], prev_ang[i] = x0, y0, a1
+        if not act:
+            over[0, i] = over[1, i] = over[2, i] = False
+            continue
+        wrapped = (a1 - a0 + math.pi) % two_pi - math.pi
+        mid = a0 + 0.5 * wrapped
+        lat = abs(vy * math.cos(mid) - vx * math.sin(mid))
+        lateral[i] = _npmax(lateral[i], lat)
+        for k in range(3):
+            if k == 0:
+                value = vx * vx + vy * vy
+            elif k == 1:
+                if not have_vel:
+                    continue
+                dvx, dvy = vx - pvx, vy - pvy
+                value = (dvx * dvx + dvy * dvy) / dt2
+            else:
+                value = abs(wrapped) / dt
+            peak[k, i] = _npmax(peak[k, i], value)
+            if use_ratio[k]:
+                lim = lim_p[k, i]
+                ratio[k, i] = _npmax(ratio[k, i], value / lim if lim > 0 else 0.0)
+            o = value > bound[k, i]
+            if o and not over[k, i]:
+                new_val[k, i] = value
+                new += 1
+            over[k, i] = o
+    return new
+
+
+@njit(cache=True)
+def clearance_moved(pos, ang, prev_pos, prev_ang, built_at, moved):
+    """``moved[i]``: AGV ``i``'s pose differs from ``prev``; ``prev`` becomes the poses.
+    Returns the largest coordinate change since ``built_at`` (NaN if any is NaN)."""
+    far = 0.0
+    nan = False
+    for i in range(len(ang)):
+        x, y, a = pos[i, 0], pos[i, 1], ang[i]
+        moved[i] = x != prev_pos[i, 0] or y != prev_pos[i, 1] or a != prev_ang[i]
+        prev_pos[i, 0], prev_pos[i, 1], prev_ang[i] = x, y, a
+        dx = abs(x - built_at[i, 0])
+        dy = abs(y - built_at[i, 1])
+        if dx != dx or dy != dy:
+            nan = True
+        far = max(far, dx, dy)
+    return math.nan if nan else far
+
+
+@njit(cache=True)
+def clearance_candidates(pos, ang, body_half, shelf_half, pairs, moved, use_moved, best,
+                         ext, stamp, step, out):
+    """Indices of the listed pairs (only those with an end in ``moved`` if ``use_moved``)
+    whose axis-aligned box gap is below ``best`` (``ClearanceMonitor.measure``'s bound);
+    ``ext`` caches each AGV's box half extents for the step ``stamp == step``."""
+    cnt = 0
+    sq = best > 0.0
+    best2 = best * best
+    for k in range(len(pairs)):
+        i, j = pairs[k, 0], pairs[k, 1]
+        if use_moved and not (moved[i] or moved[j]):
+            continue
+        for r in (i, j):
+            if stamp[r] != step:
+                stamp[r] = step
+                c, s = abs(math.cos(ang[r])), abs(math.sin(ang[r]))
+                h0, h1 = body_half[r, 0], body_half[r, 1]
+                ext[r, 0] = _npmax(h0 * c + h1 * s, shelf_half[r, 0])
+                ext[r, 1] = _npmax(h0 * s + h1 * c, shelf_half[r, 1])
+        gx = abs(pos[i, 0] - pos[j, 0])
+        gx -= ext[i, 0]
+        gx -= ext[j, 0]
+        gy = abs(pos[i, 1] - pos[j, 1])
+        gy -= ext[i, 1]
+        gy -= ext[j, 1]
+        if sq:
+            gx = _npmax(gx, 0.0)
+            gy = _npmax(gy, 0.0)
+            near = gx * gx + gy * gy < best2
+        else:
+            near = _npmax(gx, gy) < best
+        if near:
+            out[cnt] = k
+            cnt += 1
+    return cnt
+
+
+@njit(cache=True)
+def near_pairs(pos, radius, horizon, cell):
+    """(P, 2) pairs ``i < j``, in increasing order, whose circumscribed circles
+    (``radius``) come within ``horizon`` (``|c_i - c_j| - (r_i + r_j) < horizon``), from
+    a grid of square cells of side ``cell`` (at least the largest reach
+    ``2 max(r) + horizon``)."""
+    n = len(radius)
+    if n < 2:
+        return np.zeros((0, 2), dtype=np.intp)
+    x0, y0 = math.inf, math.inf
+    for i in range(n):
+        x0 = min(x0, pos[i, 0])
+        y0 = min(y0, pos[i, 1])
+    key = np.empty(n, dtype=np.int64)
+    cy = np.empty(n, dtype=np.int64)
+    w, wy = 0, 0
+    for i in range(n):
+        key[i] = int(math.floor((pos[i, 0] - x0) / cell))
+        cy[i] = int(math.floor((pos[i, 1] - y0) / cell))
+        w, wy = max(w, key[i]), max(wy, cy[i])
+    w += 3  # a free column and row around the occupied cells: no bounds checks
+    nk = (wy + 3) * w
+    start = np.zeros(nk + 1, dtype=np.int64)
+    for i in range(n):
+        key[i] = (cy[i] + 1) * w + key[i] + 1
+        start[key[i] + 1] += 1
+    for k in range(nk):
+        start[k + 1] += start[k]
+    fill = start.copy()
+    order = np.empty(n, dtype=np.int64)  # AGVs by cell (a counting sort)
+    for i in range(n):
+        order[fill[key[i]]] = i
+        fill[key[i]] += 1
+    out_i = np.empty(16 * n + 16, dtype=np.intp)
+    out_j = np.empty(16 * n + 16, dtype=np.intp)
+    cnt = 0
+    buf = np.empty(n, dtype=np.intp)
+    for i in range(n):
+        nb = 0
+        for d in range(9):
+            k = key[i] + (d // 3 - 1) * w + (d % 3 - 1)
+            for q in range(start[k], start[k + 1]):
+                j = order[q]
+                if j <= i:
+                    continue
+                ddx = pos[i, 0] - pos[j, 0]
+                ddy = pos[i, 1] - pos[j, 1]
+                if math.sqrt(ddx * ddx + ddy * ddy) - (radius[i] + radius[j]) < horizon:
+                    q2 = nb  # insertion: the neighbours in increasing order
+                    while q2 > 0 and buf[q2 - 1] > j:
+                        buf[q2] = buf[q2 - 1]
+                        q2 -= 1
+                    buf[q2] = j
+                    nb += 1
+        if cnt + nb > len(out_i):
+            out_i = np.concatenate((out_i, np.empty(len(out_i) + nb, dtype=np.intp)))
+            out_j = np.concatenate((out_j, np.empty(len(out_j) + nb, dtype=np.intp)))
+        for q in range(nb):
+            out_i[cnt] = i
+            out_j[cnt] = buf[q]
+            cnt += 1
+    out = np.empty((cnt, 2), dtype=np.intp)
+    for q in range(cnt):
+        out[q, 0] = out_i[q]
+        out[q, 1] = out_j[q]
+    return out
