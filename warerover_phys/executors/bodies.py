@@ -425,6 +425,8 @@ class BodyIO:
         self._still = np.zeros((len(fleet.bodies), 6))
         """Per AGV: x, y, angle, vx, vy, w as read; rows of AGVs out of the space are
         their standing poses."""
+        self._out = np.zeros(len(fleet.bodies), dtype=bool)
+        """AGVs out of the space at the last :meth:`reorder`."""
         self.reorder()
         self.set_buf = batch.Buffer()
 
@@ -444,9 +446,10 @@ class BodyIO:
                                                sorter=order)].astype(np.intp)
         self.n_rows = len(ids)
         self.out = np.zeros((self.n_rows, 3))
-        for i in np.flatnonzero(out):
+        for i in np.flatnonzero(out & ~self._out):  # left since the last call
             b = self.fleet.bodies[i]
             self._still[i] = (*b.position, b.angle, 0.0, 0.0, 0.0)
+        self._out = out.copy()
         self._all_in = len(self.in_space) == len(self._body_ids)
 
     def read(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

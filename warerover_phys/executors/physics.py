@@ -144,8 +144,10 @@ class PhysicsExecutor:
         """Times a body was found off its reference (:meth:`_off_reference`)."""
         half = self.fleet.half_size
         self._reach_margin = (2.0 * self.state.vmax + 2.0 * self.state.wmax
-                              * np.hypot(half[:, 0], half[:, 1])) * self.dt + REACH_SLOP_M
-        """Per AGV: how far (metres) beyond its box an obstacle keeps its drive joints in."""
+                              * np.hypot(half[:, 0], half[:, 1])) * (
+            self.dt * self.state.decide_every) + REACH_SLOP_M
+        """Per AGV: how far (metres) beyond its box an obstacle keeps its drive joints in
+        (twice the farthest it can move before the next look, plus the slop)."""
         self._bound = True
 
     def _contact(self, a: int, b: int, point: tuple[float, float]) -> None:
@@ -228,16 +230,18 @@ class PhysicsExecutor:
         # control bodies the same, so the drive joints exert nothing unless a contact
         # changed a body's velocity.
         self.io.write(vel, w, bodies=self._all_bodies)
-        if self._park:
-            self._update_parking(raw, raw_ang, v_now, w_now, vel, w, decide)
-        self._keep_joints(raw, raw_ang)
+        unparked = self._park and self._update_parking(raw, raw_ang, v_now, w_now, vel, w,
+                                                       decide)
+        if decide or unparked:
+            self._keep_joints(raw, raw_ang)
         self.space.step(st.dt)
         st.sim_s = t + st.dt
         self.acc.after_step(raw, raw_ang, injected, t)
 
     def _keep_joints(self, pos: np.ndarray, ang: np.ndarray) -> None:
-        """Drive joints in the space for the moving bodies that could touch an obstacle in
-        this step, out for every other (:meth:`.bodies.PhysicalFleet.set_joints`)."""
+        """Drive joints in the space for the moving bodies that could touch an obstacle
+        before the next look (decision steps, and steps in which a parked AGV moves off),
+        out for every other (:meth:`.bodies.PhysicalFleet.set_joints`)."""
         fleet = self.fleet
         idx = np.flatnonzero(~fleet.parked)
         want = np.zeros(self.n, dtype=bool)
@@ -270,24 +274,26 @@ class PhysicsExecutor:
 
     def _update_parking(self, pos: np.ndarray, ang: np.ndarray, v: np.ndarray,
                         w: np.ndarray, cmd: np.ndarray, cmd_w: np.ndarray,
-                        look: bool) -> None:
-        """``executor.park``: give back the drive joints of parked AGVs that are about to
-        move (no longer standing), and, when ``look``ing (the follower's decision steps),
-        park standing AGVs whose bodies have settled on their hold points (see
-        :data:`PARK_EPS_M`). Runs after this step's commands (``cmd``, ``cmd_w``) are
-        written, before the step."""
+                        look: bool) -> bool:
+        """``executor.park``: unpark parked AGVs that are about to move (no longer
+        standing), and, when ``look``ing (the follower's decision steps), park standing
+        AGVs whose bodies have settled on their hold points (see :data:`PARK_EPS_M`). Runs
+        after this step's commands (``cmd``, ``cmd_w``) are written, before the step;
+        returns whether any AGV was unparked."""
         st, fleet = self.state, self.fleet
         parked = fleet.parked
         self.parked_steps += fleet.n_parked
-        changed = False
+        changed = unparked = False
         if fleet.n_parked:
             for i in np.flatnonzero(parked & (st.mode != HOLD)):
                 i = int(i)
                 changed |= fleet.unpark(self.space, i, tuple(cmd[i]), float(cmd_w[i]))
+                unparked = True
         if look:
             changed |= self._park_settled(pos, ang, v, w)
         if changed:
             self.io.reorder()
+        return unparked
 
     def _park_settled(self, pos: np.ndarray, ang: np.ndarray, v: np.ndarray,
                       w: np.ndarray) -> bool:
