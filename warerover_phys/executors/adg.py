@@ -474,14 +474,17 @@ class ActionGraph:
                 return step.action.dst
         return rec.running.action.dst if rec.running is not None else rec.node
 
-    def claim(self, agv: int, limit: int | None = None) -> list[Action]:
+    def claim(self, agv: int, limit: int | None = None,
+              released: list[Action] | None = None) -> list[Action]:
         """Commit the AGV to its released actions (at most ``limit``): their visits keep
         their place at the front of their queues (no visit placed later goes ahead of them)
         and a new plan keeps them. The executor claims what it drives through without
         stopping, so it never has to stop inside a braking distance. Returns the claimed
-        actions (already claimed ones included)."""
+        actions (already claimed ones included). ``released``: what :meth:`released`
+        returned for this AGV with nothing changed since (its first ``limit`` are the
+        released ones), to save a second look at the queues."""
         rec = self._agents.get(agv) or self._rec(agv)
-        out = self.released(agv, limit)
+        out = self.released(agv, limit) if released is None else released[:limit]
         for step in islice(rec.pending, len(out)):
             step.claimed = True
             for v in step.enter_visits:

@@ -396,16 +396,22 @@ class ObstacleReach:
     def near(self, pos: np.ndarray, half: np.ndarray) -> np.ndarray:
         """(P,) bool: whether the boxes centred at ``pos`` (P, 2) with half extents ``half``
         (P, 2) (metres) overlap an obstacle cell or leave the map."""
-        m = self._m
-        lo = np.floor((pos - half) / m).astype(np.int64)
-        hi = np.floor((pos + half) / m).astype(np.int64)
-        # Padded indices: cell (r, c) is row r + 1, column c + 1 of the padded grid.
-        c0 = np.clip(lo[:, 0] + 1, 0, self._cols + 1)
-        c1 = np.clip(hi[:, 0] + 1, 0, self._cols + 1) + 1
-        r0 = np.clip(lo[:, 1] + 1, 0, self._rows + 1)
-        r1 = np.clip(hi[:, 1] + 1, 0, self._rows + 1) + 1
-        sat = self._sat
-        return (sat[r1, c1] - sat[r0, c1] - sat[r1, c0] + sat[r0, c0]) > 0
+        p = len(pos)
+        return self.fleet_near(np.asarray(pos, dtype=float), np.zeros(p),
+                               np.asarray(half, dtype=float), np.zeros((p, 2)),
+                               np.zeros(p), np.zeros(p, dtype=bool))
+
+    def fleet_near(self, pos: np.ndarray, ang: np.ndarray, half: np.ndarray,
+                   shelf_half: np.ndarray, margin: np.ndarray,
+                   skip: np.ndarray) -> np.ndarray:
+        """(N,) bool, per AGV: whether its body (half sizes ``half``, turned by ``ang``) or
+        its carried shelf (half sizes ``shelf_half``, along the grid), whichever box is
+        wider, grown by ``margin``, :meth:`near` an obstacle; rows ``skip`` are False."""
+        from .step_kernels import obstacle_reach
+
+        return obstacle_reach(pos, ang, half, shelf_half, margin, skip, self._sat,
+                              float(self._m), self._rows, self._cols,
+                              np.zeros(len(pos), dtype=np.bool_))
 
 
 class BodyIO:

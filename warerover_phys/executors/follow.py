@@ -383,7 +383,7 @@ class PlanFollower:
             run += 1
         if self.spec.adg and run:
             # Committed: no later plan may put another AGV ahead of it on these cells.
-            self.adg.claim(i, run)
+            self.adg.claim(i, run, released=ahead)
         st.stop_s[i] = st.cur_end[i] + run * st.cell_m
 
     def _arrive(self, i: int, t: float) -> None:

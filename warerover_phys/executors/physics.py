@@ -97,6 +97,7 @@ class PhysicsExecutor:
             [a.spec.mass_kg for a in agvs], [a.spec.max_accel_mps2 for a in agvs])
         self.io = BodyIO(self.space, self.fleet)
         self._reach = ObstacleReach(layout)
+        self._no_shelf = np.zeros((n, 2))
         self.rng = rng = setup.rng
         lo, hi = spec.speed_scale
         self.scale = rng.uniform(lo, hi, n) if hi > lo else np.full(n, lo)
@@ -243,17 +244,10 @@ class PhysicsExecutor:
         before the next look (decision steps, and steps in which a parked AGV moves off),
         out for every other (:meth:`.bodies.PhysicalFleet.set_joints`)."""
         fleet = self.fleet
-        idx = np.flatnonzero(~fleet.parked)
-        want = np.zeros(self.n, dtype=bool)
-        if len(idx):
-            h = fleet.half_size[idx]
-            c, s = np.abs(np.cos(ang[idx])), np.abs(np.sin(ang[idx]))
-            ext = np.stack([h[:, 0] * c + h[:, 1] * s, h[:, 0] * s + h[:, 1] * c], axis=1)
-            if self._shelf_contacts:
-                ext = np.maximum(ext, self.acc.shelf_m[idx] / 2)
-            ext += self._reach_margin[idx, None]
-            want[idx] = self._reach.near(pos[idx], ext)
-        self.fleet.set_joints(self.space, want)
+        shelf = self.acc.shelf_m / 2 if self._shelf_contacts else self._no_shelf
+        want = self._reach.fleet_near(pos, ang, fleet.half_size, shelf, self._reach_margin,
+                                      fleet.parked)
+        fleet.set_joints(self.space, want)
 
     def _off_reference(self, pos: np.ndarray) -> np.ndarray:
         """Driving bodies more than :data:`~.control.OFF_REFERENCE_M` behind their

@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 
 __all__ = ["clearance_candidates", "clearance_moved", "limit_step", "near_pairs",
-           "step_shares"]
+           "obstacle_reach", "step_shares"]
 
 _HOLD, _TURN, _DRIVE = 0, 1, 2  # as .fleet_state
 # label codes, as .causes.LABELS
@@ -265,3 +265,24 @@ def near_pairs(pos, radius, horizon, cell):
         out[q, 0] = out_i[q]
         out[q, 1] = out_j[q]
     return out
+
+
+@njit(cache=True)
+def obstacle_reach(pos, ang, half, shelf_half, margin, skip, sat, cell_m, rows, cols, want):
+    """``want[i]``: whether AGV ``i``'s axis-aligned box (its body turned by ``ang[i]``, or
+    its carried shelf if wider), grown by ``margin[i]``, overlaps an obstacle cell or leaves
+    the map; ``skip[i]`` rows get False. ``sat``: the summed-area table of
+    :class:`~.bodies.ObstacleReach` (obstacles padded by a ring of obstacle cells)."""
+    for i in range(len(want)):
+        if skip[i]:
+            want[i] = False
+            continue
+        c, s = abs(math.cos(ang[i])), abs(math.sin(ang[i]))
+        ex = max(half[i, 0] * c + half[i, 1] * s, shelf_half[i, 0]) + margin[i]
+        ey = max(half[i, 0] * s + half[i, 1] * c, shelf_half[i, 1]) + margin[i]
+        c0 = min(max(math.floor((pos[i, 0] - ex) / cell_m) + 1, 0), cols + 1)
+        c1 = min(max(math.floor((pos[i, 0] + ex) / cell_m) + 1, 0), cols + 1) + 1
+        r0 = min(max(math.floor((pos[i, 1] - ey) / cell_m) + 1, 0), rows + 1)
+        r1 = min(max(math.floor((pos[i, 1] + ey) / cell_m) + 1, 0), rows + 1) + 1
+        want[i] = sat[r1, c1] - sat[r0, c1] - sat[r1, c0] + sat[r0, c0] > 0
+    return want
