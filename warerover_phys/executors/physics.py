@@ -52,8 +52,9 @@ from .bodies import (
     unsolved_agv_contacts,
 )
 from .control import OFF_REFERENCE_M, steer, wrap
-from .fleet_state import DRIVE, HOLD, FleetState
+from .fleet_state import HOLD, FleetState
 from .follow import DECIDE_S, PlanFollower
+from .step_kernels import step_prelude
 
 if TYPE_CHECKING:
     from ..config import ExecutorSpec
@@ -142,7 +143,7 @@ class PhysicsExecutor:
         self._off = np.zeros(n, dtype=bool)
         self._all_bodies = np.ones(n, dtype=bool)
         self.off_reference = 0
-        """Times a body was found off its reference (:meth:`_off_reference`)."""
+        """Times a body was found off its reference (:meth:`_off_reference_events`)."""
         half = self.fleet.half_size
         self._reach_margin = (2.0 * self.state.vmax + 2.0 * self.state.wmax
                               * np.hypot(half[:, 0], half[:, 1])) * (
@@ -217,10 +218,13 @@ class PhysicsExecutor:
         raw, raw_ang, v_now, w_now = self.io.read()
         raw, raw_ang = raw.copy(), raw_ang.copy()
         t = st.sim_s
-        injected = st.delayed_until > t
-        delayed = injected | st.failed | (self.contact_until > t)
-        delayed |= self._off_reference(raw)
-        ref0 = st.ref_xy()
+        n = self.n
+        injected, delayed = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+        off, ref0 = np.empty(n, dtype=bool), np.empty((n, 2))
+        step_prelude(raw, st.mode, st.s_ref, st.origin, st.direction, st.hold_xy,
+                     st.delayed_until, st.failed, self.contact_until, t, OFF_REFERENCE_M,
+                     injected, delayed, off, ref0)
+        self._off_reference_events(off, raw)
         self.follow.advance(raw, raw_ang, delayed, decide)
         self._comm_wait_s += float(np.count_nonzero(st.listening)) * st.dt
         vel, w = steer(st, raw, raw_ang, v_now, ref0)
@@ -249,22 +253,24 @@ class PhysicsExecutor:
                                       fleet.parked)
         fleet.set_joints(self.space, want)
 
-    def _off_reference(self, pos: np.ndarray) -> np.ndarray:
-        """Driving bodies more than :data:`~.control.OFF_REFERENCE_M` behind their
-        reference points along the run (held back by a contact or an obstacle): their
+    def _off_reference_events(self, off: np.ndarray, pos: np.ndarray) -> None:
+        """``off``: driving bodies more than :data:`~.control.OFF_REFERENCE_M` behind their
+        reference points along the run (held back by a contact or an obstacle; computed
+        with the step's other masks by :func:`~.step_kernels.step_prelude`): their
         references brake until the bodies are back. Each new such episode is an
         ``off_reference`` event. (A sideways offset is no hold-up: the control law steers
         it out, and a large one is a deviation the follower replans.)"""
+        new = off & ~self._off
+        self._off = off
+        if not new.any():
+            return
         st = self.state
         lag = st.s_ref - st.along(pos)
-        off = (st.mode == DRIVE) & (lag > OFF_REFERENCE_M)
-        for i in np.flatnonzero(off & ~self._off):
+        for i in np.flatnonzero(new):
             self.off_reference += 1
             self.acc.events.append(("off_reference", {
                 "tick": self._tick, "agv": int(i), "t_s": round(st.sim_s, 3),
                 "m": round(float(lag[i]), 3)}))
-        self._off = off
-        return off
 
     def _update_parking(self, pos: np.ndarray, ang: np.ndarray, v: np.ndarray,
                         w: np.ndarray, cmd: np.ndarray, cmd_w: np.ndarray,

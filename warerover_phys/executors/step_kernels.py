@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 
 __all__ = ["clearance_candidates", "clearance_moved", "limit_step", "near_pairs",
-           "obstacle_reach", "step_shares"]
+           "obstacle_reach", "step_prelude", "step_shares"]
 
 _HOLD, _TURN, _DRIVE = 0, 1, 2  # as .fleet_state
 # label codes, as .causes.LABELS
@@ -286,3 +286,28 @@ def obstacle_reach(pos, ang, half, shelf_half, margin, skip, sat, cell_m, rows, 
         r1 = min(max(math.floor((pos[i, 1] + ey) / cell_m) + 1, 0), rows + 1) + 1
         want[i] = sat[r1, c1] - sat[r0, c1] - sat[r1, c0] + sat[r0, c0] > 0
     return want
+
+
+@njit(cache=True)
+def step_prelude(pos, mode, s_ref, origin, direction, hold_xy, delayed_until, failed,
+                 contact_until, t, off_m, injected, delayed, off, ref0):
+    """The start of a physics step, per AGV, as :meth:`.physics.PhysicsExecutor.
+    _physics_step` computed it with numpy: ``injected`` (an injected delay holds it),
+    ``off`` (driving, more than ``off_m`` behind its reference along the run:
+    ``s_ref - along``), ``delayed`` (injected, failed, braking after a contact, or off)
+    and ``ref0`` (:meth:`.fleet_state.FleetState.ref_xy`)."""
+    for i in range(len(mode)):
+        inj = delayed_until[i] > t
+        injected[i] = inj
+        along = (pos[i, 0] - origin[i, 0]) * direction[i, 0] \
+            + (pos[i, 1] - origin[i, 1]) * direction[i, 1]
+        drive = mode[i] == _DRIVE
+        o = drive and s_ref[i] - along > off_m
+        off[i] = o
+        delayed[i] = inj or failed[i] or contact_until[i] > t or o
+        if drive:
+            ref0[i, 0] = origin[i, 0] + direction[i, 0] * s_ref[i]
+            ref0[i, 1] = origin[i, 1] + direction[i, 1] * s_ref[i]
+        else:
+            ref0[i, 0] = hold_xy[i, 0]
+            ref0[i, 1] = hold_xy[i, 1]
