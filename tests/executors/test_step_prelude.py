@@ -40,3 +40,35 @@ def test_step_prelude_equals_numpy(n, seed):
     assert (injected == want_inj).all() and (off == want_off).all()
     assert (delayed == want_delayed).all()
     assert ref0.tobytes() == fs.ref_xy().tobytes()
+
+
+@settings(max_examples=60, deadline=None)
+@given(n=st.integers(1, 40), seed=st.integers(0, 2 ** 32 - 1))
+def test_settled_equals_numpy(n, seed):
+    from warerover_phys.executors.control import wrap
+    from warerover_phys.executors.physics import PARK_EPS_M, PARK_EPS_RAD, PARK_SPEED
+    from warerover_phys.executors.step_kernels import settled
+
+    rng = np.random.default_rng(seed)
+
+    def small(scale, *shape):  # values around the thresholds, some exactly zero
+        x = rng.uniform(-2 * scale, 2 * scale, shape)
+        return np.where(rng.random(shape) < 0.3, 0.0, x)
+
+    mode = rng.integers(0, 3, n).astype(np.int8)
+    parked = rng.random(n) < 0.3
+    hold = rng.uniform(0, 10, (n, 2))
+    pos = hold + small(PARK_EPS_M, n, 2)
+    vel, w = small(PARK_SPEED, n, 2), small(PARK_SPEED, n)
+    heading = rng.uniform(-7, 7, n)
+    ang = heading + small(PARK_EPS_RAD, n) + rng.choice([0, 2 * np.pi, -2 * np.pi], n)
+    speed = np.where(rng.random(n) < 0.8, 0.0, 0.1)
+    out = np.zeros(n, dtype=np.int64)
+    k = settled(mode, parked, hold, pos, vel, w, heading, ang, speed, PARK_EPS_M,
+                PARK_SPEED, PARK_EPS_RAD, out)
+    err = hold - pos
+    want = ((mode == 0) & ~parked & (np.einsum("ij,ij->i", err, err) < PARK_EPS_M ** 2)
+            & (np.einsum("ij,ij->i", vel, vel) < PARK_SPEED ** 2)
+            & (np.abs(w) < PARK_SPEED) & (np.abs(wrap(heading - ang)) < PARK_EPS_RAD)
+            & (speed == 0.0))
+    assert out[:k].tolist() == np.flatnonzero(want).tolist()

@@ -54,7 +54,7 @@ from .bodies import (
 from .control import OFF_REFERENCE_M, steer, wrap
 from .fleet_state import HOLD, FleetState
 from .follow import DECIDE_S, PlanFollower
-from .step_kernels import step_prelude
+from .step_kernels import settled, step_prelude
 
 if TYPE_CHECKING:
     from ..config import ExecutorSpec
@@ -99,6 +99,7 @@ class PhysicsExecutor:
         self.io = BodyIO(self.space, self.fleet)
         self._reach = ObstacleReach(layout)
         self._no_shelf = np.zeros((n, 2))
+        self._settled_ids = np.zeros(n, dtype=np.int64)
         self.rng = rng = setup.rng
         lo, hi = spec.speed_scale
         self.scale = rng.uniform(lo, hi, n) if hi > lo else np.full(n, lo)
@@ -300,18 +301,12 @@ class PhysicsExecutor:
         """Park the standing AGVs whose bodies have settled on their hold points; whether
         any body left the space."""
         st, fleet = self.state, self.fleet
-        cand = (st.mode == HOLD) & ~fleet.parked
-        idx = np.flatnonzero(cand)
-        if len(idx) == 0:
-            return False
-        err = st.hold_xy[idx] - pos[idx]
-        ok = ((np.einsum("ij,ij->i", err, err) < PARK_EPS_M ** 2)
-              & (np.einsum("ij,ij->i", v[idx], v[idx]) < PARK_SPEED ** 2)
-              & (np.abs(w[idx]) < PARK_SPEED)
-              & (np.abs(wrap(st.heading[idx] - ang[idx])) < PARK_EPS_RAD)
-              & (st.speed[idx] == 0.0))
+        ids = self._settled_ids
+        k = settled(st.mode, fleet.parked, st.hold_xy, pos, np.ascontiguousarray(v),
+                    np.ascontiguousarray(w), st.heading, ang, st.speed, PARK_EPS_M,
+                    PARK_SPEED, PARK_EPS_RAD, ids)
         static = False
-        for i in idx[ok]:
+        for i in ids[:k]:
             i = int(i)
             # Nothing left to do: out of the space, static stand-ins where the next step's
             # deadbeat command would take it (control.steer). (One that waits to go on

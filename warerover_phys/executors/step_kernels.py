@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 
 __all__ = ["clearance_candidates", "clearance_moved", "limit_step", "near_pairs",
-           "obstacle_reach", "step_prelude", "step_shares"]
+           "obstacle_reach", "settled", "step_prelude", "step_shares"]
 
 _HOLD, _TURN, _DRIVE = 0, 1, 2  # as .fleet_state
 # label codes, as .causes.LABELS
@@ -311,3 +311,33 @@ def step_prelude(pos, mode, s_ref, origin, direction, hold_xy, delayed_until, fa
         else:
             ref0[i, 0] = hold_xy[i, 0]
             ref0[i, 1] = hold_xy[i, 1]
+
+
+@njit(cache=True)
+def settled(mode, parked, hold_xy, pos, vel, w, heading, ang, speed, eps_m, eps_speed,
+            eps_rad, out):
+    """Standing (``mode`` HOLD), not parked AGVs whose bodies have settled on their hold
+    points, as :meth:`.physics.PhysicsExecutor._park_settled` tests it with numpy: within
+    ``eps_m`` of the point, slower than ``eps_speed`` (m/s and rad/s), facing ``heading``
+    to within ``eps_rad``, reference speed 0. Writes their ids, in order, to ``out``;
+    returns how many."""
+    k = 0
+    two_pi = 2 * math.pi
+    for i in range(len(mode)):
+        if mode[i] != _HOLD or parked[i]:
+            continue
+        ex = hold_xy[i, 0] - pos[i, 0]
+        ey = hold_xy[i, 1] - pos[i, 1]
+        if not ex * ex + ey * ey < eps_m ** 2:
+            continue
+        if not vel[i, 0] * vel[i, 0] + vel[i, 1] * vel[i, 1] < eps_speed ** 2:
+            continue
+        if not abs(w[i]) < eps_speed:
+            continue
+        if not abs((heading[i] - ang[i] + math.pi) % two_pi - math.pi) < eps_rad:
+            continue
+        if speed[i] != 0.0:
+            continue
+        out[k] = i
+        k += 1
+    return k
