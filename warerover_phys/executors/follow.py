@@ -208,9 +208,12 @@ class PlanFollower:
             # waits for changes (adg.woken), it is delayed, or its plan changes: deciding
             # for it again before then would find it waiting again.
             asleep, woken = self._asleep, self.adg.woken
-            for i in np.flatnonzero((st.mode != DRIVE) & st.has_next):
-                i = int(i)
-                if asleep[i] and not delayed[i] and i not in woken:
+            cand = np.flatnonzero((st.mode != DRIVE) & st.has_next)
+            # (Whether each sleeps is read up front: _decide(i) changes only asleep[i].
+            # woken may grow while deciding, so it is looked up in turn.)
+            sleeps = (asleep[cand] & ~delayed[cand]).tolist()
+            for i, sleeping in zip(cand.tolist(), sleeps, strict=True):
+                if sleeping and i not in woken:
                     st.waiting[i] = True
                     continue
                 asleep[i] = False
