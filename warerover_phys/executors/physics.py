@@ -19,15 +19,18 @@ Each tick (``tick_s`` seconds) the executor
 The work is split by concern, each part in a module whose name says so; they share the
 per-AGV arrays of one :class:`~.fleet_state.FleetState`:
 
-- :mod:`.bodies`: building the pymunk world and the AGV bodies;
-- :mod:`.control`: the control law;
+- :mod:`.bodies`: building the pymunk world and the AGV bodies (parked AGVs out of the
+  space, drive joints only where an obstacle is within reach);
+- :mod:`.control`: the control law (compiled in :mod:`.control_nb`);
 - :mod:`.follow`: following the dependency graph (decide, start, extend, arrive, delays,
   plan sync and commit cut, ``stop_short``, ``remaining``);
 - :mod:`.accounting`: contact and clearance accounting (contact handlers, minimum
   clearance and measured limits from :mod:`.measured`, swept checks, corridor checks,
   delay shares), :meth:`summary` and
   :meth:`trajectory` (poses recorded at ``trajectory_hz``, streamed to disk by
-  :mod:`.recording`).
+  :mod:`.recording`);
+- :mod:`.step_kernels`: the per-step loops over the fleet compiled with numba (accounting,
+  the start of a step, the parking and drive-joint tests), each with its numpy reference.
 
 This module builds them (:meth:`PhysicsExecutor.bind`) and runs the tick.
 """
