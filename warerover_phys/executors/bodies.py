@@ -54,7 +54,7 @@ def cell_centre(node: int, k: int, cols: int, cell_m: float) -> tuple[float, flo
     return ((c + k / 2) * cell_m, (r + k / 2) * cell_m)
 
 
-def build_space(layout: Layout, n_agvs: int) -> tuple[pymunk.Space, dict[int, int]]:
+def build_space(layout: Layout) -> tuple[pymunk.Space, dict[int, int]]:
     """A space holding the layout's static shapes; returns it and ``shape id -> shelf id``
     for the shelf sensors."""
     space = pymunk.Space()

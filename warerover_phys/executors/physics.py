@@ -91,7 +91,7 @@ class PhysicsExecutor:
         self.tick_s = setup.tick_s
         self.steps_per_tick = max(1, round(self.tick_s / spec.dt_s))
         self.dt = self.tick_s / self.steps_per_tick
-        self.space, shelf_of = build_space(layout, len(agvs))
+        self.space, shelf_of = build_space(layout)
         n = len(agvs)
         self.n = n
         k = np.array([a.k for a in agvs])
