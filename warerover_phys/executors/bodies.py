@@ -222,8 +222,8 @@ class PhysicalFleet:
         contacts are not solved, and it rests clear of obstacles), and the solver no longer
         iterates over its joints: at 1,000 AGVs most of pymunk's step is those joints.
 
-        ``static`` (an AGV with nothing left to do): also put it exactly on its hold point
-        ``(x, y)`` facing ``angle`` (it is within :data:`~.physics.PARK_EPS_M` of it: the
+        ``static`` (the executor parks every settled AGV so): also put it exactly on its
+        hold point ``(x, y)`` facing ``angle`` (it is within :data:`~.physics.PARK_EPS_M` of it: the
         deadbeat command of the next step would take it there) and take its body, its
         shapes and its control body out of the space, leaving in their place static
         stand-in shapes with the same vertices and collision types (:attr:`stand_ins`), so
@@ -417,7 +417,15 @@ class ObstacleReach:
 class BodyIO:
     """Read every AGV's pose and velocity, and set every control body's velocity, in one
     batch call each. AGVs out of the space (parked, :meth:`PhysicalFleet.park`) read as
-    they stood when they left it (standing still) and take no commands."""
+    they stood when they left it (standing still) and take no commands.
+
+    pymunk's batch functions (:func:`pymunk.batch.get_space_bodies` /
+    ``set_space_bodies``) build their C arguments anew on every call; at one read and one
+    write per physics step that cost more than the copies themselves, so the arguments are
+    built once here and chipmunk's body iterator is called directly (the functions' own
+    code, with the arguments kept). Rows go to and from the per-AGV arrays in one compiled
+    loop each (:func:`.step_kernels.gather_bodies`, :func:`.step_kernels.scatter_commands`).
+    """
 
     _GET = (batch.BodyFields.POSITION | batch.BodyFields.ANGLE
             | batch.BodyFields.VELOCITY | batch.BodyFields.ANGULAR_VELOCITY)
@@ -426,18 +434,40 @@ class BodyIO:
     _SET = batch.BodyFields.VELOCITY | batch.BodyFields.ANGULAR_VELOCITY
 
     def __init__(self, space: pymunk.Space, fleet: PhysicalFleet) -> None:
+        from pymunk._chipmunk import ffi, lib
+
         self.space = space
         self.fleet = fleet
+        n = len(fleet.bodies)
         self.buf = batch.Buffer()
+        self.set_buf = batch.Buffer()
+        self._ffi, self._lib = ffi, lib
+        self._each = lib.cpSpaceEachBody
+        self._get_fn = ffi.addressof(lib, "pmSpaceBodyGetIteratorFuncBatched")
+        self._set_fn = ffi.addressof(lib, "pmSpaceBodySetIteratorFuncBatched")
+        self._get_data = self._batched(self._GET, self.buf)
+        self._set_data = self._batched(self._SET, self.set_buf)
         self._body_ids = np.array([b.id for b in fleet.bodies], dtype=np.uintp)
         self._ctrl_ids = np.array([b.id for b in fleet.ctrl], dtype=np.uintp)
-        self._still = np.zeros((len(fleet.bodies), 6))
+        self._still = np.zeros((n, 6))
         """Per AGV: x, y, angle, vx, vy, w as read; rows of AGVs out of the space are
         their standing poses."""
-        self._out = np.zeros(len(fleet.bodies), dtype=bool)
+        self._out = np.zeros(n, dtype=bool)
         """AGVs out of the space at the last :meth:`reorder`."""
+        self._rows = np.full(n, -1, dtype=np.int64)
+        """Per AGV its body's batch row (-1: out of the space)."""
+        self._ctrl = np.full(n, -1, dtype=np.int64)
+        """Per AGV its control body's batch row (-1: out of the space)."""
+        self._all = np.zeros((0, 6))
         self.reorder()
-        self.set_buf = batch.Buffer()
+
+    def _batched(self, fields: batch.BodyFields, buf: batch.Buffer):
+        """The C argument of chipmunk's batch iterators for ``fields`` and ``buf``."""
+        data = self._ffi.new("pmBatchedData *")
+        data.fields = fields.value
+        data.floatArray = buf._float_arr
+        data.intArray = buf._int_arr
+        return data
 
     def reorder(self) -> None:
         """Find which row is which body (the space lists its bodies in an order that
@@ -447,51 +477,48 @@ class BodyIO:
         ids = np.frombuffer(self.buf.int_buf(), dtype=np.uintp)
         order = np.argsort(ids, kind="stable")
         out = self.fleet.static
-        self.in_space = np.flatnonzero(~out)
-        """AGVs whose bodies are in the space, in id order."""
-        self.body_rows = order[np.searchsorted(ids, self._body_ids[self.in_space],
-                                               sorter=order)].astype(np.intp)
-        self.ctrl_rows = order[np.searchsorted(ids, self._ctrl_ids[self.in_space],
-                                               sorter=order)].astype(np.intp)
+        ins = np.flatnonzero(~out)
+        self._rows[:] = -1
+        self._ctrl[:] = -1
+        self._rows[ins] = order[np.searchsorted(ids, self._body_ids[ins], sorter=order)]
+        self._ctrl[ins] = order[np.searchsorted(ids, self._ctrl_ids[ins], sorter=order)]
         self.n_rows = len(ids)
         self.out = np.zeros((self.n_rows, 3))
+        self.set_buf.set_float_buf(self.out.ravel())
         for i in np.flatnonzero(out & ~self._out):  # left since the last call
             b = self.fleet.bodies[i]
             self._still[i] = (*b.position, b.angle, 0.0, 0.0, 0.0)
         self._out = out.copy()
-        self._all_in = len(self.in_space) == len(self._body_ids)
 
     def read(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(positions (N, 2), angles (N,), velocities (N, 2), angular velocities (N,)) of
-        the AGV bodies, by AGV id."""
-        self.buf.clear()
-        batch.get_space_bodies(self.space, self._GET, self.buf)
+        the AGV bodies, by AGV id: new contiguous arrays on every call."""
+        from .step_kernels import gather_bodies
+
+        self.buf._float_arr.num = 0
+        self._each(self.space._space, self._get_fn, self._get_data)
         data = np.frombuffer(self.buf.float_buf(), dtype=np.float64).reshape(self.n_rows, 6)
         self._all = data
-        if self._all_in:
-            b = data[self.body_rows]
-        else:
-            b = self._still.copy()
-            b[self.in_space] = data[self.body_rows]
-        return b[:, 0:2], b[:, 2], b[:, 3:5], b[:, 5]
+        n = len(self._rows)
+        pos, ang, vel, w = np.empty((n, 2)), np.empty(n), np.empty((n, 2)), np.empty(n)
+        gather_bodies(data, self._rows, self._still, pos, ang, vel, w)
+        return pos, ang, vel, w
 
     def write(self, velocity: np.ndarray, angular: np.ndarray,
               bodies: np.ndarray | None = None) -> None:
         """Set the control bodies' velocities, and those of the AGV bodies where ``bodies``
         ((N,) bool) is set (every other body keeps what :meth:`read` saw); AGVs out of the
         space are left out."""
-        out = self.out
-        out[:] = self._all[:, 3:6]  # velocity (2) and angular velocity, as read
-        ins = self.in_space
-        if not self._all_in:
-            velocity, angular = velocity[ins], angular[ins]
-            if bodies is not None:
-                bodies = bodies[ins]
-        out[self.ctrl_rows, 0:2] = velocity
-        out[self.ctrl_rows, 2] = angular
-        if bodies is not None:
-            rows = self.body_rows[bodies]
-            out[rows, 0:2] = velocity[bodies]
-            out[rows, 2] = angular[bodies]
-        self.set_buf.set_float_buf(out.ravel())
-        batch.set_space_bodies(self.space, self._SET, self.set_buf)
+        from .step_kernels import scatter_commands
+
+        if bodies is None:
+            bodies = np.zeros(len(self._rows), dtype=np.bool_)
+        scatter_commands(self._all, self._rows, self._ctrl,
+                         np.ascontiguousarray(velocity, dtype=np.float64),
+                         np.ascontiguousarray(angular, dtype=np.float64),
+                         np.ascontiguousarray(bodies, dtype=np.bool_), self.out)
+        arr = self.set_buf._float_arr
+        num = arr.num
+        arr.num = 0  # the set iterator walks the array from its start
+        self._each(self.space._space, self._set_fn, self._set_data)
+        arr.num = num

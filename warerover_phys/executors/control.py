@@ -266,18 +266,20 @@ def run_references_compiled(st: FleetState, idx: np.ndarray, h: np.ndarray,
 
 
 def steer(st: FleetState, pos: np.ndarray, ang: np.ndarray, v_now: np.ndarray,
-          ref0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+          ref0: np.ndarray, skip: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """:func:`steer_numpy`'s commands, compiled (:func:`.control_nb.steer_rows`) when
-    :data:`COMPILED` is set."""
+    :data:`COMPILED` is set. ``skip`` ((N,) bool): rows whose commands nobody reads (the
+    compiled law leaves them zero; the numpy one computes them anyway)."""
     if not COMPILED:
         return steer_numpy(st, pos, ang, v_now, ref0)
-    return steer_compiled(st, pos, ang, v_now, ref0)
+    return steer_compiled(st, pos, ang, v_now, ref0, skip)
 
 
 def steer_compiled(st: FleetState, pos: np.ndarray, ang: np.ndarray, v_now: np.ndarray,
-                   ref0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                   ref0: np.ndarray, skip: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`steer_numpy` compiled (:func:`.control_nb.steer_rows`; the no-slip rows then
-    in numpy, :func:`_no_slip`): the same commands."""
+    in numpy, :func:`_no_slip`): the same commands (zero on the rows ``skip``)."""
     from .control_nb import steer_rows
 
     n = st.n
@@ -285,10 +287,12 @@ def steer_compiled(st: FleetState, pos: np.ndarray, ang: np.ndarray, v_now: np.n
     w = np.empty(n)
     pos = np.ascontiguousarray(pos, dtype=np.float64)
     ang = np.ascontiguousarray(ang, dtype=np.float64)
+    if skip is None:
+        skip = np.zeros(n, dtype=np.bool_)
     steer_rows(float(st.dt), st.mode, st.origin, st.direction, st.s_ref, st.hold_xy, st.ang_ref,
                st.heading, st.vmax, st.amax, st.wmax, pos, ang,
                np.ascontiguousarray(v_now, dtype=np.float64),
-               np.ascontiguousarray(ref0, dtype=np.float64), cmd, w)
+               np.ascontiguousarray(ref0, dtype=np.float64), cmd, w, skip)
     if st.no_slip is not None and st.no_slip.any():
         ns = np.flatnonzero(st.no_slip)
         cmd[ns], w[ns] = _no_slip(st, ns, pos[ns], ang[ns], v_now[ns], cmd[ns], w[ns],

@@ -192,10 +192,16 @@ def _wrap(a):
 
 @njit(cache=True, error_model="numpy")
 def steer_rows(dt, mode, origin, direction, s_ref, hold_xy, ang_ref, heading, vmax, amax,
-               wmax, pos, ang, v_now, ref0, cmd, w):
+               wmax, pos, ang, v_now, ref0, cmd, w, skip):
     """:func:`.control.steer` without the no-slip rows, and :func:`.control.limit_command`,
-    for every row: the commands to ``cmd`` (N, 2) and ``w`` (N,)."""
+    for every row but those ``skip`` ((N,) bool; their commands are zero): the commands to
+    ``cmd`` (N, 2) and ``w`` (N,)."""
     for i in range(len(mode)):
+        if skip[i]:
+            cmd[i, 0] = 0.0
+            cmd[i, 1] = 0.0
+            w[i] = 0.0
+            continue
         m = mode[i]
         a = amax[i]
         if m == DRIVE:
@@ -252,4 +258,5 @@ def warm_up() -> None:
     advance_rows(True, np.zeros(0, dtype=np.int64), one.copy(), np.zeros(1, dtype=bool), mode, f.copy(),
                  f.copy(), one, one, one, f.copy(), one.copy(), one.copy(), f.copy(), f.copy(),
                  np.zeros(1, dtype=np.int64))
-    steer_rows(0.05, mode, f2, f2, f, f2, f, f, one, one, one, f2, f, f2, f2, f2.copy(), f.copy())
+    steer_rows(0.05, mode, f2, f2, f, f2, f, f, one, one, one, f2, f, f2, f2, f2.copy(), f.copy(),
+               np.zeros(1, dtype=np.bool_))

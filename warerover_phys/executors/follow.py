@@ -25,6 +25,7 @@ fit the commit cut).
 
 from __future__ import annotations
 
+import heapq
 import math
 from typing import TYPE_CHECKING
 
@@ -207,18 +208,7 @@ class PlanFollower:
             # An AGV found waiting on the dependency graph sleeps until the queue head it
             # waits for changes (adg.woken), it is delayed, or its plan changes: deciding
             # for it again before then would find it waiting again.
-            asleep, woken = self._asleep, self.adg.woken
-            cand = np.flatnonzero((st.mode != DRIVE) & st.has_next)
-            # (Whether each sleeps is read up front: _decide(i) changes only asleep[i].
-            # woken may grow while deciding, so it is looked up in turn.)
-            sleeps = (asleep[cand] & ~delayed[cand]).tolist()
-            for i, sleeping in zip(cand.tolist(), sleeps, strict=True):
-                if sleeping and i not in woken:
-                    st.waiting[i] = True
-                    continue
-                asleep[i] = False
-                self._decide(i, t, bool(delayed[i]), float(ang[i]))
-            woken.clear()
+            self._decide_standing(t, delayed, ang)
             for i in list(self._face):
                 if st.mode[i] == HOLD and not st.has_next[i] and not delayed[i] \
                         and not st.failed[i]:
@@ -238,6 +228,43 @@ class PlanFollower:
                 for i in idx[event]:
                     busy[i] = self._event(int(i), t, left, delayed)
         self.adg.now = t
+
+    def _decide_standing(self, t: float, delayed: np.ndarray, ang: np.ndarray) -> None:
+        """Decide, in id order, for the standing AGVs with a next action, except those
+        asleep: found waiting on the dependency graph before, they sleep until the queue
+        head they wait for changes (``adg.woken``), they are delayed, or their plan
+        changes; deciding for them again before then would find them waiting again, so
+        they are marked waiting all at once. (Whether each sleeps is read up front:
+        :meth:`_decide` changes only its own AGV's ``asleep``. ``woken`` may grow while
+        deciding: an AGV woken then, after the one decided, is decided in its turn.)"""
+        st = self.st
+        asleep, woken = self._asleep, self.adg.woken
+        cand = np.flatnonzero((st.mode != DRIVE) & st.has_next)
+        sleeps = asleep[cand] & ~delayed[cand]
+        sleepers = cand[sleeps]
+        st.waiting[sleepers] = True
+        sleeping = set(sleepers.tolist())
+        todo = cand[~sleeps].tolist()
+        if woken:
+            todo += [i for i in woken if i in sleeping]
+            todo.sort()
+        known = len(woken)
+        decided: set[int] = set()
+        while todo:
+            i = heapq.heappop(todo)
+            if i in decided:
+                continue
+            decided.add(i)
+            if i in sleeping:
+                st.waiting[i] = False
+            asleep[i] = False
+            self._decide(i, t, bool(delayed[i]), float(ang[i]))
+            if len(woken) != known:  # (rare) woken grew: those after i decide in turn
+                known = len(woken)
+                for j in woken:
+                    if j > i and j in sleeping and j not in decided:
+                        heapq.heappush(todo, j)
+        woken.clear()
 
     def _run_compiled(self, t: float, left: np.ndarray, delayed: np.ndarray) -> None:
         """:meth:`advance`'s event loop with the compiled references

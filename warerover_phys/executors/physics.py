@@ -220,7 +220,6 @@ class PhysicsExecutor:
     def _physics_step(self, decide: bool) -> None:
         st = self.state
         raw, raw_ang, v_now, w_now = self.io.read()
-        raw, raw_ang = raw.copy(), raw_ang.copy()
         t = st.sim_s
         n = self.n
         injected, delayed = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
@@ -231,7 +230,8 @@ class PhysicsExecutor:
         self._off_reference_events(off, raw)
         self.follow.advance(raw, raw_ang, delayed, decide)
         self._comm_wait_s += float(np.count_nonzero(st.listening)) * st.dt
-        vel, w = steer(st, raw, raw_ang, v_now, ref0)
+        # Commands of AGVs out of the space that stay put are read by no one.
+        vel, w = steer(st, raw, raw_ang, v_now, ref0, self.fleet.static & (st.mode == HOLD))
         if self._shelf_contacts:
             self.fleet.orient_shelves(raw_ang)
         # Kinematic drive: the bodies get the step's velocities directly (pymunk moves
@@ -301,26 +301,22 @@ class PhysicsExecutor:
 
     def _park_settled(self, pos: np.ndarray, ang: np.ndarray, v: np.ndarray,
                       w: np.ndarray) -> bool:
-        """Park the standing AGVs whose bodies have settled on their hold points; whether
-        any body left the space."""
+        """Park the standing AGVs whose bodies have settled on their hold points (out of
+        the space, static stand-ins where the next step's deadbeat command would take them,
+        :func:`.control.steer`); whether any did. AGVs that wait to go on leave too: at
+        1,000 AGVs hundreds of them stand in queues for minutes, and a body in the space
+        costs pymunk's step and the batch reads and writes every step, while leaving and
+        coming back cost one re-read of the space's body order each."""
         st, fleet = self.state, self.fleet
         ids = self._settled_ids
         k = settled(st.mode, fleet.parked, st.hold_xy, pos, np.ascontiguousarray(v),
                     np.ascontiguousarray(w), st.heading, ang, st.speed, PARK_EPS_M,
                     PARK_SPEED, PARK_EPS_RAD, ids)
-        static = False
-        for i in ids[:k]:
-            i = int(i)
-            # Nothing left to do: out of the space, static stand-ins where the next step's
-            # deadbeat command would take it (control.steer). (One that waits to go on
-            # stays in the space: it would soon be back, and every body that leaves or
-            # enters it costs a re-read of the space's body order.)
-            done = not st.has_next[i]
+        for i in ids[:k].tolist():
             x, y = st.hold_xy[i]
             fleet.park(self.space, i, float(x), float(y),
-                       float(ang[i] + wrap(st.heading[i] - ang[i])), static=done)
-            static |= done
-        return static
+                       float(ang[i] + wrap(st.heading[i] - ang[i])), static=True)
+        return k > 0
 
     # ------------------------------------------------------------------------- fault hooks
 

@@ -22,8 +22,8 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["clearance_candidates", "clearance_moved", "limit_step", "near_pairs",
-           "obstacle_reach", "settled", "step_prelude", "step_shares"]
+__all__ = ["clearance_candidates", "clearance_moved", "gather_bodies", "limit_step", "near_pairs",
+           "obstacle_reach", "scatter_commands", "settled", "step_prelude", "step_shares"]
 
 _HOLD, _TURN, _DRIVE = 0, 1, 2  # as .fleet_state
 # label codes, as .causes.LABELS
@@ -341,3 +341,44 @@ def settled(mode, parked, hold_xy, pos, vel, w, heading, ang, speed, eps_m, eps_
         out[k] = i
         k += 1
     return k
+
+
+@njit(cache=True)
+def gather_bodies(data, rows, still, pos, ang, vel, w):
+    """:class:`~.bodies.BodyIO`'s read: per AGV ``i`` the batch row ``rows[i]`` of ``data``
+    ((R, 6): x, y, angle, vx, vy, w per body in the space), or ``still[i]`` where
+    ``rows[i] < 0`` (out of the space), into the contiguous ``pos`` (N, 2), ``ang`` (N,),
+    ``vel`` (N, 2) and ``w`` (N,)."""
+    for i in range(len(rows)):
+        r = rows[i]
+        src = still[i] if r < 0 else data[r]
+        pos[i, 0] = src[0]
+        pos[i, 1] = src[1]
+        ang[i] = src[2]
+        vel[i, 0] = src[3]
+        vel[i, 1] = src[4]
+        w[i] = src[5]
+
+
+@njit(cache=True)
+def scatter_commands(data, body_rows, ctrl_rows, velocity, angular, bodies, out):
+    """:class:`~.bodies.BodyIO`'s write: ``out`` (R, 3) gets every body's velocity and
+    angular velocity as read (``data`` (R, 6)), then AGV ``i``'s command on its control
+    body's row ``ctrl_rows[i]``, and on its body's row ``body_rows[i]`` where
+    ``bodies[i]`` (rows < 0: out of the space, left out)."""
+    for r in range(out.shape[0]):
+        out[r, 0] = data[r, 3]
+        out[r, 1] = data[r, 4]
+        out[r, 2] = data[r, 5]
+    for i in range(len(ctrl_rows)):
+        c = ctrl_rows[i]
+        if c < 0:
+            continue
+        out[c, 0] = velocity[i, 0]
+        out[c, 1] = velocity[i, 1]
+        out[c, 2] = angular[i]
+        if bodies[i]:
+            b = body_rows[i]
+            out[b, 0] = velocity[i, 0]
+            out[b, 1] = velocity[i, 1]
+            out[b, 2] = angular[i]
