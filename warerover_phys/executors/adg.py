@@ -242,6 +242,17 @@ class ActionGraph:
         self.woken: set[int] = set()
         """AGVs registered with :meth:`wait_on` whose blocking queue head has changed (or
         whose plan changed) since; the executor clears it after it has looked at them."""
+        self._ext_waiters: dict[int, list[int]] = {}
+        """Cell -> AGVs whose last :meth:`released` stopped at a visit ahead in that cell's
+        queue (:meth:`wait_release`)."""
+        self.ext_woken: set[int] = set()
+        """AGVs registered with :meth:`wait_release` whose cell's queue changed (or whose
+        plan, or the set of loaded AGVs, changed) since; the executor takes out the AGVs it
+        has looked at again."""
+        self.released_stop: int | None | bool = None
+        """Why the last :meth:`released` stopped: the cell whose queue has a visit ahead
+        that holds the AGV back, ``None`` (the limit, or no more actions) or ``False`` (a
+        message not yet heard: a matter of time, not of the queues)."""
         self.latency_s = float(latency_s)
         self.now = 0.0
         """Simulated time (seconds), set by the executor; used only with a latency."""
@@ -253,6 +264,9 @@ class ActionGraph:
         """AGVs with an action running or upcoming at the last :meth:`progress`."""
         self._dirty: set[int] = set()
         """AGVs whose record changed since the last :meth:`progress`."""
+        self._bulk: set[int] | None = None
+        """Between :meth:`begin_bulk` and :meth:`end_bulk`: the cells whose queues got
+        visits (appended, sorted at the end)."""
 
     # ----------------------------------------------------------------- building
 
@@ -260,6 +274,25 @@ class ActionGraph:
     def agvs(self) -> tuple[int, ...]:
         """The registered AGVs, in id order."""
         return tuple(sorted(self._agents))
+
+    def begin_bulk(self) -> bool:
+        """Start registering many AGVs at once (the first plans of a whole fleet): until
+        :meth:`end_bulk`, :meth:`set_plan` appends visits to their queues and the queues
+        are sorted once at the end, into the order that inserting them one by one gives
+        (held cells first in registration order, then by planned tick and insertion
+        order): one sort per queue instead of a search per visit. Only on an empty graph
+        (returns False, and does nothing, otherwise). Between the two calls nothing may
+        read the queues."""
+        if self._agents or self._bulk is not None:
+            return False
+        self._bulk = set()
+        return True
+
+    def end_bulk(self) -> None:
+        """Sort the queues that got visits since :meth:`begin_bulk`."""
+        cells, self._bulk = self._bulk, None
+        for c in cells or ():
+            self._queues[c].sort(key=_bulk_key)
 
     def set_plan(self, agv: int, path: TimedPath) -> None:
         """Commit cut and rebuild for one AGV.
@@ -283,7 +316,8 @@ class ActionGraph:
             cells = footprint_nodes(here, k, cols)
             for c in cells:
                 q = self._queues.get(c)
-                if q and q[0].entered and not q[0].sweep:
+                if q and (q[0].entered and not q[0].sweep if self._bulk is None
+                          else any(w.entered for w in q)):
                     raise ValueError(f"AGV {agv} cannot start at {divmod(here, cols)}: cell "
                                      f"{divmod(c, cols)} is held by AGV {q[0].agv}")
             rec = _Agent(k=k, node=here, held={}, pending=deque(), heading=self._heading0)
@@ -359,6 +393,7 @@ class ActionGraph:
                 leave_visits.append(v)
             rec.pending.append(_Step(action, enter_visits, leave_visits))
         self.woken.add(agv)
+        self.ext_woken.add(agv)
         self._dirty.add(agv)
 
     def _sweep_cells(self, anchor: int, sweep: Sweep) -> tuple[int, ...]:
@@ -388,6 +423,8 @@ class ActionGraph:
         if now != self._unloaded:
             self._unloaded = now
             for cell in list(self._waiters):
+                self._touch(cell)
+            for cell in list(self._ext_waiters):
                 self._touch(cell)
 
     def _passes(self, w: _Visit, v: _Visit) -> bool:
@@ -422,6 +459,10 @@ class ActionGraph:
         v = _Visit(cell, agv, enter, None, tick, self._order, entered)
         self._order += 1
         q = self._queues.setdefault(cell, [])
+        if self._bulk is not None:  # sorted by end_bulk; nobody waits yet
+            q.append(v)
+            self._bulk.add(cell)
+            return v
         i = len(q)
         if entered:
             while i > 0 and (not q[i - 1].entered or q[i - 1].sweep):
@@ -441,6 +482,9 @@ class ActionGraph:
         waiting = self._waiters.pop(cell, None)
         if waiting:
             self.woken.update(waiting)
+        waiting = self._ext_waiters.pop(cell, None)
+        if waiting:
+            self.ext_woken.update(waiting)
 
     def wait_on(self, agv: int) -> bool:
         """The AGV's next action is not ready: register it on the first cell whose queue
@@ -624,11 +668,21 @@ class ActionGraph:
                     if w is v:
                         break
                     if w.agv != agv and not self._passes(w, v):
+                        self.released_stop = v.cell
                         return out
             if not self._heard(agv, step):
+                self.released_stop = False
                 return out
             out.append(step.action)
+        self.released_stop = None
         return out
+
+    def wait_release(self, agv: int, cell: int) -> None:
+        """Name the AGV in :attr:`ext_woken` once ``cell``'s queue changes (a visit leaves
+        it, or one goes to its head), its plan changes, or the loaded AGVs change: until
+        then :meth:`released` gives it the same answer (visits placed later go behind
+        the ones it has claimed, and only make the cell's visit wait longer)."""
+        self._ext_waiters.setdefault(cell, []).append(agv)
 
     def collinear_run(self, agv: int, limit: int | None = None) -> list[Action]:
         """The leading upcoming actions with the direction of the first (one merged move)."""
@@ -825,6 +879,12 @@ class ActionGraph:
                             agvs, cells)
 
 
+def _bulk_key(v: _Visit) -> tuple[int, int, int]:
+    """Queue order of visits registered in bulk (:meth:`ActionGraph.begin_bulk`): held
+    cells first, in registration order, then by (planned enter tick, insertion order)."""
+    return (0, 0, v.order) if v.entered else (1, v.tick, v.order)
+
+
 def _prune_acyclic(graph: dict[int, list[int]]) -> dict[int, list[int]]:
     """``graph`` without the nodes that reach no cycle (an AGV that waits on no waiting
     AGV, then those that wait only on such AGVs, and so on): in a jammed fleet most
@@ -900,7 +960,11 @@ def build(paths: Mapping[int, TimedPath], sizes: Mapping[int, int], cols: int) -
     if len(starts) > 1:
         raise ValueError(f"all paths must start at the same tick, got {sorted(starts)}")
     graph = ActionGraph(cols, sizes)
-    for agv in sorted(paths):
-        graph.set_plan(agv, paths[agv])
+    graph.begin_bulk()
+    try:
+        for agv in sorted(paths):
+            graph.set_plan(agv, paths[agv])
+    finally:
+        graph.end_bulk()
     graph.check_acyclic()
     return graph

@@ -77,6 +77,9 @@ class PlanFollower:
         """AGVs whose new plan did not fit their commit cut: replanned once they stand."""
         self._cycles_seen: set[frozenset[int]] = set()
         self._asleep = np.zeros(st.n, dtype=bool)
+        self._ext_for: list[Action | None] = [None] * st.n
+        """Per AGV the running action at its last :meth:`_extend`, while that answer
+        holds."""
         """AGVs waiting on the dependency graph that need no decision until woken."""
         self._turn_in_place_on = bool(getattr(spec, "turn_in_place", False))
         self._face: dict[int, int] = {}
@@ -93,27 +96,39 @@ class PlanFollower:
     # ------------------------------------------------------------------------- per tick
 
     def sync_plans(self, view: TickView) -> None:
-        paths = view.plans
-        for i in range(self.st.n):
-            path = paths.get(i)
-            if path is None or path is self._synced[i]:
-                continue
-            self._synced[i] = path
-            cut = self._cut(i, path)
-            node = cut.states[0][0]
-            self._face.pop(i, None)
-            heads = path.headings
-            if self._turn_in_place_on and heads and len(set(heads)) > 1 \
-                    and not self.st.omni[i] \
-                    and all(a == b == node for a, b in path.states) \
-                    and not self.adg.turn_sweeps(i):
-                self._face[i] = int(heads[-1]) % 4
-            if all(a == b == node for a, b in cut.states) and self.synced_once(i) \
-                    and self.adg.next_action(i) is None:
-                continue  # a plan to stay where it will stop anyway: nothing changes
-            self.adg.set_plan(i, cut)
-            self.st.has_next[i] = self.adg.next_action(i) is not None
-            self._set_holds(i, view.dwells.get(i, ()))
+        paths, synced = view.plans, self._synced
+        changed = [i for i, path in paths.items()
+                   if path is not None and path is not synced.get(i, path)]
+        if not changed:
+            return
+        changed.sort()
+        # The fleet's first plans go to the ADG in one batch (see ActionGraph.begin_bulk).
+        bulk = len(changed) > 1 and self.adg.begin_bulk()
+        try:
+            for i in changed:
+                self._sync_one(i, paths[i], view)
+        finally:
+            if bulk:
+                self.adg.end_bulk()
+
+    def _sync_one(self, i: int, path: TimedPath, view: TickView) -> None:
+        """Hand AGV ``i``'s new plan ``path`` to the ADG (commit cut)."""
+        self._synced[i] = path
+        cut = self._cut(i, path)
+        node = cut.states[0][0]
+        self._face.pop(i, None)
+        heads = path.headings
+        if self._turn_in_place_on and heads and len(set(heads)) > 1 \
+                and not self.st.omni[i] \
+                and all(a == b == node for a, b in path.states) \
+                and not self.adg.turn_sweeps(i):
+            self._face[i] = int(heads[-1]) % 4
+        if all(a == b == node for a, b in cut.states) and self.synced_once(i) \
+                and self.adg.next_action(i) is None:
+            return  # a plan to stay where it will stop anyway: nothing changes
+        self.adg.set_plan(i, cut)
+        self.st.has_next[i] = self.adg.next_action(i) is not None
+        self._set_holds(i, view.dwells.get(i, ()))
 
     def _set_holds(self, i: int, dwells: tuple[tuple[int, int], ...]) -> None:
         """Map the dwells ``(tick, ticks)`` of AGV ``i``'s new plan to the actions they hold
@@ -201,8 +216,9 @@ class PlanFollower:
             # next look (the margin covers two decision intervals).
             driving = st.mode == DRIVE
             brake = st.speed ** 2 / (2 * st.amax) + 2 * st.vmax * st.dt * st.decide_every
-            for i in np.flatnonzero(driving & ~delayed & (st.stop_s - st.s_ref < brake + 0.05)):
-                self._extend(int(i))
+            for i in np.flatnonzero(driving & ~delayed
+                                    & (st.stop_s - st.s_ref < brake + 0.05)).tolist():
+                self._extend(i, again=True)
             st.waiting[:] = False
             st.listening[:] = False
             # An AGV found waiting on the dependency graph sleeps until the queue head it
@@ -394,15 +410,26 @@ class PlanFollower:
         self.st.has_next[i] = self.adg.next_action(i) is not None
         self.acc.action_begun(i, a, t)
 
-    def _extend(self, i: int) -> None:
-        """Push the stop point to the end of the released collinear run ahead."""
-        st = self.st
-        cur = self.adg.current(i)
+    def _extend(self, i: int, again: bool = False) -> None:
+        """Push the stop point to the end of the released collinear run ahead.
+
+        ``again``: a look from the decision steps, which may find nothing changed since
+        the last: then it is skipped. The answer depends only on the running action, the
+        AGV's plan and dwells, the loaded AGVs and the queue of the cell where the released
+        actions stopped, so it is kept (``_ext_for``) until one of these changes (the ADG's
+        ``ext_woken``, :meth:`~.adg.ActionGraph.wait_release`); never with a
+        communication latency (then it is also a matter of time)."""
+        st, adg = self.st, self.adg
+        cur = adg.current(i)
         if cur is None:
+            return
+        if again and self._ext_for[i] is cur and i not in adg.ext_woken:
             return
         run = 0
         if self.spec.adg:
-            ahead = self.adg.released(i, LOOKAHEAD)
+            adg.ext_woken.discard(i)
+            ahead = adg.released(i, LOOKAHEAD)
+            stop = adg.released_stop
         else:
             limit = (st.sim_s / st.tick_s) + 1
             ahead = [a for a in self.adg.upcoming(i, LOOKAHEAD) if a.tick <= limit]
@@ -413,8 +440,15 @@ class PlanFollower:
             run += 1
         if self.spec.adg and run:
             # Committed: no later plan may put another AGV ahead of it on these cells.
-            self.adg.claim(i, run, released=ahead)
+            adg.claim(i, run, released=ahead)
         st.stop_s[i] = st.cur_end[i] + run * st.cell_m
+        if self.spec.adg and adg.latency_s == 0:
+            if run == len(ahead) and stop is not None:
+                if stop is False:
+                    self._ext_for[i] = None
+                    return
+                adg.wait_release(i, stop)
+            self._ext_for[i] = cur  # a turn, a dwell, the look-ahead or the plan's end
 
     def _arrive(self, i: int, t: float) -> None:
         st = self.st
