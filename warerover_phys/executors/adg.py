@@ -359,9 +359,17 @@ class ActionGraph:
                     open_visits[v.cell] = v
         offsets = self._sweeps.get(agv)
         heading = committed[-1].action.direction if committed else rec.heading
+        # (path_moves checked every move: its direction is the step's offset.)
+        dirs = {1: (0, 1), -1: (0, -1), cols: (1, 0), -cols: (-1, 0)}
         for src, dst, tick, ticks in moves:
-            fs, fd = footprint_nodes(src, k, cols), footprint_nodes(dst, k, cols)
-            direction = _direction(src, dst, cols, agv)
+            direction = dirs[dst - src]
+            if k == 1:
+                fs, fd = (src,), (dst,)
+                enters, leaves = fd, fs
+            else:
+                fs, fd = footprint_nodes(src, k, cols), footprint_nodes(dst, k, cols)
+                enters = tuple(c for c in fd if c not in fs)
+                leaves = tuple(c for c in fs if c not in fd)
             swept: tuple[int, ...] = ()
             shelf: tuple[int, ...] = ()
             if offsets and direction != heading:
@@ -371,8 +379,7 @@ class ActionGraph:
                               if c not in fs and c not in fd)
             heading = direction
             action = Action(agv=agv, seq=rec.next_seq, src=src, dst=dst, tick=tick,
-                            ticks=ticks, enters=tuple(c for c in fd if c not in fs),
-                            leaves=tuple(c for c in fs if c not in fd),
+                            ticks=ticks, enters=enters, leaves=leaves,
                             direction=direction, sweeps=swept + shelf)
             rec.next_seq += 1
             leave_visits = [open_visits.pop(c) for c in action.leaves]
@@ -706,6 +713,25 @@ class ActionGraph:
         """The AGV whose visit heads ``cell``'s queue (entered or not), if any."""
         q = self._queues.get(cell)
         return q[0].agv if q else None
+
+    def blockers(self, agvs: Iterable[int]) -> list[int]:
+        """Per AGV of ``agvs``: the AGV whose visit heads the queue of the first cell its
+        next action enters where its own does not (the one it waits for; the holder if
+        that visit is entered, else the next in line), -1 if none or no next action. (The
+        cause recorder asks for every waiting AGV at once.)"""
+        agents, queues = self._agents, self._queues
+        out = []
+        for agv in agvs:
+            rec = agents.get(agv) or self._rec(agv)
+            b = -1
+            if rec.pending:
+                for c in rec.pending[0].action.enters:
+                    q = queues.get(c)
+                    if q and q[0].agv != agv:
+                        b = q[0].agv
+                        break
+            out.append(b)
+        return out
 
     def holder(self, cell: int) -> int | None:
         """The AGV that physically holds ``cell`` (its visit is entered), if any."""

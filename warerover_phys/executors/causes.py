@@ -163,12 +163,14 @@ class CauseRecorder:
             self._wait_run, self.step_no % self.refresh == 0, self._look)
         # The blocker look-ups (their waits were not counted yet: a changed blocker gets
         # the run so far first), as in step().
-        for i in self._look[:nl].tolist():
-            b = self._find_blocker(i)
-            if b != self._blocker[i]:
-                self._flush_wait(i)
-                self._blocker[i] = b
-            self._wait_run[i] += 1
+        if nl:
+            look = self._look[:nl]
+            blocker = self._blocker
+            for i, b in zip(look.tolist(), self.adg.blockers(look.tolist()), strict=True):
+                if b != blocker[i]:
+                    self._flush_wait(i)
+                    blocker[i] = b
+            self._wait_run[look] += 1
         self.step_no += 1
         return int(active)
 

@@ -351,13 +351,20 @@ def gather_bodies(data, rows, still, pos, ang, vel, w):
     ``vel`` (N, 2) and ``w`` (N,)."""
     for i in range(len(rows)):
         r = rows[i]
-        src = still[i] if r < 0 else data[r]
-        pos[i, 0] = src[0]
-        pos[i, 1] = src[1]
-        ang[i] = src[2]
-        vel[i, 0] = src[3]
-        vel[i, 1] = src[4]
-        w[i] = src[5]
+        if r < 0:
+            pos[i, 0] = still[i, 0]
+            pos[i, 1] = still[i, 1]
+            ang[i] = still[i, 2]
+            vel[i, 0] = still[i, 3]
+            vel[i, 1] = still[i, 4]
+            w[i] = still[i, 5]
+        else:
+            pos[i, 0] = data[r, 0]
+            pos[i, 1] = data[r, 1]
+            ang[i] = data[r, 2]
+            vel[i, 0] = data[r, 3]
+            vel[i, 1] = data[r, 4]
+            w[i] = data[r, 5]
 
 
 @njit(cache=True)
