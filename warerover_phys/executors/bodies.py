@@ -222,9 +222,9 @@ class PhysicalFleet:
         contacts are not solved, and it rests clear of obstacles), and the solver no longer
         iterates over its joints: at 1,000 AGVs most of pymunk's step is those joints.
 
-        ``static`` (the executor parks every settled AGV so): also put it exactly on its
-        hold point ``(x, y)`` facing ``angle`` (it is within :data:`~.physics.PARK_EPS_M` of it: the
-        deadbeat command of the next step would take it there) and take its body, its
+        ``static``: also put it exactly on its hold point ``(x, y)`` facing ``angle`` (it
+        is within :data:`~.physics.PARK_EPS_M` of it: the deadbeat command of the next
+        step would take it there) and take its body, its
         shapes and its control body out of the space, leaving in their place static
         stand-in shapes with the same vertices and collision types (:attr:`stand_ins`), so
         that pymunk neither integrates it nor re-indexes its shapes each step, and the batch
@@ -243,9 +243,14 @@ class PhysicalFleet:
         self.parked[i] = True
         self.n_parked += 1
         if static:
-            body.position = (x, y)
-            body.angle = angle
-            self._leave_space(space, i)
+            self.leave(space, i, x, y, angle)
+
+    def leave(self, space: pymunk.Space, i: int, x: float, y: float, angle: float) -> None:
+        """Parked AGV ``i`` (in the space) leaves it: see :meth:`park` with ``static``."""
+        body = self.bodies[i]
+        body.position = (x, y)
+        body.angle = angle
+        self._leave_space(space, i)
 
     def _leave_space(self, space: pymunk.Space, i: int) -> None:
         """Take parked AGV ``i``'s body, shapes and control body out of the space; static

@@ -71,6 +71,10 @@ PARK_SPEED = 1e-3
 """... moves slower than this (m/s, and turns slower than this in rad/s) ..."""
 PARK_EPS_RAD = 1e-3
 """... and faces its heading to within this (radians)."""
+STATIC_AFTER_S = 2.0
+"""A parked AGV leaves the space (:meth:`PhysicsExecutor._park_settled`) once it has
+stood this long since its last action (simulated seconds), or at once with nothing left
+to do."""
 REACH_SLOP_M = 0.05
 """Extra reach (metres) of the obstacle test that keeps a body's drive joints in the space
 (:meth:`PhysicalFleet.set_joints`), beyond twice the farthest it can move in a step."""
@@ -301,22 +305,33 @@ class PhysicsExecutor:
 
     def _park_settled(self, pos: np.ndarray, ang: np.ndarray, v: np.ndarray,
                       w: np.ndarray) -> bool:
-        """Park the standing AGVs whose bodies have settled on their hold points (out of
-        the space, static stand-ins where the next step's deadbeat command would take them,
-        :func:`.control.steer`); whether any did. AGVs that wait to go on leave too: at
-        1,000 AGVs hundreds of them stand in queues for minutes, and a body in the space
-        costs pymunk's step and the batch reads and writes every step, while leaving and
-        coming back cost one re-read of the space's body order each."""
+        """Park the standing AGVs whose bodies have settled on their hold points, and take
+        out of the space (static stand-ins where the next step's deadbeat command would
+        take them, :func:`.control.steer`) those with nothing left to do and those that
+        have stood for :data:`STATIC_AFTER_S` (a body in the space costs pymunk's step and
+        the batch reads and writes every step; leaving and coming back cost a few hundred
+        microseconds, a re-read of the space's body order included: at 1,000 AGVs hundreds
+        stand in queues for minutes, while most waits are short). Whether any body left."""
         st, fleet = self.state, self.fleet
         ids = self._settled_ids
         k = settled(st.mode, fleet.parked, st.hold_xy, pos, np.ascontiguousarray(v),
                     np.ascontiguousarray(w), st.heading, ang, st.speed, PARK_EPS_M,
                     PARK_SPEED, PARK_EPS_RAD, ids)
+        long = st.sim_s - st.last_finish >= STATIC_AFTER_S - 1e-9
+        left = False
         for i in ids[:k].tolist():
             x, y = st.hold_xy[i]
+            out = not st.has_next[i] or bool(long[i])
             fleet.park(self.space, i, float(x), float(y),
-                       float(ang[i] + wrap(st.heading[i] - ang[i])), static=True)
-        return k > 0
+                       float(ang[i] + wrap(st.heading[i] - ang[i])), static=out)
+            left |= out
+        for i in np.flatnonzero(fleet.parked & ~fleet.static & long
+                                & (st.mode == HOLD)).tolist():
+            x, y = st.hold_xy[i]
+            fleet.leave(self.space, i, float(x), float(y),
+                        float(ang[i] + wrap(st.heading[i] - ang[i])))
+            left = True
+        return left
 
     # ------------------------------------------------------------------------- fault hooks
 
