@@ -674,3 +674,64 @@ def test_progress_answers_as_a_fresh_pass_whatever_happened_since(data):
                 g.set_plan(i, TimedPath(i, tick, stand(here, here + 1 if here % 8 < 7
                                                        else here - 1)))
         assert g.progress(3, tick) == _progress_from_scratch(g, 3, tick)
+
+
+@SETTINGS
+@given(instances(), st.integers(0, 2**32 - 1), st.floats(0.3, 1.0), st.integers(1, 3))
+def test_released_answers_hold_until_woken_and_blockers_match_heads(instance, seed, p,
+                                                                     max_delay):
+    """What the follower relies on to skip a look ahead (``wait_release``, ``ext_woken``):
+    an AGV that claimed its released actions gets the same :meth:`released` answer, with
+    the same running and next action, until it is named in ``ext_woken``; and
+    :meth:`blockers` says what ``next_action`` and ``head`` say, AGV by AGV."""
+    layout, paths, sizes, _, trajs = instance
+    graph = build_or_skip(paths, sizes, trajs, layout.cols)
+    ex = Execution(graph, sizes, layout.cols, seed, p, max_delay)
+    kept: dict[int, tuple] = {}
+
+    def hook(ex: Execution) -> None:
+        agvs = list(graph.agvs)
+        heads = []
+        for agv in agvs:
+            nxt = graph.next_action(agv)
+            h = next((graph.head(c) for c in (nxt.enters if nxt else ())
+                      if graph.head(c) not in (None, agv)), None)
+            heads.append(-1 if h is None else h)
+        assert graph.blockers(agvs) == heads
+        for agv in agvs:
+            cur, nxt = graph.current(agv), graph.next_action(agv)
+            old = kept.pop(agv, None)
+            if old is not None and old[0] is cur and old[1] is nxt \
+                    and agv not in graph.ext_woken:
+                event("released answer kept")
+                assert graph.released(agv, 8) == old[2]
+            graph.ext_woken.discard(agv)
+            ans = graph.released(agv, 8)
+            stop = graph.released_stop
+            graph.claim(agv, len(ans), released=ans)
+            if stop is not False:
+                if stop is not None:
+                    graph.wait_release(agv, stop)
+                kept[agv] = (cur, nxt, ans)
+
+    hook(ex)
+    ex.run(bound_for(graph, p, max_delay), hook)
+
+
+@SETTINGS
+@given(instances())
+def test_bulk_registration_gives_the_queues_of_one_by_one(instance):
+    """``begin_bulk`` / ``end_bulk`` (the fleet's first plans in one batch, as ``build``
+    does) leave every queue in the order that registering the AGVs one by one gives."""
+    layout, paths, sizes, _, _ = instance
+    one = ActionGraph(layout.cols, sizes)
+    bulk = ActionGraph(layout.cols, sizes)
+    assert bulk.begin_bulk() and not bulk.begin_bulk()
+    for agv in sorted(paths):
+        one.set_plan(agv, paths[agv])
+        bulk.set_plan(agv, paths[agv])
+    bulk.end_bulk()
+    assert not bulk.begin_bulk()  # only on an empty graph
+    for cell in range(layout.rows * layout.cols):
+        assert bulk.visits(cell) == one.visits(cell)
+    assert [bulk.upcoming(a) for a in sorted(paths)] == [one.upcoming(a) for a in sorted(paths)]

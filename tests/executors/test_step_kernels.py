@@ -140,6 +140,14 @@ class _Graph:
         h = int(self.table[self.now, c])
         return None if h < 0 else h
 
+    def blockers(self, agvs):
+        out = []
+        for i in agvs:
+            nxt = self.next_action(i)
+            h = None if nxt is None else self.head(nxt.enters[0])
+            out.append(-1 if h is None or h == i else h)
+        return out
+
 
 def _fleet(rng: np.random.Generator, n: int, dt: float):
     return SimpleNamespace(n=n, dt=dt, tick_s=0.5, sim_s=0.0,

@@ -35,6 +35,7 @@ from ..layout import CellType, Layout
 __all__ = ["AGV", "OBSTACLE", "SHELF", "FORCE_HEADROOM", "SHELF_SIDE", "BodyIO",
            "ObstacleReach", "PhysicalFleet", "build_space", "unsolved_agv_contacts"]
 
+_IDENTITY = pymunk.Transform.identity()
 AGV, OBSTACLE, SHELF = 1, 2, 3
 """Collision types."""
 FORCE_HEADROOM = 2.0
@@ -177,6 +178,8 @@ class PhysicalFleet:
     """How many AGVs are parked."""
     jointed: np.ndarray | None = None
     """(N,) AGVs whose drive joints are in the space (:meth:`set_joints`)."""
+    _twins: dict[int, pymunk.Poly] = field(default_factory=dict)
+    """id of a shape -> its stand-in, kept for the next time it leaves the space."""
 
     @classmethod
     def add_to(cls, space: pymunk.Space, poses: list[tuple[float, float, float]],
@@ -260,7 +263,12 @@ class PhysicalFleet:
         shapes = self._shapes_in_space(i)
         for s in shapes:
             verts = [body.local_to_world(v) for v in s.get_vertices()]
-            twin = pymunk.Poly(space.static_body, verts, radius=s.radius)
+            twin = self._twins.get(id(s))
+            if twin is None or twin.radius != s.radius:
+                twin = pymunk.Poly(space.static_body, verts, radius=s.radius)
+                self._twins[id(s)] = twin
+            else:  # as a new Poly would be: the convex hull of verts (out of the space)
+                twin.unsafe_set_vertices(verts, _IDENTITY)
             twin.collision_type = s.collision_type
             twin.friction = s.friction
             twin.elasticity = s.elasticity
@@ -452,6 +460,7 @@ class BodyIO:
         self._set_fn = ffi.addressof(lib, "pmSpaceBodySetIteratorFuncBatched")
         self._get_data = self._batched(self._GET, self.buf)
         self._set_data = self._batched(self._SET, self.set_buf)
+        self._id_data = self._batched(batch.BodyFields.BODY_ID, self.buf)
         self._body_ids = np.array([b.id for b in fleet.bodies], dtype=np.uintp)
         self._ctrl_ids = np.array([b.id for b in fleet.ctrl], dtype=np.uintp)
         self._still = np.zeros((n, 6))
@@ -464,6 +473,7 @@ class BodyIO:
         self._ctrl = np.full(n, -1, dtype=np.int64)
         """Per AGV its control body's batch row (-1: out of the space)."""
         self._all = np.zeros((0, 6))
+        self.n_rows = -1
         self.reorder()
 
     def _batched(self, fields: batch.BodyFields, buf: batch.Buffer):
@@ -477,19 +487,17 @@ class BodyIO:
     def reorder(self) -> None:
         """Find which row is which body (the space lists its bodies in an order that
         changes when bodies leave or enter it: :meth:`PhysicalFleet.park`)."""
-        self.buf.clear()
-        batch.get_space_bodies(self.space, batch.BodyFields.BODY_ID, self.buf)
+        from .step_kernels import body_rows
+
+        self.buf._int_arr.num = 0
+        self._each(self.space._space, self._get_fn, self._id_data)
         ids = np.frombuffer(self.buf.int_buf(), dtype=np.uintp)
-        order = np.argsort(ids, kind="stable")
         out = self.fleet.static
-        ins = np.flatnonzero(~out)
-        self._rows[:] = -1
-        self._ctrl[:] = -1
-        self._rows[ins] = order[np.searchsorted(ids, self._body_ids[ins], sorter=order)]
-        self._ctrl[ins] = order[np.searchsorted(ids, self._ctrl_ids[ins], sorter=order)]
-        self.n_rows = len(ids)
-        self.out = np.zeros((self.n_rows, 3))
-        self.set_buf.set_float_buf(self.out.ravel())
+        body_rows(ids, self._body_ids, self._ctrl_ids, out, self._rows, self._ctrl)
+        if len(ids) != self.n_rows:
+            self.n_rows = len(ids)
+            self.out = np.zeros((self.n_rows, 3))
+            self.set_buf.set_float_buf(self.out.ravel())
         for i in np.flatnonzero(out & ~self._out):  # left since the last call
             b = self.fleet.bodies[i]
             self._still[i] = (*b.position, b.angle, 0.0, 0.0, 0.0)

@@ -22,7 +22,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["clearance_candidates", "clearance_moved", "gather_bodies", "limit_step", "near_pairs",
+__all__ = ["body_rows", "clearance_candidates", "clearance_moved", "gather_bodies", "limit_step", "near_pairs",
            "obstacle_reach", "scatter_commands", "settled", "step_prelude", "step_shares"]
 
 _HOLD, _TURN, _DRIVE = 0, 1, 2  # as .fleet_state
@@ -389,3 +389,20 @@ def scatter_commands(data, body_rows, ctrl_rows, velocity, angular, bodies, out)
             out[b, 0] = velocity[i, 0]
             out[b, 1] = velocity[i, 1]
             out[b, 2] = angular[i]
+
+
+@njit(cache=True)
+def body_rows(ids, body_ids, ctrl_ids, out, rows, ctrl):
+    """:class:`~.bodies.BodyIO`'s row map: per AGV ``i`` the batch rows of its body and
+    control body (``body_ids[i]`` / ``ctrl_ids[i]`` among ``ids``, the space's body ids
+    in batch order, all distinct) to ``rows[i]`` / ``ctrl[i]``; -1 for AGVs ``out`` of the
+    space."""
+    order = np.argsort(ids)
+    sids = ids[order]
+    for i in range(len(body_ids)):
+        if out[i]:
+            rows[i] = -1
+            ctrl[i] = -1
+        else:
+            rows[i] = order[np.searchsorted(sids, body_ids[i])]
+            ctrl[i] = order[np.searchsorted(sids, ctrl_ids[i])]
