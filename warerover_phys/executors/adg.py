@@ -57,6 +57,7 @@ says it is (:meth:`ActionGraph.listening`). Its own actions need no message.
 
 from __future__ import annotations
 
+import heapq
 import logging
 from collections import deque
 from collections.abc import Iterable, Iterator, Mapping
@@ -264,6 +265,19 @@ class ActionGraph:
         """AGVs with an action running or upcoming at the last :meth:`progress`."""
         self._dirty: set[int] = set()
         """AGVs whose record changed since the last :meth:`progress`."""
+        self._due: list[tuple[int, int, int]] = []
+        """Heap of (tick after which an AGV not late at the last :meth:`progress` is late,
+        AGV, version): the live AGVs that progress must look at again."""
+        self._due_ver: dict[int, int] = {}
+        """AGV -> version of its newest entry in :attr:`_due` (older ones are stale)."""
+        self._progress_tick = 0
+        self._qver: dict[int, int] = {}
+        """Cell -> how many times its queue changed (a visit in or out, a sort)."""
+        self._load_ver = 0
+        """How many times :meth:`set_loaded` changed the unloaded AGVs."""
+        self._waits: dict[int, tuple] = {}
+        """AGV -> (its next step, its cells' queue versions, the load version, the AGVs
+        ahead of it or None): :meth:`waiting_for`'s answer while none of these change."""
         self._bulk: set[int] | None = None
         """Between :meth:`begin_bulk` and :meth:`end_bulk`: the cells whose queues got
         visits (appended, sorted at the end)."""
@@ -293,6 +307,7 @@ class ActionGraph:
         cells, self._bulk = self._bulk, None
         for c in cells or ():
             self._queues[c].sort(key=_bulk_key)
+            self._bump(c)
 
     def set_plan(self, agv: int, path: TimedPath) -> None:
         """Commit cut and rebuild for one AGV.
@@ -336,6 +351,7 @@ class ActionGraph:
             for step in gone:
                 for v in step.enter_visits:
                     self._queues[v.cell].remove(v)
+                    self._bump(v.cell)
                     self._touch(v.cell)
             for step in [rec.running, *kept]:
                 if step is None:
@@ -429,6 +445,7 @@ class ActionGraph:
         now = {a for a, x in enumerate(loaded) if not x}
         if now != self._unloaded:
             self._unloaded = now
+            self._load_ver += 1
             for cell in list(self._waiters):
                 self._touch(cell)
             for cell in list(self._ext_waiters):
@@ -470,6 +487,7 @@ class ActionGraph:
             q.append(v)
             self._bulk.add(cell)
             return v
+        self._bump(cell)
         i = len(q)
         if entered:
             while i > 0 and (not q[i - 1].entered or q[i - 1].sweep):
@@ -483,6 +501,10 @@ class ActionGraph:
         if i == 0:
             self._touch(cell)
         return v
+
+    def _bump(self, cell: int) -> None:
+        """``cell``'s queue changed: answers kept for it are stale."""
+        self._qver[cell] = self._qver.get(cell, 0) + 1
 
     def _touch(self, cell: int) -> None:
         """The head of ``cell``'s queue may have changed: wake the AGVs waiting on it."""
@@ -555,7 +577,9 @@ class ActionGraph:
         """Give back the claims on the AGV's upcoming actions after the first ``keep``
         (it stops sooner than it planned to, e.g. before a corridor that just opened)."""
         for n, step in enumerate(self._rec(agv).pending):
-            if n >= keep and step.claimed:
+            if not step.claimed:
+                break  # the claims are a leading run
+            if n >= keep:
                 step.claimed = False
                 for v in step.enter_visits:
                     v.claimed = False
@@ -595,12 +619,25 @@ class ActionGraph:
         at: an AGV with nothing left to do answers as it did (at 1,000 AGVs most of them
         stand at their goals)."""
         cache = self._progress
+        due, due_ver = self._due, self._due_ver
         if cache is None or len(cache[0]) != n:
             todo: Iterable[int] = range(n)
             cache = self._progress = ([(0, 0)] * n, [False] * n, [False] * n, [False] * n)
             self._live = set()
-        else:
+            due.clear()
+        elif tick < self._progress_tick:  # back in time: look at every live AGV again
             todo = sorted(self._live | self._dirty)
+            due.clear()
+        else:
+            # A live AGV whose record did not change answers as it did, but that it may be
+            # late by now: only those whose due tick has passed are looked at again.
+            again = set(self._dirty)
+            while due and due[0][0] < tick:
+                _, i, ver = heapq.heappop(due)
+                if due_ver.get(i) == ver:
+                    again.add(i)
+            todo = sorted(again)
+        self._progress_tick = tick
         states, late, pending, running = cache
         live = self._live
         agents = self._agents
@@ -622,8 +659,13 @@ class ActionGraph:
                 late[i] = nxt is not None and nxt.tick < tick
                 running[i] = False
             pending[i] = nxt is not None
+            ver = due_ver.get(i, 0) + 1
+            due_ver[i] = ver
             if run is not None or nxt is not None:
                 live.add(i)
+                if not late[i]:  # late once tick passes this
+                    heapq.heappush(due, (a.tick + a.ticks if run is not None else nxt.tick,
+                                         i, ver))
             else:
                 live.discard(i)
         self._dirty.clear()
@@ -768,6 +810,7 @@ class ActionGraph:
                 del q[0]
             else:  # cannot happen while the invariants hold; stay safe
                 q.remove(v)
+            self._bump(v.cell)
             del rec.held[v.cell]
             self._touch(v.cell)
             if self.latency_s > 0:
@@ -783,30 +826,50 @@ class ActionGraph:
     def waiting_for(self) -> dict[int, set[int]]:
         """Wait-for graph: each AGV whose next action is not ready (and that runs nothing)
         -> the other AGVs whose visits are ahead of its own in the cells it would enter."""
-        out: dict[int, set[int]] = {}
+        return {a: set(b) for a, b in self._waiting_for().items()}
+
+    def _waiting_for(self) -> dict[int, frozenset[int]]:
+        """:meth:`waiting_for` with the kept answers themselves (not to be changed). An
+        AGV's answer depends only on its next step, the queues of the cells it enters and
+        who carries a shelf: it is kept (``_waits``) until one of these changes."""
+        out: dict[int, frozenset[int]] = {}
+        qver, kept, load = self._qver, self._waits, self._load_ver
         for agv, rec in self._agents.items():
             if rec.running is not None or not rec.pending:
                 continue
-            ahead: set[int] = set()
-            blocked = False
-            for v in rec.pending[0].enter_visits:
-                q = self._queues[v.cell]
-                if self._first(v):
-                    continue
-                blocked = True
-                for w in q:
-                    if w is v:
-                        break
-                    if w.agv != agv and not self._passes(w, v):
-                        ahead.add(w.agv)
-            if blocked:
+            step = rec.pending[0]
+            vers = tuple([qver.get(v.cell, 0) for v in step.enter_visits])
+            hit = kept.get(agv)
+            if hit is not None and hit[0] is step and hit[1] == vers and hit[2] == load:
+                ahead = hit[3]
+            else:
+                ahead = self._ahead(agv, step)
+                kept[agv] = (step, vers, load, ahead)
+            if ahead is not None:
                 out[agv] = ahead
         return out
+
+    def _ahead(self, agv: int, step: _Step) -> frozenset[int] | None:
+        """The AGVs whose visits hold back ``step`` of ``agv`` in the cells it enters;
+        None if none does (it is not blocked)."""
+        ahead: set[int] = set()
+        blocked = False
+        for v in step.enter_visits:
+            q = self._queues[v.cell]
+            if self._first(v):
+                continue
+            blocked = True
+            for w in q:
+                if w is v:
+                    break
+                if w.agv != agv and not self._passes(w, v):
+                    ahead.add(w.agv)
+        return frozenset(ahead) if blocked else None
 
     def deadlock_cycles(self, max_cycles: int = 64) -> list[list[int]]:
         """Elementary cycles of :meth:`waiting_for`, each once, rotated to start at its
         smallest AGV id, sorted; at most ``max_cycles``."""
-        graph = _prune_acyclic({a: sorted(b) for a, b in self.waiting_for().items()})
+        graph = _prune_acyclic({a: sorted(b) for a, b in self._waiting_for().items()})
         cycles: list[list[int]] = []
         for comp in _sccs(graph):
             if len(comp) < 2:
