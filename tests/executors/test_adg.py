@@ -459,6 +459,26 @@ def test_deadlock_cycles_are_found_once_each():
     assert g2.deadlock_cycles() == [[0, 1], [2, 3]]
 
 
+def test_a_checked_graph_skips_the_search_until_a_plan_changes():
+    """Once check_acyclic has passed (run by deadlock_cycles when the searches since the
+    last change cost as much), no search runs until a plan changes; a later plan that
+    closes a cycle of waits is found at once."""
+    g = ActionGraph(cols=4, sizes=dict.fromkeys(range(2), 1))
+    g.set_plan(0, TimedPath(0, 0, stand(0)))
+    g.set_plan(1, TimedPath(1, 0, stand(1, 2)))
+    calls = []
+    search = g._cycles
+    g._cycles = lambda m: calls.append(m) or search(m)
+    for _ in range(10):
+        assert g.deadlock_cycles() == []
+    assert g._acyclic and len(calls) < 10  # checked, then no more searches
+    # Two AGVs facing each other, re-planned one at a time: each waits on the other.
+    g.set_plan(1, TimedPath(1, 0, stand(1, 0)))
+    g.set_plan(0, TimedPath(0, 0, stand(0, 1)))
+    assert not g._acyclic
+    assert g.deadlock_cycles() == [[0, 1]]
+
+
 def test_all_paths_must_start_together():
     with pytest.raises(ValueError, match="same tick"):
         build({0: TimedPath(0, 0, stand(0)), 1: TimedPath(1, 1, stand(2))}, {0: 1, 1: 1}, 4)
@@ -574,7 +594,11 @@ def test_replanning_mid_execution_keeps_the_invariants(instance, seed, p, max_de
             virtual = candidate
         ex.check()
 
-    ex.run(bound_for(graph, p, max_delay) * 2, hook)
+    def every_step(ex: Execution) -> None:
+        hook(ex)
+        assert graph.deadlock_cycles() == graph._cycles(64) == []
+
+    ex.run(bound_for(graph, p, max_delay) * 2, every_step)
     for agv, path in paths.items():
         assert ex.done_moves[agv] == planned_moves(path.states)
         assert ex.where[agv] == (path.goal, path.goal)

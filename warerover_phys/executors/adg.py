@@ -274,6 +274,14 @@ class ActionGraph:
         self._qver: dict[int, int] = {}
         """Cell -> how many times its queue changed (a visit in or out, a sort)."""
         self._load_ver = 0
+        self._n_visits = 0
+        """Visits in the queues."""
+        self._acyclic = False
+        """:meth:`check_acyclic` passed since the last change of a plan or a load."""
+        self._acyclic_failed = False
+        """:meth:`check_acyclic` failed since the last change of a plan or a load."""
+        self._dl_spent = 0
+        """AGVs looked at by :meth:`deadlock_cycles` since the last change or check."""
         """How many times :meth:`set_loaded` changed the unloaded AGVs."""
         self._waits: dict[int, tuple] = {}
         """AGV -> (its next step, its cells' queue versions, the load version, the AGVs
@@ -351,6 +359,7 @@ class ActionGraph:
             for step in gone:
                 for v in step.enter_visits:
                     self._queues[v.cell].remove(v)
+                    self._n_visits -= 1
                     self._bump(v.cell)
                     self._touch(v.cell)
             for step in [rec.running, *kept]:
@@ -417,6 +426,7 @@ class ActionGraph:
             rec.pending.append(_Step(action, enter_visits, leave_visits))
         self.woken.add(agv)
         self.ext_woken.add(agv)
+        self._plans_changed()
         self._dirty.add(agv)
 
     def _sweep_cells(self, anchor: int, sweep: Sweep) -> tuple[int, ...]:
@@ -446,6 +456,7 @@ class ActionGraph:
         if now != self._unloaded:
             self._unloaded = now
             self._load_ver += 1
+            self._plans_changed()
             for cell in list(self._waiters):
                 self._touch(cell)
             for cell in list(self._ext_waiters):
@@ -482,6 +493,7 @@ class ActionGraph:
                    entered: bool) -> _Visit:
         v = _Visit(cell, agv, enter, None, tick, self._order, entered)
         self._order += 1
+        self._n_visits += 1
         q = self._queues.setdefault(cell, [])
         if self._bulk is not None:  # sorted by end_bulk; nobody waits yet
             q.append(v)
@@ -810,6 +822,7 @@ class ActionGraph:
                 del q[0]
             else:  # cannot happen while the invariants hold; stay safe
                 q.remove(v)
+            self._n_visits -= 1
             self._bump(v.cell)
             del rec.held[v.cell]
             self._touch(v.cell)
@@ -868,7 +881,38 @@ class ActionGraph:
 
     def deadlock_cycles(self, max_cycles: int = 64) -> list[list[int]]:
         """Elementary cycles of :meth:`waiting_for`, each once, rotated to start at its
-        smallest AGV id, sorted; at most ``max_cycles``."""
+        smallest AGV id, sorted; at most ``max_cycles``.
+
+        A cycle of waits is a cycle of the remaining dependency graph (an AGV waits on one
+        whose visit is ahead of its own: that AGV's next action comes before its leaving
+        the cell, which comes before the waiting AGV's next action). Starting and
+        finishing actions never add an edge, so once :meth:`check_acyclic` has passed
+        there is no cycle to find until a plan or a load changes. It is run once the
+        passes spent since the last change (AGVs looked at) reach the number of visits
+        in the queues (its own cost): at most about twice the work of looking every
+        time, and, with a fixed plan, one check instead of a pass per tick. The answers
+        are the same either way."""
+        if self._acyclic:
+            return []
+        cycles = self._cycles(max_cycles)
+        self._dl_spent += len(self._agents)
+        if not cycles and not self._acyclic_failed and self._dl_spent >= self._n_visits:
+            self._dl_spent = 0
+            try:
+                self.check_acyclic()
+            except ADGCycleError:
+                self._acyclic_failed = True  # (a visit behind a plan's end: look each time)
+            else:
+                self._acyclic = True
+        return cycles
+
+    def _plans_changed(self) -> None:
+        """A plan or a load changed: the dependency graph may have a cycle again."""
+        self._acyclic = self._acyclic_failed = False
+        self._dl_spent = 0
+
+    def _cycles(self, max_cycles: int) -> list[list[int]]:
+        """:meth:`deadlock_cycles` by a search of the wait-for graph."""
         graph = _prune_acyclic({a: sorted(b) for a, b in self._waiting_for().items()})
         cycles: list[list[int]] = []
         for comp in _sccs(graph):
