@@ -658,6 +658,7 @@ def execute_plan(plan: Plan, layout: Layout, types: list[AgvTypeSpec], *,
     (:class:`~warerover_phys.config.ExecutorSpec`: ``no_slip``, ``payload``,
     ``comm_latency_s``, ``shelf_contacts``, ``park``, ``speed_scale``, ``adg`` ...), checked
     by its schema (see :func:`executor_options`)."""
+    from .gc_tuning import long_loop
     from .registry import build
 
     spec = executor_spec(executor, dt_s=dt_s, delays=delays, trajectory_hz=trajectory_hz,
@@ -682,25 +683,26 @@ def execute_plan(plan: Plan, layout: Layout, types: list[AgvTypeSpec], *,
     zeros = tuple([0] * n)
     wall0 = time.perf_counter()
     tick = 0
-    while tick < limit:
-        view = TickView(tick=tick, plans=plans, behind=tuple(behind), failed=frozenset(),
-                        loaded=(False,) * n, carried=(None,) * n, task_state=zeros)
-        report: StepReport = ex.step(view)
-        for i, s in report.states.items():
-            executed[i].append(s)
-        for i, b in report.behind.items():
-            behind[i] = b
-        for name, fields in report.events:
-            events.append({"tick": tick, "event": name, **fields})
-        counts["blocked_moves"] += len(report.blocked)
-        counts["collisions"] += report.collisions
-        counts["executor_replan_requests"] += len(report.replan)
-        tick += 1
-        if progress is not None:
-            progress(tick, horizon)
-        if tick >= horizon and all(executed[i][-1] == final[i] for i in range(n)) and \
-                not any(ex.remaining(i) for i in range(n)):
-            break
+    with long_loop():  # (see gc_tuning)
+        while tick < limit:
+            view = TickView(tick=tick, plans=plans, behind=tuple(behind), failed=frozenset(),
+                            loaded=(False,) * n, carried=(None,) * n, task_state=zeros)
+            report: StepReport = ex.step(view)
+            for i, s in report.states.items():
+                executed[i].append(s)
+            for i, b in report.behind.items():
+                behind[i] = b
+            for name, fields in report.events:
+                events.append({"tick": tick, "event": name, **fields})
+            counts["blocked_moves"] += len(report.blocked)
+            counts["collisions"] += report.collisions
+            counts["executor_replan_requests"] += len(report.replan)
+            tick += 1
+            if progress is not None:
+                progress(tick, horizon)
+            if tick >= horizon and all(executed[i][-1] == final[i] for i in range(n)) and \
+                    not any(ex.remaining(i) for i in range(n)):
+                break
     wall = time.perf_counter() - wall0
     done = all(executed[i][-1] == final[i] for i in range(n)) and \
         not any(ex.remaining(i) for i in range(n))

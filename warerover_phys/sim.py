@@ -206,11 +206,14 @@ class Simulation:
                                  collisions=report.collisions)
 
     def run(self, progress: Callable[[int, int, int], None] | None = None) -> EpisodeResult:
-        while not self.done:
-            self.step()
-            if progress is not None:
-                progress(self.world.tick, len(self.world.completed_tick),
-                         len(self.world.status))
+        from .gc_tuning import long_loop
+
+        with long_loop():  # (see gc_tuning)
+            while not self.done:
+                self.step()
+                if progress is not None:
+                    progress(self.world.tick, len(self.world.completed_tick),
+                             len(self.world.status))
         metrics = self.metrics.summary(self.world)
         metrics.update(self.executor.summary())
         metrics["freezes"] = len(self.freezes)
