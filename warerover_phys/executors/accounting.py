@@ -111,6 +111,8 @@ class Accounting:
         or at the end of the tick): no extra read of the bodies."""
         self._task_state = np.zeros(n, dtype=np.int8)
         self._loaded = np.zeros(n, dtype=bool)
+        self._last_view: tuple = (None, None, None)
+        """The view's carried shelves, task states and loads at the last tick."""
         self.causes = CauseRecorder(st, adg)
         """Per-step labels of every AGV's time, per action (:mod:`.causes`)."""
         self._install_handlers()
@@ -149,14 +151,20 @@ class Accounting:
         self.view = view
         self.events, self.intrusion_checks = [], []
         self.tick_agv_contacts = 0
-        shelf = np.zeros((self.st.n, 2))
-        for i, c in enumerate(view.carried):
-            if c is not None:
-                shelf[i] = self._shelf_side.get(c, 0.0)
-        self.shelf_m = shelf
-        self.clearance.set_shelves(shelf / 2)
-        self._task_state = np.array(view.task_state, dtype=np.int8)
-        self._loaded = np.array(view.loaded, dtype=bool)
+        # (The arrays of the last tick are kept, never changed in place, while the view's
+        # tuples are the same: the recorder keeps references to them.)
+        if tuple(view.carried) != self._last_view[0]:
+            shelf = np.zeros((self.st.n, 2))
+            for i, c in enumerate(view.carried):
+                if c is not None:
+                    shelf[i] = self._shelf_side.get(c, 0.0)
+            self.shelf_m = shelf
+            self.clearance.set_shelves(shelf / 2)
+        if tuple(view.task_state) != self._last_view[1]:
+            self._task_state = np.array(view.task_state, dtype=np.int8)
+        if tuple(view.loaded) != self._last_view[2]:
+            self._loaded = np.array(view.loaded, dtype=bool)
+        self._last_view = (tuple(view.carried), tuple(view.task_state), tuple(view.loaded))
 
     def sync_corridors(self, corridors: dict) -> None:
         """Open corridors go to the fcl checker (built on the first one)."""

@@ -78,6 +78,9 @@ class PlanFollower:
         self._cycles_seen: set[frozenset[int]] = set()
         self._asleep = np.zeros(st.n, dtype=bool)
         self._ext_for: list[Action | None] = [None] * st.n
+        self._left, self._used = np.empty(st.n), np.empty(st.n)
+        self._events = np.empty(st.n, dtype=np.int64)
+        """Buffers of one physics step (:meth:`advance`)."""
         """Per AGV the running action at its last :meth:`_extend`, while that answer
         holds."""
         """AGVs waiting on the dependency graph that need no decision until woken."""
@@ -229,7 +232,8 @@ class PlanFollower:
                 if st.mode[i] == HOLD and not st.has_next[i] and not delayed[i] \
                         and not st.failed[i]:
                     self._turn_in_place(i, float(ang[i]))
-        left = np.full(st.n, st.dt)
+        left = self._left
+        left.fill(st.dt)
         if control.COMPILED:
             self._run_compiled(t, left, delayed)
         else:
@@ -290,8 +294,7 @@ class PlanFollower:
         from .control_nb import advance_rows
 
         st = self.st
-        used = np.empty(st.n)
-        events = np.empty(st.n, dtype=np.int64)
+        used, events = self._used, self._events
         idx, all_rows = _NO_ROWS, True
         delayed = np.ascontiguousarray(delayed, dtype=np.bool_)
         for _ in range(MAX_EVENTS):

@@ -142,6 +142,8 @@ class PhysicsExecutor:
         self.contact_until = np.zeros(n)
         """Simulated time until which an AGV brakes after an AGV-AGV contact began."""
         self._tick = 0
+        self._carried: tuple | None = None
+        """``TickView.carried`` at the last tick (the ADG is told loads when it changes)."""
         self._last_contact: tuple | None = None
         unsolved_agv_contacts(self.space, self.fleet.agv_of_shape, self._contact)
         self._shelf_contacts = bool(getattr(spec, "shelf_contacts", False))
@@ -182,7 +184,10 @@ class PhysicsExecutor:
         acc.begin_tick(view)
         self._tick = view.tick
         self._apply_payload(view.loaded)
-        self.adg.set_loaded([c is not None for c in view.carried])
+        carried = tuple(view.carried)
+        if carried != self._carried:
+            self._carried = carried
+            self.adg.set_loaded([c is not None for c in carried])
         if self._shelf_contacts and self.fleet.carry_shelves(
                 self.space, self.acc.shelf_m[:, 0], self.io.read()[1]):
             self.io.reorder()
