@@ -8,6 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pymunk
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from warerover_phys.executors.bodies import BodyIO, PhysicalFleet, unsolved_agv_contacts
 
@@ -85,3 +87,42 @@ def test_unparking_restores_mass_and_the_command():
     fleet.park(space, 0, 0.03, 0.0, 0.0, static=False)
     assert body in space.bodies and fleet.unpark(space, 0, (0.0, 0.0), 0.0) is False
     assert fleet.n_parked == 0
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 7), st.booleans()), min_size=1, max_size=30))
+def test_batch_rows_follow_any_sequence_of_leaving_and_coming_back(moves):
+    """Bodies leave the space (parked, static) and come back (unparked) in any order, with
+    other bodies in the space too: after each re-read of the body order, every AGV's
+    read is its own body's pose and velocity, and every command reaches its own control
+    body (and its body, where asked)."""
+    poses = [(0.5 + 1.5 * i, 0.5 + 0.25 * i, 0.1 * i) for i in range(8)]
+    space, fleet, io = fleet_in_space(poses)
+    space.add(pymunk.Body(1.0, 1.0))  # a body that is no AGV's
+    rng = np.random.default_rng(len(moves))
+    for i, leave in moves:
+        if leave and not fleet.static[i]:
+            if not fleet.parked[i]:
+                b = fleet.bodies[i]
+                fleet.park(space, i, b.position.x, b.position.y, b.angle, static=True)
+            else:
+                b = fleet.bodies[i]
+                fleet.leave(space, i, b.position.x, b.position.y, b.angle)
+        elif not leave and fleet.parked[i]:
+            fleet.unpark(space, i, tuple(rng.normal(size=2)), float(rng.normal()))
+        io.reorder()
+        pos, ang, vel, w = io.read()
+        for j, b in enumerate(fleet.bodies):
+            assert tuple(pos[j]) == tuple(b.position) and ang[j] == b.angle
+            assert tuple(vel[j]) == tuple(b.velocity) and w[j] == b.angular_velocity
+        cmd = rng.normal(size=(8, 2))
+        cw = rng.normal(size=8)
+        mask = rng.random(8) < 0.5
+        io.write(cmd, cw, bodies=mask)
+        for j in range(8):
+            if fleet.static[j]:
+                continue
+            assert tuple(fleet.ctrl[j].velocity) == tuple(cmd[j])
+            assert fleet.ctrl[j].angular_velocity == cw[j]
+            if mask[j]:
+                assert tuple(fleet.bodies[j].velocity) == tuple(cmd[j])

@@ -31,6 +31,7 @@ import pymunk
 import pymunk.batch as batch
 
 from ..layout import CellType, Layout
+from .step_kernels import body_rows, gather_bodies, obstacle_reach, scatter_commands
 
 __all__ = ["AGV", "OBSTACLE", "SHELF", "FORCE_HEADROOM", "SHELF_SIDE", "BodyIO",
            "ObstacleReach", "PhysicalFleet", "build_space", "unsolved_agv_contacts"]
@@ -420,8 +421,6 @@ class ObstacleReach:
         """(N,) bool, per AGV: whether its body (half sizes ``half``, turned by ``ang``) or
         its carried shelf (half sizes ``shelf_half``, along the grid), whichever box is
         wider, grown by ``margin``, :meth:`near` an obstacle; rows ``skip`` are False."""
-        from .step_kernels import obstacle_reach
-
         return obstacle_reach(pos, ang, half, shelf_half, margin, skip, self._sat,
                               float(self._m), self._rows, self._cols,
                               np.zeros(len(pos), dtype=np.bool_))
@@ -473,7 +472,18 @@ class BodyIO:
         self._ctrl = np.full(n, -1, dtype=np.int64)
         """Per AGV its control body's batch row (-1: out of the space)."""
         self._all = np.zeros((0, 6))
-        self.n_rows = -1
+        known = np.concatenate([self._body_ids, self._ctrl_ids])
+        order = np.argsort(known, kind="stable")
+        self._known = known[order]
+        """Every AGV body's and control body's id, sorted (:meth:`reorder`) ..."""
+        self._known_agv = (order % n).astype(np.int64)
+        """... whose AGV ..."""
+        self._known_ctrl = order >= n
+        """... and whether a control body."""
+        self._out_all = np.zeros((0, 3))
+        """The commands of every body in the space (:meth:`write`; :attr:`out` is its
+        first ``n_rows`` rows), the batch buffer of the writes."""
+        self.n_rows = 0
         self.reorder()
 
     def _batched(self, fields: batch.BodyFields, buf: batch.Buffer):
@@ -487,17 +497,16 @@ class BodyIO:
     def reorder(self) -> None:
         """Find which row is which body (the space lists its bodies in an order that
         changes when bodies leave or enter it: :meth:`PhysicalFleet.park`)."""
-        from .step_kernels import body_rows
-
         self.buf._int_arr.num = 0
         self._each(self.space._space, self._get_fn, self._id_data)
         ids = np.frombuffer(self.buf.int_buf(), dtype=np.uintp)
+        body_rows(ids, self._known, self._known_agv, self._known_ctrl, self._rows, self._ctrl)
+        self.n_rows = len(ids)
+        if self.n_rows > len(self._out_all):
+            self._out_all = np.zeros((2 * self.n_rows, 3))
+            self.set_buf.set_float_buf(self._out_all.ravel())
+        self.out = self._out_all[:self.n_rows]
         out = self.fleet.static
-        body_rows(ids, self._body_ids, self._ctrl_ids, out, self._rows, self._ctrl)
-        if len(ids) != self.n_rows:
-            self.n_rows = len(ids)
-            self.out = np.zeros((self.n_rows, 3))
-            self.set_buf.set_float_buf(self.out.ravel())
         for i in np.flatnonzero(out & ~self._out):  # left since the last call
             b = self.fleet.bodies[i]
             self._still[i] = (*b.position, b.angle, 0.0, 0.0, 0.0)
@@ -506,8 +515,6 @@ class BodyIO:
     def read(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(positions (N, 2), angles (N,), velocities (N, 2), angular velocities (N,)) of
         the AGV bodies, by AGV id: new contiguous arrays on every call."""
-        from .step_kernels import gather_bodies
-
         self.buf._float_arr.num = 0
         self._each(self.space._space, self._get_fn, self._get_data)
         data = np.frombuffer(self.buf.float_buf(), dtype=np.float64).reshape(self.n_rows, 6)
@@ -522,8 +529,6 @@ class BodyIO:
         """Set the control bodies' velocities, and those of the AGV bodies where ``bodies``
         ((N,) bool) is set (every other body keeps what :meth:`read` saw); AGVs out of the
         space are left out."""
-        from .step_kernels import scatter_commands
-
         if bodies is None:
             bodies = np.zeros(len(self._rows), dtype=np.bool_)
         scatter_commands(self._all, self._rows, self._ctrl,

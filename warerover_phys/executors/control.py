@@ -41,6 +41,7 @@ import math
 
 import numpy as np
 
+from .control_nb import advance_rows, steer_rows
 from .fleet_state import DRIVE, TURN, FleetState
 
 __all__ = ["COMPILED", "ARRIVE_EPS_M", "TURN_EPS_RAD", "ALIGN_EPS_RAD", "OFF_REFERENCE_M", "LATERAL_GAIN", "ALONG_GAIN",
@@ -248,8 +249,6 @@ def run_references_compiled(st: FleetState, idx: np.ndarray, h: np.ndarray,
                             braking: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`run_references` compiled (:func:`.control_nb.advance_rows`): the same
     results and the same writes (``idx``: distinct AGVs)."""
-    from .control_nb import advance_rows
-
     idx = np.asarray(idx, dtype=np.int64)
     left = np.zeros(st.n)
     left[idx] = h
@@ -280,8 +279,6 @@ def steer_compiled(st: FleetState, pos: np.ndarray, ang: np.ndarray, v_now: np.n
                    ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`steer_numpy` compiled (:func:`.control_nb.steer_rows`; the no-slip rows then
     in numpy, :func:`_no_slip`): the same commands (zero on the rows ``skip``)."""
-    from .control_nb import steer_rows
-
     n = st.n
     cmd = np.empty((n, 2))
     w = np.empty(n)

@@ -38,6 +38,7 @@ from ..validate import DWELL_HEADING_TOL_RAD, DWELL_POS_TOL_M
 from . import control
 from .bodies import cell_centre
 from .control import ARRIVE_EPS_M, TURN_EPS_RAD, run_references, wrap
+from .control_nb import advance_rows
 from .fleet_state import DRIVE, HOLD, TURN, FleetState
 
 if TYPE_CHECKING:
@@ -291,8 +292,6 @@ class PlanFollower:
         (:func:`.control_nb.advance_rows`): one kernel call for the whole fleet, then one
         per round of events (the AGVs that go on after an event, in ascending order, as the
         numpy loop takes them)."""
-        from .control_nb import advance_rows
-
         st = self.st
         used, events = self._used, self._events
         idx, all_rows = _NO_ROWS, True

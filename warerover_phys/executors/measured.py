@@ -37,6 +37,8 @@ import math
 
 import numpy as np
 
+from .step_kernels import clearance_candidates, clearance_moved, limit_step
+
 __all__ = ["CLEARANCE_HORIZON_M", "ENGINES", "LIMIT_TOLERANCE", "ClearanceMonitor", "LimitMonitor",
            "rect_distance"]
 
@@ -204,8 +206,6 @@ class ClearanceMonitor:
     def _measure_numba(self, pos: np.ndarray, ang: np.ndarray, t: float) -> None:
         """:meth:`measure` through :mod:`.step_kernels`: the same pairs, bounds and exact
         distances, with one loop over the fleet and one over the listed pairs."""
-        from .step_kernels import clearance_candidates, clearance_moved
-
         had_prev = self._prev is not None
         self._prev = (self._prev_pos, self._prev_ang)
         built = self._built_at
@@ -423,8 +423,6 @@ class LimitMonitor:
             self._pos[:], self._ang[:] = pos, ang
             self._started = True
             return []
-        from .step_kernels import limit_step
-
         new = limit_step(pos, ang, self._pos, self._ang, self._vel_b, self._moved,
                          self._have_vel, dt, self._peak_a, self._bound_a, self._over_a,
                          self.lateral, self._use_ratio, self._lim_p, self._ratio_a,

@@ -392,17 +392,19 @@ def scatter_commands(data, body_rows, ctrl_rows, velocity, angular, bodies, out)
 
 
 @njit(cache=True)
-def body_rows(ids, body_ids, ctrl_ids, out, rows, ctrl):
-    """:class:`~.bodies.BodyIO`'s row map: per AGV ``i`` the batch rows of its body and
-    control body (``body_ids[i]`` / ``ctrl_ids[i]`` among ``ids``, the space's body ids
-    in batch order, all distinct) to ``rows[i]`` / ``ctrl[i]``; -1 for AGVs ``out`` of the
-    space."""
-    order = np.argsort(ids)
-    sids = ids[order]
-    for i in range(len(body_ids)):
-        if out[i]:
-            rows[i] = -1
-            ctrl[i] = -1
-        else:
-            rows[i] = order[np.searchsorted(sids, body_ids[i])]
-            ctrl[i] = order[np.searchsorted(sids, ctrl_ids[i])]
+def body_rows(ids, known, known_agv, known_ctrl, rows, ctrl):
+    """:class:`~.bodies.BodyIO`'s row map: ``ids`` are the space's body ids in batch order;
+    ``known`` (sorted) the ids of every AGV body and control body, ``known_agv`` /
+    ``known_ctrl`` whose each is (AGV, and whether a control body). Per AGV ``i`` the
+    batch rows of its body and control body go to ``rows[i]`` / ``ctrl[i]``, -1 for
+    bodies not in the space (other bodies in it are left out)."""
+    rows[:] = -1
+    ctrl[:] = -1
+    m = len(known)
+    for r in range(len(ids)):
+        j = np.searchsorted(known, ids[r])
+        if j < m and known[j] == ids[r]:
+            if known_ctrl[j]:
+                ctrl[known_agv[j]] = r
+            else:
+                rows[known_agv[j]] = r
