@@ -151,6 +151,8 @@ class PhysicsExecutor:
         self.parked_steps = 0
         """AGV-steps spent parked (``executor.park``)."""
         self._off = np.zeros(n, dtype=bool)
+        self._step_bufs = (np.empty(n, dtype=bool), np.empty(n, dtype=bool), np.empty((n, 2)))
+        """The injected and delayed masks and the reference points of a physics step."""
         self._all_bodies = np.ones(n, dtype=bool)
         self.off_reference = 0
         """Times a body was found off its reference (:meth:`_off_reference_events`)."""
@@ -231,8 +233,8 @@ class PhysicsExecutor:
         raw, raw_ang, v_now, w_now = self.io.read()
         t = st.sim_s
         n = self.n
-        injected, delayed = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
-        off, ref0 = np.empty(n, dtype=bool), np.empty((n, 2))
+        injected, delayed, ref0 = self._step_bufs  # (used within the step only)
+        off = np.empty(n, dtype=bool)  # (kept as _off until the next step)
         step_prelude(raw, st.mode, st.s_ref, st.origin, st.direction, st.hold_xy,
                      st.delayed_until, st.failed, self.contact_until, t, OFF_REFERENCE_M,
                      injected, delayed, off, ref0)
