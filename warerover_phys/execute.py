@@ -48,7 +48,7 @@ import numpy as np
 
 from .config import AgvTypeSpec, DelaySpec, ExecutorSpec
 from .errors import ScenarioError, WareroverError
-from .executors.base import AgvBody, ExecutorSetup, StepReport, TickView
+from .executors.base import AgvBody, ExecutorSetup, StepReport, TickView, record_report
 from .layout import CellType, Layout
 from .planning.paths import State, TimedPath
 from .plans.model import Plan
@@ -688,12 +688,7 @@ def execute_plan(plan: Plan, layout: Layout, types: list[AgvTypeSpec], *,
             view = TickView(tick=tick, plans=plans, behind=tuple(behind), failed=frozenset(),
                             loaded=(False,) * n, carried=(None,) * n, task_state=zeros)
             report: StepReport = ex.step(view)
-            for i, s in report.states.items():
-                executed[i].append(s)
-            for i, b in report.behind.items():
-                behind[i] = b
-            for name, fields in report.events:
-                events.append({"tick": tick, "event": name, **fields})
+            record_report(report, tick, executed, behind, events)
             counts["blocked_moves"] += len(report.blocked)
             counts["collisions"] += report.collisions
             counts["executor_replan_requests"] += len(report.replan)

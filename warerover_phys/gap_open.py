@@ -51,7 +51,7 @@ from typing import Any
 
 import numpy as np
 
-from .executors.base import AgvBody, ExecutorSetup, TickView
+from .executors.base import AgvBody, ExecutorSetup, TickView, record_report
 from .executors.causes import (
     CONTROL,
     DEPENDENCY,
@@ -128,12 +128,7 @@ def execute_timed(plan: TimedPlan, executor_spec, *, seed: int = 0,
         view = TickView(tick=tick, plans=plans, behind=tuple(behind), failed=failed,
                         loaded=loaded, carried=carried, task_state=task, dwells=dwells)
         report = ex.step(view)
-        for i, s in report.states.items():
-            executed[i].append(s)
-        for i, b in report.behind.items():
-            behind[i] = b
-        for name, fields in report.events:
-            events.append({"tick": tick, "event": name, **fields})
+        record_report(report, tick, executed, behind, events)
         tick += 1
         tracker.update(tick, report.states)
         if progress is not None:

@@ -30,7 +30,7 @@ if TYPE_CHECKING:
     from ..config import AgvTypeSpec
     from ..layout import Layout
 
-__all__ = ["AgvBody", "ExecutorSetup", "TickView", "StepReport", "Executor"]
+__all__ = ["AgvBody", "ExecutorSetup", "TickView", "StepReport", "Executor", "record_report"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -159,3 +159,16 @@ class Executor(Protocol):
     def trajectory(self) -> dict[str, np.ndarray] | None:
         """Recorded poses (see ``PhysicsExecutor.trajectory``), or None."""
         ...
+
+
+def record_report(report: StepReport, tick: int, executed: dict[int, list], behind: list[int],
+                  events: list[dict]) -> None:
+    """An open-loop run's bookkeeping of one tick's report (``execute_plan``, the open-loop
+    gap): each AGV's state appended to ``executed[i]``, its lateness written to
+    ``behind[i]``, the events appended to ``events`` with the tick."""
+    for i, s in report.states.items():
+        executed[i].append(s)
+    for i, b in report.behind.items():
+        behind[i] = b
+    for name, fields in report.events:
+        events.append({"tick": tick, "event": name, **fields})

@@ -350,21 +350,13 @@ def gather_bodies(data, rows, still, pos, ang, vel, w):
     ``rows[i] < 0`` (out of the space), into the contiguous ``pos`` (N, 2), ``ang`` (N,),
     ``vel`` (N, 2) and ``w`` (N,)."""
     for i in range(len(rows)):
-        r = rows[i]
-        if r < 0:
-            pos[i, 0] = still[i, 0]
-            pos[i, 1] = still[i, 1]
-            ang[i] = still[i, 2]
-            vel[i, 0] = still[i, 3]
-            vel[i, 1] = still[i, 4]
-            w[i] = still[i, 5]
-        else:
-            pos[i, 0] = data[r, 0]
-            pos[i, 1] = data[r, 1]
-            ang[i] = data[r, 2]
-            vel[i, 0] = data[r, 3]
-            vel[i, 1] = data[r, 4]
-            w[i] = data[r, 5]
+        src, r = (still, i) if rows[i] < 0 else (data, rows[i])
+        pos[i, 0] = src[r, 0]
+        pos[i, 1] = src[r, 1]
+        ang[i] = src[r, 2]
+        vel[i, 0] = src[r, 3]
+        vel[i, 1] = src[r, 4]
+        w[i] = src[r, 5]
 
 
 @njit(cache=True)
