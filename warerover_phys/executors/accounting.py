@@ -147,24 +147,29 @@ class Accounting:
 
     # ------------------------------------------------------------------------- per tick
 
-    def begin_tick(self, view: TickView) -> None:
+    def begin_tick(self, view: TickView) -> bool:
+        """Take this tick's view; returns whether who carries which shelf changed since
+        the last tick (always on the first)."""
         self.view = view
         self.events, self.intrusion_checks = [], []
         self.tick_agv_contacts = 0
         # (The arrays of the last tick are kept, never changed in place, while the view's
         # tuples are the same: the recorder keeps references to them.)
-        if tuple(view.carried) != self._last_view[0]:
+        now = (tuple(view.carried), tuple(view.task_state), tuple(view.loaded))
+        carried = now[0] != self._last_view[0]
+        if carried:
             shelf = np.zeros((self.st.n, 2))
             for i, c in enumerate(view.carried):
                 if c is not None:
                     shelf[i] = self._shelf_side.get(c, 0.0)
             self.shelf_m = shelf
             self.clearance.set_shelves(shelf / 2)
-        if tuple(view.task_state) != self._last_view[1]:
+        if now[1] != self._last_view[1]:
             self._task_state = np.array(view.task_state, dtype=np.int8)
-        if tuple(view.loaded) != self._last_view[2]:
+        if now[2] != self._last_view[2]:
             self._loaded = np.array(view.loaded, dtype=bool)
-        self._last_view = (tuple(view.carried), tuple(view.task_state), tuple(view.loaded))
+        self._last_view = now
+        return carried
 
     def sync_corridors(self, corridors: dict) -> None:
         """Open corridors go to the fcl checker (built on the first one)."""

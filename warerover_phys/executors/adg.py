@@ -271,9 +271,6 @@ class ActionGraph:
         self._due_ver: dict[int, int] = {}
         """AGV -> version of its newest entry in :attr:`_due` (older ones are stale)."""
         self._progress_tick = 0
-        self._qver: dict[int, int] = {}
-        """Cell -> how many times its queue changed (a visit in or out, a sort)."""
-        self._load_ver = 0
         self._n_visits = 0
         """Visits in the queues."""
         self._acyclic = False
@@ -282,10 +279,6 @@ class ActionGraph:
         """:meth:`check_acyclic` failed since the last change of a plan or a load."""
         self._dl_spent = 0
         """AGVs looked at by :meth:`deadlock_cycles` since the last change or check."""
-        """How many times :meth:`set_loaded` changed the unloaded AGVs."""
-        self._waits: dict[int, tuple] = {}
-        """AGV -> (its next step, its cells' queue versions, the load version, the AGVs
-        ahead of it or None): :meth:`waiting_for`'s answer while none of these change."""
         self._bulk: set[int] | None = None
         """Between :meth:`begin_bulk` and :meth:`end_bulk`: the cells whose queues got
         visits (appended, sorted at the end)."""
@@ -315,7 +308,6 @@ class ActionGraph:
         cells, self._bulk = self._bulk, None
         for c in cells or ():
             self._queues[c].sort(key=_bulk_key)
-            self._bump(c)
 
     def set_plan(self, agv: int, path: TimedPath) -> None:
         """Commit cut and rebuild for one AGV.
@@ -360,7 +352,6 @@ class ActionGraph:
                 for v in step.enter_visits:
                     self._queues[v.cell].remove(v)
                     self._n_visits -= 1
-                    self._bump(v.cell)
                     self._touch(v.cell)
             for step in [rec.running, *kept]:
                 if step is None:
@@ -455,7 +446,6 @@ class ActionGraph:
         now = {a for a, x in enumerate(loaded) if not x}
         if now != self._unloaded:
             self._unloaded = now
-            self._load_ver += 1
             self._plans_changed()
             for cell in list(self._waiters):
                 self._touch(cell)
@@ -499,7 +489,6 @@ class ActionGraph:
             q.append(v)
             self._bulk.add(cell)
             return v
-        self._bump(cell)
         i = len(q)
         if entered:
             while i > 0 and (not q[i - 1].entered or q[i - 1].sweep):
@@ -513,10 +502,6 @@ class ActionGraph:
         if i == 0:
             self._touch(cell)
         return v
-
-    def _bump(self, cell: int) -> None:
-        """``cell``'s queue changed: answers kept for it are stale."""
-        self._qver[cell] = self._qver.get(cell, 0) + 1
 
     def _touch(self, cell: int) -> None:
         """The head of ``cell``'s queue may have changed: wake the AGVs waiting on it."""
@@ -823,7 +808,6 @@ class ActionGraph:
             else:  # cannot happen while the invariants hold; stay safe
                 q.remove(v)
             self._n_visits -= 1
-            self._bump(v.cell)
             del rec.held[v.cell]
             self._touch(v.cell)
             if self.latency_s > 0:
@@ -839,45 +823,25 @@ class ActionGraph:
     def waiting_for(self) -> dict[int, set[int]]:
         """Wait-for graph: each AGV whose next action is not ready (and that runs nothing)
         -> the other AGVs whose visits are ahead of its own in the cells it would enter."""
-        return {a: set(b) for a, b in self._waiting_for().items()}
-
-    def _waiting_for(self) -> dict[int, frozenset[int]]:
-        """:meth:`waiting_for` with the kept answers themselves (not to be changed). An
-        AGV's answer depends only on its next step, the queues of the cells it enters and
-        who carries a shelf: it is kept (``_waits``) until one of these changes."""
-        out: dict[int, frozenset[int]] = {}
-        qver, kept, load = self._qver, self._waits, self._load_ver
+        out: dict[int, set[int]] = {}
         for agv, rec in self._agents.items():
             if rec.running is not None or not rec.pending:
                 continue
-            step = rec.pending[0]
-            vers = tuple([qver.get(v.cell, 0) for v in step.enter_visits])
-            hit = kept.get(agv)
-            if hit is not None and hit[0] is step and hit[1] == vers and hit[2] == load:
-                ahead = hit[3]
-            else:
-                ahead = self._ahead(agv, step)
-                kept[agv] = (step, vers, load, ahead)
-            if ahead is not None:
+            ahead: set[int] = set()
+            blocked = False
+            for v in rec.pending[0].enter_visits:
+                q = self._queues[v.cell]
+                if self._first(v):
+                    continue
+                blocked = True
+                for w in q:
+                    if w is v:
+                        break
+                    if w.agv != agv and not self._passes(w, v):
+                        ahead.add(w.agv)
+            if blocked:
                 out[agv] = ahead
         return out
-
-    def _ahead(self, agv: int, step: _Step) -> frozenset[int] | None:
-        """The AGVs whose visits hold back ``step`` of ``agv`` in the cells it enters;
-        None if none does (it is not blocked)."""
-        ahead: set[int] = set()
-        blocked = False
-        for v in step.enter_visits:
-            q = self._queues[v.cell]
-            if self._first(v):
-                continue
-            blocked = True
-            for w in q:
-                if w is v:
-                    break
-                if w.agv != agv and not self._passes(w, v):
-                    ahead.add(w.agv)
-        return frozenset(ahead) if blocked else None
 
     def deadlock_cycles(self, max_cycles: int = 64) -> list[list[int]]:
         """Elementary cycles of :meth:`waiting_for`, each once, rotated to start at its
@@ -913,7 +877,7 @@ class ActionGraph:
 
     def _cycles(self, max_cycles: int) -> list[list[int]]:
         """:meth:`deadlock_cycles` by a search of the wait-for graph."""
-        graph = _prune_acyclic({a: sorted(b) for a, b in self._waiting_for().items()})
+        graph = _prune_acyclic({a: sorted(b) for a, b in self.waiting_for().items()})
         cycles: list[list[int]] = []
         for comp in _sccs(graph):
             if len(comp) < 2:

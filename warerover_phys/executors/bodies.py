@@ -453,7 +453,7 @@ class BodyIO:
         n = len(fleet.bodies)
         self.buf = batch.Buffer()
         self.set_buf = batch.Buffer()
-        self._ffi, self._lib = ffi, lib
+        self._ffi = ffi
         self._each = lib.cpSpaceEachBody
         self._get_fn = ffi.addressof(lib, "pmSpaceBodyGetIteratorFuncBatched")
         self._set_fn = ffi.addressof(lib, "pmSpaceBodySetIteratorFuncBatched")

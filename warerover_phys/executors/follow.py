@@ -78,13 +78,13 @@ class PlanFollower:
         """AGVs whose new plan did not fit their commit cut: replanned once they stand."""
         self._cycles_seen: set[frozenset[int]] = set()
         self._asleep = np.zeros(st.n, dtype=bool)
+        """AGVs waiting on the dependency graph that need no decision until woken."""
         self._ext_for: list[Action | None] = [None] * st.n
+        """Per AGV the running action at its last :meth:`_extend`, while that answer
+        holds."""
         self._left, self._used = np.empty(st.n), np.empty(st.n)
         self._events = np.empty(st.n, dtype=np.int64)
         """Buffers of one physics step (:meth:`advance`)."""
-        """Per AGV the running action at its last :meth:`_extend`, while that answer
-        holds."""
-        """AGVs waiting on the dependency graph that need no decision until woken."""
         self._turn_in_place_on = bool(getattr(spec, "turn_in_place", False))
         self._face: dict[int, int] = {}
         """Standing AGVs to turn in place: AGV -> heading (direction index) of its plan."""

@@ -142,8 +142,6 @@ class PhysicsExecutor:
         self.contact_until = np.zeros(n)
         """Simulated time until which an AGV brakes after an AGV-AGV contact began."""
         self._tick = 0
-        self._carried: tuple | None = None
-        """``TickView.carried`` at the last tick (the ADG is told loads when it changes)."""
         self._last_contact: tuple | None = None
         unsolved_agv_contacts(self.space, self.fleet.agv_of_shape, self._contact)
         self._shelf_contacts = bool(getattr(spec, "shelf_contacts", False))
@@ -183,13 +181,11 @@ class PhysicsExecutor:
             raise RuntimeError("PhysicsExecutor.step before bind()")
         wall0 = time.perf_counter()
         acc, follow = self.acc, self.follow
-        acc.begin_tick(view)
+        carried = acc.begin_tick(view)
         self._tick = view.tick
         self._apply_payload(view.loaded)
-        carried = tuple(view.carried)
-        if carried != self._carried:
-            self._carried = carried
-            self.adg.set_loaded([c is not None for c in carried])
+        if carried:  # who carries a shelf changed (or the first tick)
+            self.adg.set_loaded([c is not None for c in view.carried])
         if self._shelf_contacts and self.fleet.carry_shelves(
                 self.space, self.acc.shelf_m[:, 0], self.io.read()[1]):
             self.io.reorder()
@@ -326,17 +322,17 @@ class PhysicsExecutor:
                     PARK_SPEED, PARK_EPS_RAD, ids)
         long = st.sim_s - st.last_finish >= STATIC_AFTER_S - 1e-9
         left = False
+        def hold_pose(i: int) -> tuple[float, float, float]:
+            return (float(st.hold_xy[i, 0]), float(st.hold_xy[i, 1]),
+                    float(ang[i] + wrap(st.heading[i] - ang[i])))
+
         for i in ids[:k].tolist():
-            x, y = st.hold_xy[i]
             out = not st.has_next[i] or bool(long[i])
-            fleet.park(self.space, i, float(x), float(y),
-                       float(ang[i] + wrap(st.heading[i] - ang[i])), static=out)
+            fleet.park(self.space, i, *hold_pose(i), static=out)
             left |= out
         for i in np.flatnonzero(fleet.parked & ~fleet.static & long
                                 & (st.mode == HOLD)).tolist():
-            x, y = st.hold_xy[i]
-            fleet.leave(self.space, i, float(x), float(y),
-                        float(ang[i] + wrap(st.heading[i] - ang[i])))
+            fleet.leave(self.space, i, *hold_pose(i))
             left = True
         return left
 
