@@ -563,8 +563,8 @@ def save(path: Path, traj: dict) -> None:
     ("backwards", ["t:", "increase"]),
     ("body", ["body_m", "shape"]),
     ("shelf", ["shelf_m", "negative"]),
-    ("truncated", ["cannot read trajectories"]),
-    ("absent", ["no such trajectory file"]),
+    ("truncated", ["not an .npz archive"]),
+    ("absent", ["trajectory file not found"]),
 ])
 def test_bad_trajectories_are_one_clean_error(physics_run, tmp_path, kind, needles):
     with np.load(physics_run / "trajectories.npz") as data:

@@ -52,7 +52,10 @@ def _overrides(sets: list[str] | None, seed: int | None, scheduler: str | None,
                planner: str | None, executor: str | None, orders: str | None,
                ) -> list[tuple[str, Any]]:
     from .config import parse_override
+    from .inputs import check_seed
 
+    if seed is not None:
+        check_seed(seed)
     out = [parse_override(s) for s in sets or []]
     named = {"seed": seed, "scheduler.name": scheduler, "planner.name": planner,
              "executor.name": executor, "orders.pattern": orders}
@@ -142,16 +145,21 @@ def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
         ) -> None:
     """Run one episode and write metrics.json, events.jsonl and paths.json (and an MP4 with
     --video)."""
+    from .inputs import check_output_dir
     from .outputs import write_outputs
     from .sim import Simulation
 
     try:
         style = _video_style(size, fps, speed, None) if video is not None else None
         if video is not None:
-            check_media_path(video, "--video")
+            _check_video_out(video)
+        if out is not None:
+            check_output_dir(out)
         sc = _scenario(scenario, set_, seed, scheduler, planner, executor, orders)
+        out_dir = check_output_dir(out or Path("runs") / f"{sc.name}-seed{sc.seed}")
+        if video is not None and speed is not None:
+            _check_frames(sc.max_ticks * sc.tick_s, fps, speed)
         sim = Simulation(sc)
-        out_dir = out or Path("runs") / f"{sc.name}-seed{sc.seed}"
         show = _show_progress(quiet, json_out)
         with _Bar(show, sc.name, sc.max_ticks, "tick", extra="orders") as bar:
             result = sim.run((lambda t, done, gen: bar.update(
@@ -202,6 +210,27 @@ def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
     console.print(table)
     names = ", ".join(f.name for k, f in files.items() if k != "metrics")
     console.print(f"wrote {files['metrics']}, {names}", markup=False)
+
+
+def _check_video_out(video: Path, option: str = "--video", still: bool = False) -> None:
+    """Refuse a video (or, ``still``, image) output path before any work: its extension, a
+    folder in its place, a place no file can be written."""
+    from .inputs import check_output_file
+
+    check_media_path(video, option, still=still)
+    check_output_file(video, option)
+
+
+def _check_frames(longest_s: float, fps: float, speed: float) -> None:
+    """Refuse, before the run, a video of an episode of up to ``longest_s`` simulated seconds
+    that could need more frames than a video may have."""
+    from .render.video import MAX_FRAMES, frame_count
+
+    n = frame_count(longest_s, fps, speed)
+    if n > MAX_FRAMES:
+        raise WareroverError(f"--speed: the episode may last {longest_s:g} s: at {speed:g}x "
+                             f"and {fps:g} fps that is up to {n:,} frames (at most "
+                             f"{MAX_FRAMES:,}): raise --speed or lower --fps")
 
 
 def _video_style(size: str, fps: float, speed: float | None, viewport: str | None,
@@ -268,7 +297,7 @@ def render(trajectory: Annotated[Path, typer.Argument(
     show = _show_progress(quiet)
     try:
         style = _video_style(size, fps, speed, viewport, paths)
-        check_media_path(out, "--out", still=png is not None)
+        _check_video_out(out, "--out", still=png is not None)
         from .render import load_trajectory, render_video, write_png
 
         if show:
@@ -415,13 +444,29 @@ def solve(map_file: Annotated[Path, typer.Argument(metavar="MAP.map", help="Movi
 
 
 def main() -> None:
-    """Console-script entry point."""
+    """Console-script entry point. A bad option or value (typer's usage errors) is one line
+    on stderr, exit code 2, as every other bad input; Ctrl-C is one line, exit code 130."""
+    # click's exceptions, wherever this typer takes click from (newer ones vendor it)
+    exceptions = sys.modules[typer.BadParameter.__module__]
+    click_error = exceptions.ClickException
+    help_error = getattr(exceptions, "NoArgsIsHelpError", ())
+
     mark_entered()
     try:
-        app()
-    except KeyboardInterrupt:
+        code = typer.main.get_command(app).main(prog_name="warerover", standalone_mode=False)
+    except help_error as err:  # a bare `warerover`: the help, as before
+        err.show()
+        sys.exit(err.exit_code)
+    except click_error as err:
+        ctx = getattr(err, "ctx", None)
+        hint = f" (see `{ctx.command_path} --help`)" if ctx is not None else ""
+        err_console.print(f"[bold red]error:[/] {escape(err.format_message())}{hint}",
+                          highlight=False, soft_wrap=True)
+        sys.exit(err.exit_code)
+    except (KeyboardInterrupt, typer.Abort):
         err_console.print("interrupted")
         sys.exit(130)
+    sys.exit(code if isinstance(code, int) else 0)
 
 
 @app.command()
@@ -484,13 +529,21 @@ def execute(floor: Annotated[Path, typer.Argument(
         validate_plan,
         write_execution,
     )
-    from .plans import read_plan, write_plan
+    from .inputs import check_output_dir, check_output_file, check_seed
+    from .plans import check_format, format_plan, read_plan, write_plan
 
     try:
         if not (math.isfinite(tick_s) and tick_s > 0):
             raise WareroverError(f"--tick-s must be a positive number (got {tick_s})")
         if not (math.isfinite(dt_s) and 0 < dt_s <= tick_s):
             raise WareroverError(f"--dt-s must be in (0, tick_s] (got {dt_s})")
+        check_seed(seed)
+        out_dir = check_output_dir(out or Path("runs") / f"execute-{plan.stem}")
+        if video is not None:
+            _check_video_out(video)
+        if export is not None:
+            check_output_file(export, "--export")
+            check_format(export_format, "--export-format")
         delay_spec = parse_delays(delays)
         options = executor_options(sets)
         executor_spec(executor, dt_s=dt_s, delays=delay_spec, options=options)  # check early
@@ -499,6 +552,8 @@ def execute(floor: Annotated[Path, typer.Argument(
         types = load_fleet(fleet, the_plan.num_agents, types_by_name, kinds)
         sizes = [t.footprint for t in types]
         validate_plan(the_plan, layout, sizes, source=str(plan))
+        if export is not None:  # can the export format hold this plan? (before the work)
+            format_plan(the_plan, export_format)
         given = the_plan
         the_plan, repairs = repair_cycles(the_plan, layout, sizes, strict=strict,
                                           source=str(plan))
@@ -524,7 +579,6 @@ def execute(floor: Annotated[Path, typer.Argument(
             result = execute_plan(the_plan, layout, types, executor=executor, seed=seed,
                                   delays=delay_spec, tick_s=tick_s, dt_s=dt_s, repairs=repairs,
                                   given=given, options=options)
-        out_dir = out or Path("runs") / f"execute-{plan.stem}"
         files = write_execution(result, the_plan, layout, types, out_dir, tick_s)
         if export is not None:
             write_plan(executed_plan(result, layout.cols), export, export_format)

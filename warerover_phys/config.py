@@ -732,15 +732,16 @@ def _from_validation_error(err: ValidationError, file: str | None) -> ScenarioEr
     return ScenarioError(msg, file=file, field=_field_path(loc) or None, value=value)
 
 
-def parse_override(text: str) -> tuple[str, Any]:
-    """``"orders.pattern=burst"`` -> ``("orders.pattern", "burst")``; values are YAML."""
+def parse_override(text: str, option: str = "--set") -> tuple[str, Any]:
+    """``"orders.pattern=burst"`` -> ``("orders.pattern", "burst")``; values are YAML.
+    Errors name ``option`` (the command line option the text came from)."""
     if "=" not in text:
-        raise ScenarioError("override must look like field.path=value", field="--set",
-                            value=text)
+        raise ScenarioError("expected field.path=value", field=option, value=text)
     key, raw = text.split("=", 1)
     key = key.strip()
     if not key:
-        raise ScenarioError("override has an empty field path", field="--set", value=text)
+        raise ScenarioError("empty field path (expected field.path=value)", field=option,
+                            value=text)
     try:
         value = safe_yaml.load(raw) if raw.strip() else ""
     except safe_yaml.YamlLimitError as err:
@@ -795,14 +796,11 @@ def _as_dict(value: Any) -> dict[str, Any]:
 
 def read_yaml(path: Path, what: str = "scenario") -> dict[str, Any]:
     """Read a YAML mapping, turning every failure into a one-line :class:`ScenarioError`."""
-    if not path.exists():
-        raise ScenarioError(f"{what} file not found", file=str(path))
-    if path.is_dir():
-        raise ScenarioError(f"{what} path is a directory, not a file", file=str(path))
+    from .inputs import read_bytes
+
+    raw = read_bytes(path, what, safe_yaml.MAX_BYTES)  # a regular file, size-limited
     try:
-        if path.stat().st_size > safe_yaml.MAX_BYTES:
-            raise safe_yaml.YamlLimitError(f"larger than {safe_yaml.MAX_BYTES // 2**20} MiB")
-        data = safe_yaml.load(path.read_text(encoding="utf-8"))
+        data = safe_yaml.load(raw.decode("utf-8"))
     except safe_yaml.YamlLimitError as err:
         raise ScenarioError(f"YAML refused: {err.problem}", file=str(path)) from None
     except yaml.YAMLError as err:

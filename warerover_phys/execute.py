@@ -78,9 +78,9 @@ class PlanError(WareroverError):
 def load_floor(path: str | Path) -> tuple[Layout, dict[str, AgvTypeSpec] | None, list[str]]:
     """The floor in ``path`` (``.map``, layout YAML or scenario YAML), the AGV types it
     names (scenarios only) and the type of each of its AGVs (scenarios only)."""
-    path = Path(path)
-    if not path.exists():
-        raise ScenarioError("floor file not found", file=str(path), value=str(path))
+    from .inputs import check_regular_file
+
+    path = check_regular_file(path, "floor")
     if path.suffix == ".map":
         from .movingai import read_map
 
@@ -880,8 +880,16 @@ def parse_delays(text: str | None) -> DelaySpec:
     if len(parts) not in (2, 4) or parts[0] not in ("none", "bernoulli", "poisson"):
         raise ScenarioError("expected MODEL:PROB[:MIN_TICKS:MAX_TICKS] with MODEL bernoulli "
                             "or poisson", field="--delays", value=text)
+    values: dict[str, object] = {"model": parts[0]}
+    for key, part, kind in zip(keys[1:], parts[1:], (float, int, int), strict=False):
+        try:  # the command line gives text: numbers are read here, ranges checked below
+            values[key] = kind(part)
+        except ValueError:
+            what = "a number" if kind is float else "a whole number of ticks"
+            raise ScenarioError(f"{key}: expected {what}", field="--delays",
+                                value=text) from None
     try:
-        return DelaySpec.model_validate(dict(zip(keys, parts, strict=False)))
+        return DelaySpec.model_validate(values)
     except ValidationError as err:
         e = err.errors()[0]
         raise ScenarioError(e["msg"], field=f"--delays {e['loc'][0]}",

@@ -46,12 +46,13 @@ Every report carries ``mode`` (``"open-loop"`` or ``"closed-loop"``) and ``timin
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from .config import Scenario
+from .errors import WareroverError
 
 __all__ = ["gap_report", "GAP_KEYS", "OPEN_KEYS", "OpenLoopGap", "open_loop_gap",
            "plan_gap", "closed_loop_report", "MODES"]
@@ -152,12 +153,13 @@ def schedule_spacetime(plan, sched) -> dict:
 def plan_gap(floor, plan_file, *, fleet=None, fmt: str | None = None, xy: bool = True,
              delays: str | None = None, tick_s: float = 1.0, dt_s: float = 0.02,
              seed: int = 0, strict: bool = False, trajectory_hz: float = 10.0,
-             timing: str = "unit",
+             timing: str = "unit", agvs: Sequence[int] = (),
              progress: Callable[[str, int, int], None] | None = None) -> OpenLoopGap:
     """The open-loop gap of an imported MAPF plan (any format ``warerover execute`` reads,
     validated and cycle-repaired alike) on ``floor``: the plan's timesteps are the planned
     side (``timing`` ``motion``: its motion-timed schedule), its execution on physics the
-    executed side (no dwells)."""
+    executed side (no dwells). ``agvs``: ids the caller will draw, each checked to be one of
+    the plan's agents before anything runs."""
     from .config import ExecutorSpec
     from .execute import parse_delays
     from .gap_open import execute_timed, open_loop_report
@@ -166,6 +168,7 @@ def plan_gap(floor, plan_file, *, fleet=None, fmt: str | None = None, xy: bool =
     plan, _ = plan_from_file(str(floor), str(plan_file), None if fleet is None
                                    else str(fleet), fmt=fmt, xy=xy, strict=strict,
                                    tick_s=tick_s)
+    check_agv_ids(agvs, plan.num_agents, str(plan_file))
     spec = ExecutorSpec(name="physics", dt_s=dt_s, delays=parse_delays(delays),
                         trajectory_hz=trajectory_hz)
     run = execute_timed(plan, spec, seed=seed, progress=None if progress is None else
@@ -175,6 +178,14 @@ def plan_gap(floor, plan_file, *, fleet=None, fmt: str | None = None, xy: bool =
     report = {"mode": "open-loop", "scenario": Path(str(floor)).stem, "seed": seed,
               "plan": str(plan_file), **report}
     return OpenLoopGap(report=report, agents=agents, actions=actions, run=run, schedule=sched)
+
+
+def check_agv_ids(agvs: Sequence[int], count: int, source: str) -> None:
+    """Refuse AGV ids (``--agvs``) that are not among ``count`` AGVs."""
+    bad = [i for i in agvs if not 0 <= i < count]
+    if bad:
+        raise WareroverError(f"--agvs: {source} has {count} AGVs (ids 0 to {count - 1}); "
+                             f"no AGV {', '.join(map(str, bad))}")
 
 
 def closed_loop_report(scenario: Scenario, seed: int | None = None) -> dict:

@@ -17,6 +17,8 @@ from rich.table import Table
 from .console import err_console
 from .console import fail as _fail
 from .errors import ScenarioError, WareroverError
+from .gap import check_agv_ids
+from .inputs import check_seed
 
 __all__ = ["run_gap"]
 
@@ -59,7 +61,11 @@ def run_gap(*, scenario: Path, mode: str, seed: int | None, seeds: str | None,
                                  "--mode closed nor --seeds")
         if video is not None:
             _video_check(video)
+        if out is not None:
+            _check_out(out)
         picked = _parse_agvs(agvs)
+        if seed is not None:
+            check_seed(seed)
         if plan is not None:
             if mode != "open" or seeds:
                 raise WareroverError("--plan runs one open-loop execution: it takes neither "
@@ -79,6 +85,13 @@ def run_gap(*, scenario: Path, mode: str, seed: int | None, seeds: str | None,
         _fail(err)
     except OSError as err:
         _fail(WareroverError(f"{getattr(err, 'filename', '') or ''}: {err.strerror or err}"))
+
+
+def _check_out(out: Path) -> Path:
+    """Refuse ``--out`` (a folder, or a ``.json`` report file) before any work."""
+    from .inputs import check_output_dir, check_output_file
+
+    return check_output_file(out) if out.suffix == ".json" else check_output_dir(out)
 
 
 def _with_timing(sc, timing: str | None, mode: str):
@@ -122,6 +135,9 @@ def _one(sc, mode: str, out: Path | None, json_out: bool, agvs: list[int] | None
          pictures: bool, quiet: bool, video: Path | None = None) -> None:
     from .gap import closed_loop_report, open_loop_gap
 
+    default = Path("runs") / f"{sc.name}-seed{sc.seed}-gap"
+    _check_out(out or default)
+    check_agv_ids(agvs or (), sc.fleet.size, str(sc.source or sc.name))
     show = not quiet and not json_out and err_console.is_terminal
     bar, update = _bar(show)
     with bar:
@@ -133,7 +149,6 @@ def _one(sc, mode: str, out: Path | None, json_out: bool, agvs: list[int] | None
     _print_repairs(report)
     if video is not None and mode == "open":
         _video(g, video, f"{sc.name} seed {sc.seed}: ghost = plan", show)
-    default = Path("runs") / f"{sc.name}-seed{sc.seed}-gap"
     written = _write_one(out or default, report, result, agvs, pictures)
     if json_out:
         print(json.dumps(_finite({k: v for k, v in report.items()
@@ -150,8 +165,11 @@ def _one(sc, mode: str, out: Path | None, json_out: bool, agvs: list[int] | None
 
 def _video_check(video: Path) -> None:
     """Refuse a bad --video before any work is done."""
+    from .inputs import check_output_file
+
     if video.suffix.lower() != ".mp4":
         raise WareroverError(f"--video: {video}: expected a .mp4 file")
+    check_output_file(video, "--video")
     try:
         import av  # noqa: F401
         import cv2  # noqa: F401
@@ -378,6 +396,9 @@ def _many(sc, seeds: list[int], mode: str, workers: int | None, out: Path | None
     if out is not None and out.suffix == ".json":
         raise WareroverError(f"{out}: --seeds writes a folder (summary.json, agents.csv, ...)"
                              ", not one .json file")
+    header_mode = MODE_LABEL[mode]
+    _check_out(out or Path("runs") / f"{sc.name}-seeds-{header_mode}-gap")
+    check_agv_ids(agvs or (), sc.fleet.size, str(sc.source or sc.name))
     show = not quiet and not json_out and err_console.is_terminal
     if show:
         from rich.progress import (
@@ -443,11 +464,13 @@ def _plan_gap(floor: Path, plan: Path, fmt: str | None, yx: bool, fleet: Path | 
         raise WareroverError(f"--tick-s must be a positive number (got {tick_s})")
     if not (math.isfinite(dt_s) and 0 < dt_s <= tick_s):
         raise WareroverError(f"--dt-s must be in (0, tick_s] (got {dt_s})")
+    _check_out(out or Path("runs") / f"gap-{plan.stem}")
     show = not quiet and not json_out and err_console.is_terminal
     bar, update = _bar(show)
     with bar:
         g = plan_gap(floor, plan, fleet=fleet, fmt=fmt, xy=not yx, delays=delays,
-                     tick_s=tick_s, dt_s=dt_s, seed=seed, timing=timing, progress=update)
+                     tick_s=tick_s, dt_s=dt_s, seed=seed, timing=timing, agvs=agvs or (),
+                     progress=update)
     _print_repairs(g.report)
     if video is not None:
         _video(g, video, f"plan {plan.name}: ghost = plan", show)

@@ -36,35 +36,38 @@ SCHEDULES_FORMAT = "warerover-schedules/1"
 STAT_KEYS = ("mean", "median", "p95", "min", "max", "std", "ci95_low", "ci95_high", "n")
 
 
+MAX_SEEDS = 100_000
+"""Most seeds one ``gap --seeds`` runs (each is a whole episode, or two)."""
+
+
 def parse_seeds(text: str) -> list[int]:
-    """``0..99`` (inclusive), ``3,5,8`` or a mix (``0..4,10``) as a list of seeds."""
-    out: list[int] = []
+    """``0..99`` (inclusive), ``3,5,8`` or a mix (``0..4,10``) as a list of seeds (each 0 ..
+    2**63 - 1, at most :data:`MAX_SEEDS` of them, counted before any list is built)."""
+    from .errors import ScenarioError
+    from .inputs import MAX_SEED
+
+    spans: list[tuple[int, int]] = []
     for part in (p.strip() for p in text.split(",")):
         if not part:
             continue
         try:
-            if ".." in part:
-                a, b = part.split("..", 1)
-                lo, hi = int(a), int(b)
-                if hi < lo:
-                    raise ValueError
-                out.extend(range(lo, hi + 1))
-            else:
-                out.append(int(part))
+            a, _, b = part.partition("..")
+            lo, hi = int(a), int(b if b else a)
+            if hi < lo:
+                raise ValueError
         except ValueError:
-            from .errors import ScenarioError
-
             raise ScenarioError("expected seeds like 0..99, 3,5,8 or 0..4,10",
                                 field="--seeds", value=text) from None
-        if any(s < 0 for s in out):
-            from .errors import ScenarioError
-
-            raise ScenarioError("seeds are >= 0", field="--seeds", value=text)
-    if not out:
-        from .errors import ScenarioError
-
+        if lo < 0 or hi > MAX_SEED:
+            raise ScenarioError(f"seeds are whole numbers from 0 to {MAX_SEED}",
+                                field="--seeds", value=text)
+        spans.append((lo, hi))
+        if sum(h - lo_ + 1 for lo_, h in spans) > MAX_SEEDS:
+            raise ScenarioError(f"at most {MAX_SEEDS:,} seeds (use `warerover sweep` for "
+                                "more)", field="--seeds", value=text)
+    if not spans:
         raise ScenarioError("no seeds given", field="--seeds", value=text)
-    return list(dict.fromkeys(out))
+    return list(dict.fromkeys(s for lo, hi in spans for s in range(lo, hi + 1)))
 
 
 def wait_map(actions: list[dict], footprints: list[int], rows: int, cols: int) -> np.ndarray:

@@ -273,11 +273,14 @@ def build_layout(spec: LayoutSpec, *, fleet_size: int = 0, file: str | None = No
         access = [(r, c) for r, line in enumerate(spec.grid) for c, ch in enumerate(line)
                   if ch == "A"]
     elif spec.map is not None:
+        from .inputs import describe
         from .movingai import read_map
 
-        if not Path(spec.map).is_file():
-            raise ScenarioError("MovingAI map file not found", file=file, field="layout.map",
-                                value=spec.map)
+        kind = describe(spec.map)
+        if kind != "a regular file":
+            why = "MovingAI map file not found" if kind == "missing" else \
+                f"MovingAI map is {kind}, not a regular file"
+            raise ScenarioError(why, file=file, field="layout.map", value=spec.map)
         grid = np.where(read_map(spec.map).obstacles, CellType.OBSTACLE,
                         CellType.FLOOR).astype(np.int8)
     elif spec.generator is not None:

@@ -38,13 +38,12 @@ them into the output, so memory does not grow with the timesteps.
 **Output** (:func:`output_json`), the start-kit's 2024 fields: ``actionModel`` (``MAPF_T``;
 without rotations ``MAPF``, a model of ours: ``U`` / ``D`` / ``L`` / ``R`` move one cell up
 (-row), down, left (-col) or right and ``W`` waits), ``version``, ``teamSize``, ``start`` (``[row, col, heading]``), ``numTaskFinished``, ``sumOfCost``
-(robot-timesteps not spent waiting at the end), ``makespan`` (timesteps run),
+and ``makespan`` (the sum and the largest of the timesteps each robot held a task),
 ``actualPaths`` and ``plannerPaths`` (the same here: every planned action is executed),
 ``plannerTimes`` (seconds per timestep), ``errors`` (always empty: plans are valid by
-construction and checked), ``events`` (``[timestep, robot, task, errands done]``, one when a
-task is assigned with 0 and one per errand done), ``tasks`` (``[id, release timestep,
-[row1, col1, row2, col2, ...]]``) and ``actualSchedule`` (per robot ``"t:task,"`` when it
-takes a task). :func:`warerover_phys.plans.read_plan` reads both back (format
+construction and checked), ``events`` and ``tasks`` (in the 2023 kit's form for 2023
+problems, the 2024 kit's otherwise) and ``actualSchedule``: :mod:`.lorr_fields` computes
+them and says which kit version each follows. :func:`warerover_phys.plans.read_plan` reads both back (format
 ``robotrunners``).
 """
 
@@ -74,6 +73,12 @@ RULES = ("actions", "turn-first")
 """How PIBT meets the rotation model (see the module docstring)."""
 MAX_AGENTS = 100_000
 MAX_TASKS = 10_000_000
+MAX_FILE_BYTES = 256 * 2**20
+"""Largest problem, agent or task file read (256 MiB)."""
+MAX_REVEAL = 1_000
+"""Largest ``numTasksReveal`` (2024 and later: times ``teamSize`` open tasks)."""
+MAX_OPEN = 1_000_000
+"""Most open tasks of the 2024 pool (``numTasksReveal`` x ``teamSize``)."""
 
 
 @dataclass(frozen=True)
@@ -104,12 +109,12 @@ def _fail(message: str, file: str, fld: str | None = None, value: Any = None) ->
 
 def _read_numbers(path: Path, what: str, source: str) -> tuple[str | None, list[str]]:
     """(version comment, lines after the count) of an agent or task file."""
+    from .inputs import read_text
+
     try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise _fail(f"{what} file not found", source, what, str(path)) from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise _fail(f"cannot read the {what} file: {e}", source, what, str(path)) from None
+        text = read_text(path, what, MAX_FILE_BYTES)  # a regular file, size-limited
+    except ScenarioError as e:
+        raise _fail(e.message, source, what, str(path)) from None
     lines = [ln.strip() for ln in text.splitlines()]
     version = None
     body = []
@@ -136,11 +141,12 @@ def read_problem(path: str | Path) -> LorrProblem:
     the field and the value."""
     path = Path(path)
     source = str(path)
+    from .inputs import read_text
+
+    text = read_text(path, "problem", MAX_FILE_BYTES)  # a regular file, size-limited
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise _fail("problem file not found", source) from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        data = json.loads(text)
+    except (json.JSONDecodeError, RecursionError) as e:
         raise _fail(f"not a JSON problem file: {e}", source) from None
     if not isinstance(data, dict):
         raise _fail("a problem file is a JSON object", source, None, type(data).__name__)
@@ -154,8 +160,10 @@ def read_problem(path: str | Path) -> LorrProblem:
     if type(team) is not int or not 1 <= team <= MAX_AGENTS:
         raise _fail(f"expected a whole number from 1 to {MAX_AGENTS}", source, "teamSize", team)
     reveal = data["numTasksReveal"]
-    if type(reveal) not in (int, float) or not math.isfinite(reveal) or reveal <= 0:
-        raise _fail("expected a positive number", source, "numTasksReveal", reveal)
+    if type(reveal) not in (int, float) or not math.isfinite(reveal) or \
+            not 0 < reveal <= MAX_REVEAL:
+        raise _fail(f"expected a positive number up to {MAX_REVEAL}", source,
+                    "numTasksReveal", reveal)
     version = data.get("version")
     strategy = data.get("taskAssignmentStrategy")
     if version is None and strategy is None:
@@ -165,6 +173,9 @@ def read_problem(path: str | Path) -> LorrProblem:
     if strategy not in ("greedy", "roundrobin", "roundrobin-fixed", "pool"):
         raise _fail("expected greedy, roundrobin or roundrobin-fixed", source,
                     "taskAssignmentStrategy", strategy)
+    if strategy == "pool" and reveal * team > MAX_OPEN:
+        raise _fail(f"numTasksReveal x teamSize open tasks: at most {MAX_OPEN:,} (got "
+                    f"{reveal * team:,.0f})", source, "numTasksReveal", reveal)
     counter = data.get("agentCounter", 1)
     if type(counter) is not int or counter < 1:
         raise _fail("expected a whole number >= 1", source, "agentCounter", counter)
@@ -486,18 +497,7 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
         c0 = time.process_time()
         misses0, bfs0 = store.misses, store.bfs_s
         # Errands reached (any heading), then new tasks for free robots.
-        done_now = 0
-        advanced = np.flatnonzero((config == goal) & (task_of >= 0)).tolist()
-        for i in advanced:
-            k = int(task_of[i])
-            e = int(errand[i]) + 1
-            errand[i] = e
-            result.events.append((tick, i, k, e))
-            if e == len(tasks._task(k)):
-                task_of[i] = -1
-                done_now += 1
-        result.finished += done_now
-        tasks.finished(done_now, tick)
+        advanced = _errands_reached(config, goal, task_of, errand, tasks, result, tick)
         free = np.flatnonzero(task_of < 0).tolist()
         for i, k in tasks.assign(free, config, tick).items():
             task_of[i], errand[i] = k, 0
@@ -552,6 +552,8 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
         result.tick_cpu_s.append(time.process_time() - c0)
         if progress is not None:
             progress(tick + 1, ticks)
+    # the last moves' errands count too (the start kit checks after every move)
+    _errands_reached(config, goal, task_of, errand, tasks, result, ticks)
     if chunks is not None:
         chunks.flush()
     else:
@@ -567,6 +569,27 @@ def run_lifelong(problem: LorrProblem, ticks: int, *, rotations: bool = True, se
 
 ENGINES = ("auto", "numba", "python")
 """The PIBT step of :func:`run_lifelong`: compiled or the Python reference."""
+
+
+def _errands_reached(config: np.ndarray, goal: np.ndarray, task_of: np.ndarray,
+                     errand: np.ndarray, tasks: _Tasks, result: LorrResult,
+                     tick: int) -> list[int]:
+    """Robots standing on their current errand's cell at ``tick`` have done it: record the
+    events, finish the tasks whose last errand it was (counted, and the pool refilled);
+    the robots that advanced."""
+    done_now = 0
+    advanced = np.flatnonzero((config == goal) & (task_of >= 0)).tolist()
+    for i in advanced:
+        k = int(task_of[i])
+        e = int(errand[i]) + 1
+        errand[i] = e
+        result.events.append((tick, i, k, e))
+        if e == len(tasks._task(k)):
+            task_of[i] = -1
+            done_now += 1
+    result.finished += done_now
+    tasks.finished(done_now, tick)
+    return advanced
 
 
 def _move_codes(delta: np.ndarray, cols: int) -> np.ndarray:
@@ -737,37 +760,34 @@ def output_json(result: LorrResult, *, paths: bool = True) -> dict[str, Any]:
     """The start-kit's output JSON of a run (see the module docstring); without ``paths``,
     ``actualPaths`` and ``plannerPaths`` are None (:func:`write_output_json` streams
     them)."""
+    from . import lorr_fields as lf
+
     p = result.problem
     cols = p.grid.cols
     n = p.team_size
-    sum_of_cost = 0
-    path_list: list[str] | None = [] if paths else None
-    for row in result.action_rows():
-        sum_of_cost += len(row.rstrip("W"))
-        if path_list is not None:
-            path_list.append(",".join(row))
-    tasks = []
-    for k in sorted(result.releases):
-        errs = p.tasks[k % len(p.tasks)]
-        flat: list[int] = []
-        for e in errs:
-            flat += [e // cols, e % cols]
-        tasks.append([k, result.releases[k], flat])
+    path_list: list[str] | None = None
+    if paths:
+        path_list = [",".join(row) for row in result.action_rows()]
+    cells = {k: p.tasks[k % len(p.tasks)] for k in result.releases}
+    errands = {k: len(c) for k, c in cells.items()}
+    held = lf.goal_held_ticks(result.schedule, lf.finish_ticks(result.events, errands),
+                              result.ticks)
+    v2023 = p.version is None
     return {
         "actionModel": "MAPF_T" if result.rotations else "MAPF",
         "version": p.version or "2023 LoRR",
         "teamSize": n,
         "start": [[s // cols, s % cols, HEADINGS[0]] for s in p.starts],
         "numTaskFinished": result.finished,
-        "sumOfCost": sum_of_cost,
-        "makespan": result.ticks,
+        **lf.cost_fields(held),
         "actualPaths": path_list,
         "plannerPaths": path_list,
         "plannerTimes": [round(s, 6) for s in result.tick_s],
         "errors": [],
-        "events": [list(e) for e in result.events],
-        "tasks": tasks,
-        "actualSchedule": ["".join(f"{t}:{k}," for t, k in s) for s in result.schedule],
+        "events": lf.events_2023(result.events, errands, n) if v2023
+        else lf.events_2024(result.events),
+        "tasks": lf.tasks_field(result.releases, cells, cols, version_2023=v2023),
+        "actualSchedule": lf.schedule_strings(result.schedule),
     }
 
 

@@ -49,11 +49,13 @@ def lorr(problem: Annotated[Path, typer.Argument(
     from .console import err_console, fail_os
     from .console import fail as _fail
     from .errors import WareroverError
+    from .inputs import check_output_dir, check_seed
     from .lorr import RULES, read_problem, run_lifelong, write_output_json
 
     try:
         if not 1 <= ticks <= 10_000_000:
             raise WareroverError(f"--ticks: expected 1 to 10000000 (got {ticks})")
+        check_seed(seed)
         if planner not in PLANNERS:
             raise WareroverError(f"--planner: lorr runs {', '.join(PLANNERS)} (got "
                                  f"{planner!r}); the other planners plan whole paths, not "
@@ -68,6 +70,8 @@ def lorr(problem: Annotated[Path, typer.Argument(
         if not dist_budget_mb > 0:
             raise WareroverError(f"--dist-budget-mb: expected a positive number (got "
                                  f"{dist_budget_mb})")
+        if out is not None:
+            check_output_dir(out)
         prob = read_problem(problem)
         trace = None
         if out is not None:
@@ -133,8 +137,8 @@ def lorr(problem: Annotated[Path, typer.Argument(
                    f"tasks finished; {figures['ms_per_tick_mean']:.2f} ms per timestep (p99 "
                    f"{figures['ms_per_tick_p99']:.2f}), setup {figures['setup_s']:.2f} s, "
                    f"peak memory {figures['peak_rss_mb']:.0f} MB")
-    for f in written.values():
-        typer.echo(f"wrote {f}")
+    for f in written.values():  # with --json, stdout holds the JSON document alone
+        typer.echo(f"wrote {f}", err=json_out)
 
 
 def register(app: typer.Typer) -> None:

@@ -73,18 +73,17 @@ class ScenarioAgent:
     optimal_length: float
 
 
+MAX_FILE_BYTES = 64 * 2**20
+"""Largest ``.map`` or ``.scen`` file read (64 MiB; a 4,096 x 4,096 map is 16 MiB)."""
+
+
 def _read_lines(path: str | os.PathLike[str], file: str) -> list[str]:
     """The file's lines (UTF-8, else latin-1), without line ends."""
-    try:
-        data = Path(path).read_bytes()
-    except FileNotFoundError:
-        raise ScenarioError("no such file", file=file, field="file", value=file) from None
-    except IsADirectoryError:
-        raise ScenarioError("is a directory, not a file", file=file, field="file",
-                            value=file) from None
-    except OSError as exc:
-        raise ScenarioError(f"cannot read file: {exc.strerror}", file=file, field="file",
-                            value=file) from None
+    from .inputs import read_bytes
+
+    what = "map" if str(path).endswith(".map") else "scenario" if str(path).endswith(
+        ".scen") else "MovingAI"
+    data = read_bytes(path, what, MAX_FILE_BYTES)  # a regular file, size-limited
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError:

@@ -7,12 +7,26 @@ nesting. :func:`load` refuses, with a :class:`YamlLimitError` that says which li
 - more than ``MAX_BYTES`` of text,
 - more than ``MAX_ALIASES`` alias references (``*name``),
 - nesting deeper than ``MAX_DEPTH``,
-- more than ``MAX_NODES`` values once aliases are expanded.
+- more than ``MAX_NODES`` values once aliases are expanded;
+
+and a key given twice in one mapping is a ``yaml.constructor.ConstructorError`` naming the
+key and both lines (PyYAML itself keeps the last one silently).
 
 >>> load("a: [1, 2, {b: c}]")
 {'a': [1, 2, {'b': 'c'}]}
 >>> load("a: &x [1]\\nb: *x")
 {'a': [1], 'b': [1]}
+>>> load("a: 1\\nb: 2\\na: 3")
+Traceback (most recent call last):
+...
+yaml.constructor.ConstructorError: while constructing a mapping
+  in "<unicode string>", line 1, column 1:
+    a: 1
+    ^
+duplicate key 'a' (first on line 1)
+  in "<unicode string>", line 3, column 1:
+    a: 3
+    ^
 """
 
 from __future__ import annotations
@@ -63,6 +77,26 @@ class _LimitedLoader(yaml.SafeLoader):
             return super().compose_node(parent, index)
         finally:
             self._depth -= 1
+
+    def construct_mapping(self, node: Any, deep: bool = False) -> Any:  # noqa: D401
+        """As PyYAML's, but a key given twice in one mapping is an error (PyYAML keeps the
+        last one silently: ``max_ticks: 300`` then ``max_ticks: 5`` ran 5 ticks)."""
+        if isinstance(node, yaml.MappingNode):  # before merge keys (<<) are flattened in:
+            seen: dict[Any, Any] = {}             # they may repeat a key, as YAML allows
+            for key_node, _ in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    continue
+                key = self.construct_object(key_node, deep=deep)
+                try:
+                    first = seen.setdefault(key, key_node)
+                except TypeError:  # an unhashable key: PyYAML's own error follows
+                    continue
+                if first is not key_node:
+                    raise yaml.constructor.ConstructorError(
+                        "while constructing a mapping", node.start_mark,
+                        f"duplicate key {key!r} (first on line {first.start_mark.line + 1})",
+                        key_node.start_mark)
+        return super().construct_mapping(node, deep=deep)
 
 
 def _count(value: Any) -> None:

@@ -14,6 +14,7 @@ give the same output and exit codes. This module imports nothing heavy at its to
 
 from __future__ import annotations
 
+import contextlib
 import json
 import re
 import sys
@@ -93,6 +94,48 @@ def numba_without_blas_probe() -> bool:
     return True
 
 
+@contextlib.contextmanager
+def _quiet_interrupt():
+    """While the search runs in the command's own process: Ctrl-C ends the process at once
+    with exit code 130 and one line, as ``run`` does. Python's own KeyboardInterrupt cannot
+    be used there: raised inside the compiled (numba) search it surfaces as a SystemError
+    with two tracebacks. Nothing has been written yet (the plan file comes after)."""
+    import signal
+    import threading
+
+    if _ENTERED is None or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum, frame) -> None:
+        import os
+
+        os.write(2, b"interrupted\n")
+        os._exit(130)
+
+    old = signal.signal(signal.SIGINT, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
+def _distinct_ends(scen, source: str) -> None:
+    """Refuse two agents on one start (or one goal): no plan exists, and the search would
+    look for one until its time limit."""
+    from .errors import ScenarioError
+
+    for what in ("start", "goal"):
+        seen: dict[tuple[int, int], int] = {}
+        for i, a in enumerate(scen):
+            cell = getattr(a, what)
+            if cell in seen:
+                raise ScenarioError(f"agents {seen[cell]} and {i} have the same {what} "
+                                    f"(row {cell[0]}, col {cell[1]}): no plan exists",
+                                    file=source, field=f"agent {i}")
+            seen[cell] = i
+
+
 def _echo(text: str, err: bool = False) -> None:
     stream = sys.stderr if err else sys.stdout
     stream.write(text + "\n")
@@ -107,6 +150,7 @@ def run_solve(map_file: Path, scen_file: Path, agents: int = 100, planner: str =
     its figures; returns the exit code (0 solved, 1 not). Bad input goes to ``fail(err)``,
     which must not return (prints one line, exits 2)."""
     from .errors import WareroverError
+    from .inputs import check_output_file, check_seed
     from .movingai import read_map, read_scen
     from .planning.oneshot import solve as solve_instance
     from .planning.oneshot import write_plan
@@ -115,10 +159,14 @@ def run_solve(map_file: Path, scen_file: Path, agents: int = 100, planner: str =
     try:
         if agents < 1:
             raise WareroverError(f"--agents: must be at least 1 (got {agents})")
+        check_seed(seed)
+        if out is not None:
+            check_output_file(out)
         if not 0 < time_limit < float("inf"):
             raise WareroverError(f"--time-limit: must be positive and finite (got {time_limit})")
         grid = read_map(map_file)
         scen = read_scen(scen_file, agents, grid)
+        _distinct_ends(scen, str(scen_file))
         # The limit covers what the user waits for: start-up and reading so far, the
         # validation, the plan file and the exit after solving (SOLVE_RESERVE).
         share, fixed = SOLVE_RESERVE
@@ -142,10 +190,11 @@ def run_solve(map_file: Path, scen_file: Path, agents: int = 100, planner: str =
         gc.freeze()
         gc.set_threshold(50_000, 50, 100)
         try:
-            result = solve_instance(grid.obstacles, [a.start for a in scen],
-                                    [a.goal for a in scen], planner=planner,
-                                    time_limit_s=budget, seed=seed, guide=guide,
-                                    refine=refine, on_improve=improved)
+            with _quiet_interrupt():
+                result = solve_instance(grid.obstacles, [a.start for a in scen],
+                                        [a.goal for a in scen], planner=planner,
+                                        time_limit_s=budget, seed=seed, guide=guide,
+                                        refine=refine, on_improve=improved)
         finally:
             gc.set_threshold(*thresholds)
             gc.unfreeze()

@@ -39,14 +39,3 @@ def __getattr__(name: str):
         from .single import MAPFGymEnv
         return MAPFGymEnv
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def _require(module: str) -> None:
-    """Import ``module`` or raise an ImportError that names the install command."""
-    import importlib
-
-    try:
-        importlib.import_module(module)
-    except ImportError as err:
-        raise ImportError(f"{module} is needed for warerover_phys.envs: "
-                          "pip install 'warerover-phys[envs]'") from err

@@ -81,7 +81,7 @@ from ..planning.oneshot import grid_graph
 from ..planning.policy import ACTIONS, NUM_ACTIONS, NUM_CHANNELS, ObsGrid, observe
 
 if TYPE_CHECKING:
-    from ..config import AgvTypeSpec, ExecutorSpec
+    from ..config import AgvTypeSpec, ExecutorSpec, Scenario
     from ..executors.base import StepReport
 
 __all__ = ["EnvConfig", "GridMAPF", "Instance"]
@@ -191,15 +191,34 @@ class Instance:
                    m.name)
 
     @classmethod
-    def from_scenario(cls, path: str | Path) -> Instance:
-        """The layout of a scenario YAML (unloaded AGVs: only obstacles block them)."""
-        from ..config import load_scenario
+    def from_scenario(cls, path: str | Path | Scenario) -> Instance:
+        """The layout of a scenario YAML (or a loaded :class:`~warerover_phys.config.Scenario`,
+        or a shipped scenario's name); unloaded AGVs: only obstacles block them."""
+        from ..config import Scenario, load_scenario
         from ..layout import build_layout
 
-        sc = load_scenario(path)
-        layout = build_layout(sc.layout, fleet_size=sc.fleet.size, file=str(path),
+        sc = path if isinstance(path, Scenario) else load_scenario(path)
+        layout = build_layout(sc.layout, fleet_size=sc.fleet.size, file=sc.source,
                               name=sc.name)
         return cls(layout.obstacles.copy(), name=sc.name, rotations=sc.planner.rotations)
+
+    @classmethod
+    def coerce(cls, source: Instance | Scenario | str | Path) -> Instance:
+        """An :class:`Instance` from what the environments take, as ``loop_env`` does: an
+        Instance (as it is), a loaded Scenario, a MovingAI ``.map`` path, or a scenario
+        YAML path (or a shipped scenario's name)."""
+        if isinstance(source, Instance):
+            return source
+        if isinstance(source, str | Path):
+            if Path(source).suffix.lower() == ".map":
+                return cls.from_movingai(source)
+            return cls.from_scenario(source)
+        from ..config import Scenario
+
+        if isinstance(source, Scenario):
+            return cls.from_scenario(source)
+        raise TypeError(f"expected an Instance, a Scenario, a scenario YAML path or a "
+                        f"MovingAI .map path (got {type(source).__name__})")
 
 
 class GridMAPF:

@@ -54,9 +54,9 @@ import numpy as np
 from ..planning.base import PlanResult
 from ..planning.paths import TimedPath
 from ..planning.policy import ACTIONS, NUM_ACTIONS, ObsGrid, actions_from_moves, observe
-from . import _require
+from .deps import require
 
-_require("pettingzoo")
+require("pettingzoo")
 
 from gymnasium import spaces  # noqa: E402
 from pettingzoo import ParallelEnv  # noqa: E402

@@ -23,17 +23,23 @@ episode generator, later resets without a seed continue it.
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-from . import _require
+from .deps import require
 
-_require("pettingzoo")
+require("pettingzoo")
 
 from gymnasium import spaces  # noqa: E402
 from gymnasium.utils import seeding  # noqa: E402
 from pettingzoo import ParallelEnv  # noqa: E402
 
 from .core import EnvConfig, GridMAPF, Instance, render_ansi, render_rgb  # noqa: E402
+
+if TYPE_CHECKING:
+    from ..config import Scenario
 
 __all__ = ["MAPFParallelEnv", "parallel_env"]
 
@@ -42,14 +48,14 @@ class MAPFParallelEnv(ParallelEnv):
     metadata = {"name": "warerover_mapf_v0", "render_modes": ["ansi", "rgb_array"],
                 "is_parallelizable": True}
 
-    def __init__(self, instance: Instance, config: EnvConfig | None = None,
-                 render_mode: str | None = None) -> None:
+    def __init__(self, instance: Instance | Scenario | str | Path,
+                 config: EnvConfig | None = None, render_mode: str | None = None) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} "
                              f"(got {render_mode!r})")
-        self.core = GridMAPF(instance, config or EnvConfig())
+        self.core = GridMAPF(Instance.coerce(instance), config or EnvConfig())
         self.render_mode = render_mode
-        self.possible_agents = [f"agv_{i}" for i in range(config.num_agents)]
+        self.possible_agents = [f"agv_{i}" for i in range(self.core.config.num_agents)]
         self.agents: list[str] = []
         self._np_random: np.random.Generator | None = None
         self._obs_space = spaces.Box(-1.0, 1.0, self.core.obs_shape, dtype=np.float32)
@@ -111,6 +117,9 @@ class MAPFParallelEnv(ParallelEnv):
         return out
 
 
-def parallel_env(instance: Instance, render_mode: str | None = None, **config) -> MAPFParallelEnv:
-    """A :class:`MAPFParallelEnv`; keyword arguments are :class:`EnvConfig` fields."""
+def parallel_env(instance: Instance | Scenario | str | Path, render_mode: str | None = None,
+                 **config) -> MAPFParallelEnv:
+    """A :class:`MAPFParallelEnv` on ``instance`` (an :class:`Instance`, a scenario, a
+    scenario YAML or MovingAI ``.map`` path: :meth:`Instance.coerce`); keyword arguments
+    are :class:`EnvConfig` fields."""
     return MAPFParallelEnv(instance, EnvConfig(**config), render_mode)

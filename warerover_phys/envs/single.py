@@ -8,8 +8,10 @@ one-shot) and truncation are agent 0's. With ``executor="physics"`` (or another 
 the moves are carried out by it (see :mod:`warerover_phys.envs.core`); while agent 0 is
 ``info["in_transit"]`` (or, with rotations, ``info["turning"]``) its actions are treated
 as wait. :func:`register` adds it to Gymnasium's registry as
-``warerover/MAPF-v0`` (``gymnasium.make("warerover/MAPF-v0", instance=...)``); importing
-changes no registry. With rotations (``rotations=True`` or a scenario's
+``warerover/MAPF-v0`` (``gymnasium.make("warerover/MAPF-v0", scenario="layouts/...yaml")``
+or ``instance=`` an :class:`~warerover_phys.envs.core.Instance`, a scenario or a MovingAI
+``.map`` path, as :meth:`Instance.coerce <warerover_phys.envs.core.Instance.coerce>`
+takes); importing changes no registry. With rotations (``rotations=True`` or a scenario's
 ``planner.rotations``) the others' moves become rotation actions (a turn first where a move
 is not straight ahead; see :func:`~warerover_phys.envs.core.rotation_actions`).
 
@@ -23,16 +25,22 @@ is not straight ahead; see :func:`~warerover_phys.envs.core.rotation_actions`).
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-from . import _require
+from .deps import require
 
-_require("gymnasium")
+require("gymnasium")
 
 import gymnasium as gym  # noqa: E402
 from gymnasium import spaces  # noqa: E402
 
 from .core import EnvConfig, GridMAPF, Instance, LearnedDriver, render_ansi, render_rgb  # noqa: E402
+
+if TYPE_CHECKING:
+    from ..config import Scenario
 
 __all__ = ["MAPFGymEnv", "register"]
 
@@ -40,8 +48,13 @@ __all__ = ["MAPFGymEnv", "register"]
 class MAPFGymEnv(gym.Env):
     metadata = {"render_modes": ["ansi", "rgb_array"], "render_fps": 4}
 
-    def __init__(self, instance: Instance, render_mode: str | None = None,
-                 others: str = "learned", **config) -> None:
+    def __init__(self, instance: Instance | Scenario | str | Path | None = None,
+                 render_mode: str | None = None, others: str = "learned", *,
+                 scenario: Scenario | str | Path | None = None, **config) -> None:
+        if (instance is None) == (scenario is None):
+            raise TypeError("give the grid as instance= (an Instance, a scenario or a .map "
+                            "path) or as scenario= (a scenario YAML path), one of them")
+        instance = Instance.coerce(instance if instance is not None else scenario)
         if others not in ("learned", "wait"):
             raise ValueError(f"others must be 'learned' or 'wait' (got {others!r})")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:

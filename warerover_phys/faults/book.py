@@ -27,8 +27,9 @@ class Grant:
     open_s: float
     bound_s: float
     reason: str
-    """``inside`` (in the zone when it opened) or ``cannot_stop`` (its move in progress, or
-    its braking distance, takes it in)."""
+    """``inside`` (in the zone when it opened), ``cannot_stop`` (its move in progress, or
+    its braking distance, takes it in) or ``repaired_inside`` (down in the zone when it
+    opened, caught when repaired there: ``open_s`` is then the repair time)."""
     seen_inside: bool = False
     """A check has found it inside (an AGV caught while still outside has not "left"
     before it has been in)."""
@@ -67,7 +68,7 @@ class CorridorBook:
         """AGV ``agv`` is caught by ``corridor`` opening at ``open_s``: it may take
         ``bound_s`` seconds to leave."""
         g = Grant(agv, corridor, float(open_s), float(bound_s), reason,
-                  seen_inside=reason == "inside")
+                  seen_inside=reason in ("inside", "repaired_inside"))
         self.grants[(agv, corridor)] = g
         return g
 

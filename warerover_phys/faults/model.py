@@ -137,7 +137,9 @@ def open_failure(world: World, agv_id: int, repair_ticks: int | None,
 
 
 def close_failure(world: World, agv_id: int) -> None:
-    """Repair a failed AGV now; its corridor closes and its cells reopen."""
+    """Repair a failed AGV now; its corridor closes and its cells reopen. If it stands in
+    another AGV's open corridor (that one failed while it was down), it is caught there as
+    if that corridor had just opened: a bounded time to leave, not an intruder."""
     w = world
     w.repair(agv_id)
     cid = next((c for c, corridor in w.corridors.items() if corridor.agv == agv_id), None)
@@ -149,6 +151,24 @@ def close_failure(world: World, agv_id: int) -> None:
             if entry["id"] == cid:
                 entry["close_tick"] = w.tick
         _close_cells(w)
+    _catch_repaired(w, agv_id)
+
+
+def _catch_repaired(w: World, agv_id: int) -> None:
+    """AGV ``agv_id``, repaired now, is caught by every open corridor whose cells it stands
+    on (it was down when they opened, so :func:`_clear_paths` left it out)."""
+    from .intrusion_log import exit_bound_s
+
+    agv = w.agvs[agv_id]
+    mine = set(occupancy(agv.pos, agv.k, w.layout.cols))
+    for corridor in w.corridors.values():
+        if corridor.agv == agv_id or not mine & corridor.cells:
+            continue
+        bound = exit_bound_s(w, agv, corridor)
+        w.corridor_book.catch(agv_id, corridor.id, w.tick * w.scenario.tick_s, bound,
+                              "repaired_inside")
+        w.log("corridor_caught", agv=agv_id, corridor=corridor.id, reason="repaired_inside",
+              bound_s=round(bound, 3))
 
 
 def _close_cells(w: World) -> None:

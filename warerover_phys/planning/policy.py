@@ -48,7 +48,6 @@ from __future__ import annotations
 
 import os
 import sys
-import zipfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -285,14 +284,15 @@ class MLPPolicy:
         the wrong shape."""
         path = Path(path) if path is not None else DEFAULT_WEIGHTS
         file = str(path)
-        if not path.is_file():
+        from ..inputs import describe, load_npz
+
+        if describe(path) == "missing":
             raise _weights_error("weights file not found", file)
         try:
-            with np.load(path, allow_pickle=False) as data:
-                params = {k: data[k] for k in data.files}
-        except (zipfile.BadZipFile, EOFError, OSError, ValueError, KeyError) as err:
-            raise _weights_error(f"not a readable .npz weights file "
-                                 f"({type(err).__name__}: {err})", file) from None
+            params = load_npz(path, "weights", 256 * 2**20)
+        except ScenarioError as err:
+            raise _weights_error(f"not a readable .npz weights file ({err.message})",
+                                 file) from None
         for name in ("fov_radius", "version"):
             if name not in params:
                 raise _weights_error("field missing from the weights file", file, name)

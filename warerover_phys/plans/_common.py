@@ -16,6 +16,8 @@ MAX_TIMESTEP = 1_000_000
 """Largest timestep a file may name (timed points, paths.json ticks)."""
 MAX_CELLS = 20_000_000
 """Largest number of (agent, timestep) entries a file may expand to."""
+MAX_AGENTS = 100_000
+"""Most agents a plan may have (counted before their cells are parsed)."""
 EXCERPT = 80
 
 _NUM = r"\d{1,7}"

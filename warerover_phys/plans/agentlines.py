@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import re
 
-from ._common import MAX_CELLS, MAX_TIMESTEP, diagnose, fail, ints_of, tuple_pattern
+from ._common import MAX_AGENTS, MAX_CELLS, MAX_TIMESTEP, diagnose, fail, ints_of, tuple_pattern
 from .model import Plan
 
 _AGENT = re.compile(r"Agent\s*(\d{1,7})\s*:(.*)", re.ASCII)
@@ -52,6 +52,8 @@ def _lines(text: str, source: str, n: int):
         if aid in seen:
             fail(source, f"line {no}", f"agent {aid} again (first on line {seen[aid]})", raw)
         seen[aid] = no
+        if len(seen) > MAX_AGENTS or aid >= MAX_AGENTS:
+            fail(source, f"line {no}", f"more than {MAX_AGENTS:,} agents", raw[:40])
         if _BODY[n].fullmatch(body) is None:
             message, bad = diagnose(body, n, "->")
             fail(source, f"line {no}", message, bad)

@@ -54,7 +54,7 @@ import re
 from contextlib import contextmanager
 from pathlib import Path
 
-from ..errors import PlanFormatError
+from ..errors import PlanFormatError, ScenarioError
 from . import agentlines, lacam, pathsjson, robotrunners
 from ._common import MAX_COORD, MAX_FILE_BYTES, excerpt, fail
 from .model import Plan
@@ -82,6 +82,15 @@ def _gc_paused():
     finally:
         if was:
             gc.enable()
+
+
+def check_format(fmt: str, option: str = "--format") -> str:
+    """``fmt`` if it is a plan format, else a :class:`PlanFormatError` naming ``option``
+    (for a command line option, checked before any work)."""
+    if fmt not in FORMATS:
+        raise PlanFormatError(f"unknown plan format (known: {', '.join(FORMATS)})",
+                              file="<arguments>", field=option, value=fmt)
+    return fmt
 
 
 def _check_fmt(fmt: str) -> None:
@@ -215,13 +224,19 @@ def read_plan(path: str | Path, fmt: str | None = None, *, xy: bool = True,
     """Read the plan file at ``path`` (see :func:`parse_plan` for the options)."""
     source = str(path)
     p = Path(path)
+    from ..inputs import check_regular_file
+
     try:
-        size = p.stat().st_size
-        if size > MAX_FILE_BYTES:
-            fail(source, None, f"file too large ({size} bytes; max {MAX_FILE_BYTES})")
-        data = p.read_bytes()
+        check_regular_file(p, "plan")  # not a FIFO nor a device: they would never end
+    except ScenarioError as err:
+        fail(source, None, err.message)
+    try:
+        with open(p, "rb") as f:
+            data = f.read(MAX_FILE_BYTES + 1)
     except OSError as err:
         fail(source, None, f"cannot read: {err.strerror or err}")
+    if len(data) > MAX_FILE_BYTES:
+        fail(source, None, f"file too large (more than {MAX_FILE_BYTES} bytes)")
     return parse_plan(_decode(data, source), fmt, source=source, xy=xy, which=which, cols=cols)
 
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import re
 
-from ._common import MAX_CELLS, diagnose, excerpt, fail, ints_of, scalar, tuple_pattern
+from ._common import MAX_AGENTS, MAX_CELLS, diagnose, excerpt, fail, ints_of, scalar, tuple_pattern
 from .model import Plan
 
 _KEY = re.compile(r"[A-Za-z_][A-Za-z0-9_.\-]*", re.ASCII)
@@ -78,6 +78,8 @@ def parse(text: str, source: str) -> Plan:
             if not value.isascii() or not value.isdigit() or len(value) > 7:
                 fail(source, f"line {i}", "agents= must be a non-negative integer", raw)
             agents = int(value)
+            if agents > MAX_AGENTS:
+                fail(source, f"line {i}", f"more than {MAX_AGENTS:,} agents", raw)
         elif key in ("width", "height"):
             if not value.isascii() or not value.isdigit() or len(value) > 7 or int(value) < 1:
                 fail(source, f"line {i}", f"{key}= must be a positive integer", raw)
@@ -107,6 +109,8 @@ def parse(text: str, source: str) -> Plan:
         line = lines[j].strip()
         if not line:
             continue
+        if line.count("(") > MAX_AGENTS:  # counted before the line is parsed
+            fail(source, f"line {j + 1}", f"more than {MAX_AGENTS:,} agents on one line")
         m = _STEP.fullmatch(line)
         if m is None:
             fail(source, f"line {j + 1}", "expected a timestep line 't:(x,y),(x,y),...'",

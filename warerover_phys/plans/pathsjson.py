@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import json
 
-from ._common import MAX_CELLS, MAX_COORD, MAX_TIMESTEP, check_int, fail
+from ._common import MAX_AGENTS, MAX_CELLS, MAX_COORD, MAX_TIMESTEP, check_int, fail
 from .model import Plan
 
 _OWNED = ("planned", "actual", "rows", "cols", "map_name", "agv_ids")
@@ -79,8 +79,10 @@ def _agv_id(key, source: str, where: str) -> int:
     if isinstance(key, str):
         if not (key.isascii() and key.isdigit() and len(key) <= 9):
             fail(source, where, "AGV ids must be non-negative integers", key)
+        if int(key) >= MAX_AGENTS:
+            fail(source, where, f"AGV ids must be below {MAX_AGENTS:,}", key)
         return int(key)
-    return check_int(key, source, where, what="AGV id", high=999_999_999)
+    return check_int(key, source, where, what="AGV id", high=MAX_AGENTS - 1)
 
 
 def _stitch(planned, source: str, cols: int | None) -> dict[int, list]:

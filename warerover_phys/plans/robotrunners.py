@@ -42,7 +42,7 @@ from __future__ import annotations
 import json
 import re
 
-from ._common import MAX_CELLS, MAX_COORD, check_int, fail
+from ._common import MAX_AGENTS, MAX_CELLS, MAX_COORD, check_int, fail
 from .model import HEADING_NAMES, HEADING_STEPS, Plan
 
 _OWNED = ("start", "teamSize", "actualPaths", "plannerPaths")
@@ -83,6 +83,8 @@ def parse(data: dict, source: str, *, which: str = "actual") -> Plan:
             fail(source, "teamSize", f"teamSize={team} but start has {len(starts)} agents")
     if len(strings) != len(starts):
         fail(source, key, f"{len(strings)} paths but start has {len(starts)} agents")
+    if len(starts) > MAX_AGENTS:
+        fail(source, "start", f"more than {MAX_AGENTS:,} agents", len(starts))
     max_counter = 1
     if "agentMaxCounter" in data:
         max_counter = check_int(data["agentMaxCounter"], source, "agentMaxCounter", low=1,

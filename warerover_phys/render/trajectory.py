@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import json
 import math
-import zipfile
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -322,8 +321,10 @@ def _build(traj: dict, events: list[dict] | None, planned: list[dict] | None,
 
 def _read_json(path: Path, lines: bool) -> object:
     """A JSON (``lines``: JSON-lines) file beside a trajectory, or a one-line error."""
+    from ..inputs import read_text
+
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_text(path, path.name, 2**30)  # a regular file, at most 1 GiB
         if lines:
             out = [json.loads(line) for line in text.splitlines() if line.strip()]
             if not all(isinstance(e, dict) for e in out):
@@ -347,19 +348,14 @@ def load_trajectory(path: str | Path) -> Recording:
     p = Path(path)
     if p.is_dir():
         p = p / "trajectories.npz"
-    if not p.is_file():
-        raise WareroverError(f"{p}: no such trajectory file")
+    from ..inputs import check_regular_file, load_npz
+
+    check_regular_file(p, "trajectory")  # before the folder's manifest is read
     check_set(p.parent)
     try:
-        data = np.load(p, allow_pickle=False)
-        if not isinstance(data, np.lib.npyio.NpzFile):
-            raise ValueError("a single array, not an .npz archive")
-        with data:
-            traj = {k: data[k] for k in data.files}
-    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error,
-            NotImplementedError, RuntimeError) as err:
-        why = str(err).splitlines()[0] if str(err) else type(err).__name__
-        raise WareroverError(f"{p}: cannot read trajectories ({why})") from None
+        traj = load_npz(p, "trajectory")
+    except zlib.error as err:
+        raise WareroverError(f"{p}: cannot read trajectories ({err})") from None
     events = planned = None
     ev_file, paths_file = p.with_name("events.jsonl"), p.with_name("paths.json")
     if ev_file.is_file():

@@ -31,7 +31,8 @@ from .frame import Style, draw_frame
 if TYPE_CHECKING:
     from .trajectory import Recording
 
-__all__ = ["VideoWriter", "render_video", "write_png", "frame_times", "auto_speed",
+__all__ = ["VideoWriter", "render_video", "write_png", "frame_times", "frame_count",
+           "MAX_FRAMES", "auto_speed",
            "parse_size", "SIZES"]
 
 log = logging.getLogger(__name__)
@@ -39,6 +40,9 @@ log = logging.getLogger(__name__)
 SIZES = {"720p": (1280, 720), "1080p": (1920, 1080), "480p": (854, 480), "4k": (3840, 2160)}
 MAX_VIDEO_S = 60.0
 """Default playback speed aims at videos no longer than this (seconds)."""
+MAX_FRAMES = 200_000
+"""Most frames one video may have (about 1.9 hours at 30 fps); more is refused before the
+first frame (``--speed 1e-9`` asked for terabytes)."""
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -152,14 +156,22 @@ def auto_speed(duration_s: float) -> float:
     return float(10 * mag)
 
 
+def frame_count(duration_s: float, fps: float, speed: float) -> int:
+    """Frames of a video of ``duration_s`` simulated seconds (no array is made)."""
+    return int(math.floor(duration_s * fps / speed + 1e-9)) + 1
+
+
 def frame_times(start_s: float, end_s: float, fps: float, speed: float,
                 max_frames: int | None = None) -> np.ndarray:
     """Simulated times of the video frames: ``start + k * speed / fps`` up to ``end``."""
     if fps <= 0 or speed <= 0:
         raise ValueError(f"fps and speed must be positive (got fps={fps}, speed={speed})")
-    n = int(math.floor((end_s - start_s) * fps / speed + 1e-9)) + 1
+    n = frame_count(end_s - start_s, fps, speed)
     if max_frames is not None:
         n = min(n, max_frames)
+    elif n > MAX_FRAMES:
+        raise ValueError(f"{end_s - start_s:g} s at {speed:g}x and {fps:g} fps would take "
+                         f"{n:,} frames (at most {MAX_FRAMES:,}): raise --speed or lower --fps")
     return start_s + np.arange(max(n, 1)) * (speed / fps)
 
 

@@ -47,6 +47,7 @@ def serve(scenario: Annotated[Path | None, typer.Argument(
     import uvicorn
 
     from ..errors import WareroverError
+    from ..inputs import check_seed
     from .protocol import MAX_MESSAGE_BYTES
     from .server import create_app
 
@@ -55,6 +56,11 @@ def serve(scenario: Annotated[Path | None, typer.Argument(
     try:
         if not 0 <= port <= 65535:
             raise WareroverError(f"--port: must be 0 to 65535 (got {port})")
+        if seed is not None:
+            check_seed(seed)
+        if not 0 <= speed <= 10_000:  # as the browser's speed control; also refuses nan
+            raise WareroverError(f"--speed: expected ticks per second from 0 to 10000 (0: as "
+                                 f"fast as it runs) (got {speed})")
         _check_bind(host, port)
         app = create_app(root, scenario, overrides=overrides, seed=seed, ticks_per_s=speed,
                          paused=paused, allowed_origins=tuple(allow_origin or ()),
@@ -101,10 +107,14 @@ def export_glb(out: Annotated[Path, typer.Argument(help="Output .glb file.")],
                ) -> None:
     """Export a layout (and, with --ticks, an episode's AGV motion) as glTF binary."""
     from ..errors import WareroverError
+    from ..inputs import check_output_file, check_seed
     from .glb import export_episode_glb, export_layout_glb
     from .session import LiveSession
 
     try:
+        if seed is not None:
+            check_seed(seed)
+        check_output_file(out, "OUT", suffixes=(".glb",))
         session = LiveSession(scenario, Path.cwd(), seed=seed)
         if ticks > 0:
             session.step(ticks)

@@ -261,9 +261,14 @@ def open_replay(path: Path, layout: Path | None = None, fallback_grid: np.ndarra
     if path.is_dir() or path.suffix == ".npz":
         data = _from_npz(path)
     elif path.suffix == ".json":
+        from ..errors import ScenarioError
+        from ..inputs import read_text
+
         try:
-            raw = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+            raw = json.loads(read_text(path, "replay", 2**30))  # a regular file, <= 1 GiB
+        except ScenarioError as err:
+            raise WareroverError(f"{path.name}: {err.message}") from None
+        except (OSError, json.JSONDecodeError, RecursionError) as err:
             raise WareroverError(f"{path.name}: cannot read JSON ({err})") from None
         if not isinstance(raw, dict):
             raise WareroverError(f"{path.name}: expected a JSON object")

@@ -24,7 +24,6 @@ of the plan (the last sample of any agent), as in :class:`warerover_phys.plans.m
 from __future__ import annotations
 
 import math
-import zipfile
 import zlib
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -308,19 +307,15 @@ def load_trajectory_file(path: str | Path, shelves: bool = True) -> TimedPlan:
     p = Path(path)
     if p.is_dir():
         p = p / "trajectories.npz"
-    if not p.is_file():
-        raise SpacetimeInputError("no such trajectory file", file=str(p))
     from ..atomic import check_set
+    from ..inputs import check_regular_file, load_npz
 
-    check_set(p.parent)  # a half-written or mixed run folder is refused
     try:
-        data = np.load(p, allow_pickle=False)
-        if not isinstance(data, np.lib.npyio.NpzFile):
-            raise ValueError("a single array, not an .npz archive")
-        with data:
-            traj = {k: data[k] for k in data.files}
-    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error,
-            NotImplementedError, RuntimeError) as err:
-        why = str(err).splitlines()[0] if str(err) else type(err).__name__
-        raise SpacetimeInputError(f"cannot read trajectories ({why})", file=str(p)) from None
+        check_regular_file(p, "trajectory")
+        check_set(p.parent)  # a half-written or mixed run folder is refused
+        traj = load_npz(p, "trajectory")
+    except ScenarioError as err:
+        raise SpacetimeInputError(err.message, file=str(p)) from None
+    except zlib.error as err:
+        raise SpacetimeInputError(f"cannot read trajectories ({err})", file=str(p)) from None
     return from_trajectory(traj, str(p), shelves=shelves)

@@ -96,18 +96,22 @@ def sweep(sweep_file: Annotated[Path, typer.Argument(metavar="SWEEP.yaml",
     from ..console import err_console
     from ..console import fail as _fail
     from ..errors import WareroverError
-    from .runner import run_sweep
+    from ..inputs import check_output_dir
+    from .runner import check_ray_address, run_sweep
     from .spec import load_sweep, narrow
 
     progress = _Progress(err_console, quiet)
     try:
         if workers is not None and workers < 1:
             raise WareroverError(f"--workers: must be at least 1 (got {workers})")
+        check_output_dir(out)
+        if ray is not None:
+            check_ray_address(ray)
         spec = load_sweep(sweep_file)
         if repetitions is not None or only:
             pairs = []
             for text in only or []:
-                path, value = parse_override(text)
+                path, value = parse_override(text, option="--only")
                 pairs.append((path, value))
             spec = narrow(spec, repetitions=repetitions, only=pairs)
         n = workers or os.cpu_count() or 1

@@ -27,6 +27,7 @@ import io
 import json
 import logging
 import math
+import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -125,7 +126,7 @@ def load_rows(out_dir: str | Path) -> tuple[list[dict[str, Any]], dict[str, Any]
     results = out_dir / RESULTS_NAME
     if not out_dir.is_dir():
         raise WareroverError(f"{out_dir}: no such folder")
-    if not results.exists():
+    if not os.path.lexists(results):
         raise WareroverError(f"{out_dir}: no {RESULTS_NAME} here (run `warerover sweep "
                              f"SWEEP.yaml --out {out_dir}` first)")
     rows = ResultsFile(results).load()
@@ -134,8 +135,10 @@ def load_rows(out_dir: str | Path) -> tuple[list[dict[str, Any]], dict[str, Any]
     spec_data = None
     spec_path = out_dir / SPEC_NAME
     if spec_path.exists():
+        from ..inputs import read_text
+
         try:
-            spec_data = json.loads(spec_path.read_text(encoding="utf-8"))
+            spec_data = json.loads(read_text(spec_path, "sweep spec", 64 * 2**20))
             spec = SweepSpec.model_validate(spec_data)
         except (ValueError, TypeError) as err:
             raise WareroverError(f"{spec_path}: not a sweep spec ({err})") from None

@@ -52,6 +52,10 @@ def _clean(value: Any) -> Any:
     return value
 
 
+MAX_RESULTS_BYTES = 4 * 2**30
+"""Largest ``results.jsonl`` read (4 GiB: a million rows of about 4 KiB)."""
+
+
 class ResultsFile:
     """``DIR/results.jsonl``: read what is there, append new rows atomically."""
 
@@ -63,9 +67,11 @@ class ResultsFile:
         """Rows by key (the last row of a key wins). A truncated last line is skipped; a bad
         line anywhere else is an error naming the file and line."""
         rows: dict[str, dict[str, Any]] = {}
-        if not self.path.exists():
+        if not os.path.lexists(self.path):
             return rows
-        data = self.path.read_bytes()
+        from ..inputs import read_bytes
+
+        data = read_bytes(self.path, "results", MAX_RESULTS_BYTES)  # a regular file
         complete = data.endswith(b"\n")
         lines = data.split(b"\n")
         if complete:
@@ -90,7 +96,11 @@ class ResultsFile:
         """Open for appending. A last line without its newline is cut off if it is not a
         whole row (the write was killed) and ended with a newline if it is."""
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        new = not self.path.exists()
+        new = not os.path.lexists(self.path)
+        if not new:
+            from ..inputs import check_regular_file
+
+            check_regular_file(self.path, "results")  # a FIFO would block the append
         fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_APPEND, 0o644)
         try:
             data = self.path.read_bytes()

@@ -376,6 +376,53 @@ def _dead_worker(task: Task, alone: bool, suspects: deque[Task],
 # ------------------------------------------------------------------------------- Ray
 
 
+RAY_CONNECT_S = 3.0
+"""Seconds a Ray cluster address gets to answer before a sweep starts."""
+_GCS_PROBE = """
+import sys
+import ray._raylet as r
+r.GcsClient(address=sys.argv[1]).internal_kv_get(b"warerover-probe", timeout=%r)
+"""
+"""Asks the cluster's GCS (Ray's head) one question, in a child process."""
+
+
+def check_ray_address(address: str, timeout_s: float = RAY_CONNECT_S) -> None:
+    """Refuse, before a sweep takes its folder, a ``--ray`` cluster address where no Ray
+    cluster answers (``ray.init`` would retry until killed): a TCP connection within
+    ``timeout_s``, then (a GCS address, not ``ray://``) one request to the cluster's GCS in
+    a child process given a few seconds more (a proxy or another server that accepts the
+    connection does not answer it). ``auto`` and ``local`` are left to Ray, which must be
+    installed."""
+    import socket
+    import subprocess
+
+    _import_ray()
+    if address in ("auto", "local"):
+        return
+    hostport = address.split("://", 1)[-1]
+    host, sep, port = hostport.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise WareroverError(f"--ray: expected HOST:PORT, auto or local (got {address!r})")
+    why = None
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s):
+            pass
+    except OSError as err:
+        why = "no answer" if isinstance(err, TimeoutError) else (err.strerror or str(err))
+    if why is None and "://" not in address:
+        try:
+            probe = subprocess.run([sys.executable, "-c", _GCS_PROBE % timeout_s, hostport],
+                                   capture_output=True, text=True, timeout=timeout_s + 5)
+            if probe.returncode:
+                lines = probe.stderr.strip().splitlines()
+                why = f"not a Ray GCS: {lines[-1][:120] if lines else probe.returncode}"
+        except subprocess.TimeoutExpired:
+            why = "the GCS does not answer"
+    if why is not None:
+        raise WareroverError(f"--ray {address}: cannot reach a Ray cluster there ({why}); "
+                             "start one with `ray start --head` or use --ray local")
+
+
 def _import_ray() -> Any:
     try:
         import ray
