@@ -878,19 +878,19 @@ def parse_delays(text: str | None) -> DelaySpec:
     parts = text.split(":")
     keys = ["model", "prob", "min_ticks", "max_ticks"]
     if len(parts) not in (2, 4) or parts[0] not in ("none", "bernoulli", "poisson"):
-        raise ScenarioError("expected MODEL:PROB[:MIN_TICKS:MAX_TICKS] with MODEL bernoulli "
-                            "or poisson", field="--delays", value=text)
+        raise WareroverError(f"--delays: expected MODEL:PROB[:MIN_TICKS:MAX_TICKS] with MODEL "
+                             f"bernoulli or poisson (got {text!r})")
     values: dict[str, object] = {"model": parts[0]}
     for key, part, kind in zip(keys[1:], parts[1:], (float, int, int), strict=False):
         try:  # the command line gives text: numbers are read here, ranges checked below
             values[key] = kind(part)
         except ValueError:
             what = "a number" if kind is float else "a whole number of ticks"
-            raise ScenarioError(f"{key}: expected {what}", field="--delays",
-                                value=text) from None
+            raise WareroverError(f"--delays: {key}: expected {what} (got {part!r} in "
+                                 f"{text!r})") from None
     try:
         return DelaySpec.model_validate(values)
     except ValidationError as err:
         e = err.errors()[0]
-        raise ScenarioError(e["msg"], field=f"--delays {e['loc'][0]}",
-                            value=e.get("input")) from None
+        where = e["loc"][0] if e["loc"] else "MIN_TICKS:MAX_TICKS"
+        raise WareroverError(f"--delays: {where}: {e['msg']} (got {text!r})") from None
