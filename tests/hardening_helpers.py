@@ -10,6 +10,11 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 LAYOUTS = REPO / "layouts"
+DATA = REPO / "tests" / "data"
+MAP = DATA / "random-32-32-10.map"
+SCEN = DATA / "random-32-32-10-random-1.scen"
+LORR = DATA / "lorr2023_warehouse_small" / "warehouse_small_50.json"
+HOMO = LAYOUTS / "paper_homogeneous.yaml"
 
 
 def cli_env() -> dict[str, str]:
@@ -38,6 +43,31 @@ def assert_clean_error(proc: subprocess.CompletedProcess[str], *needles: str) ->
     assert err.startswith("error: "), err
     for needle in needles:
         assert needle in err, (needle, err)
+    return err
+
+
+def make_box(tmp_path: Path) -> tuple[Path, Path]:
+    """(inputs folder holding a one-agent ``plan.txt``, empty working folder) for a hostile
+    input test: the command runs in the second, which must stay empty."""
+    inputs, work = tmp_path / "in", tmp_path / "work"
+    inputs.mkdir()
+    work.mkdir()
+    (inputs / "plan.txt").write_text("Agent 0:(0,0)->(0,1)->\n")
+    return inputs, work
+
+
+def refuse(work: Path, *args: str | Path, needles: tuple | list = (), timeout: float = 60.0
+           ) -> str:
+    """Run ``warerover ARGS`` in ``work``: a clean error (:func:`assert_clean_error`)
+    naming every needle, within ``timeout`` s, and nothing written in ``work``."""
+    import time
+
+    t0 = time.monotonic()
+    proc = subprocess.run(cli_argv(*args), cwd=work, env=cli_env(), capture_output=True,
+                          text=True, timeout=timeout)
+    assert time.monotonic() - t0 < timeout
+    err = assert_clean_error(proc, *needles)
+    assert sorted(p.name for p in work.iterdir()) == [], "wrote something on refusal"
     return err
 
 

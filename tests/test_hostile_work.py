@@ -19,41 +19,23 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hardening_helpers import LAYOUTS, assert_clean_error, cli_argv, cli_env
-
-DATA = Path(__file__).parent / "data"
-MAP = DATA / "random-32-32-10.map"
-SCEN = DATA / "random-32-32-10-random-1.scen"
-LORR = DATA / "lorr2023_warehouse_small" / "warehouse_small_50.json"
-HOMO = LAYOUTS / "paper_homogeneous.yaml"
+from hardening_helpers import (
+    DATA,
+    HOMO,
+    LAYOUTS,
+    LORR,
+    MAP,
+    SCEN,
+    cli_argv,
+    cli_env,
+    make_box,
+    refuse,
+)
 
 
 @pytest.fixture
 def box(tmp_path):
-    """(inputs folder, empty working folder): the command runs in the second, which must
-    stay empty."""
-    inputs, work = tmp_path / "in", tmp_path / "work"
-    inputs.mkdir()
-    work.mkdir()
-    (inputs / "plan.txt").write_text("Agent 0:(0,0)->(0,1)->\n")
-    return inputs, work
-
-
-def refuse(work: Path, *args, needles=(), timeout: float = 60.0, code: int = 2) -> str:
-    """Run ``warerover ARGS`` in ``work``: a clean error naming ``needles``, within
-    ``timeout`` s, and nothing written."""
-    t0 = time.monotonic()
-    proc = subprocess.run(cli_argv(*args), cwd=work, env=cli_env(), capture_output=True,
-                          text=True, timeout=timeout)
-    took = time.monotonic() - t0
-    if code == 2:
-        err = assert_clean_error(proc, *needles)
-    else:
-        err = proc.stderr
-        assert proc.returncode == code and "Traceback" not in err, (proc.returncode, err)
-    assert took < timeout
-    assert sorted(p.name for p in work.iterdir()) == [], "wrote something on refusal"
-    return err
+    return make_box(tmp_path)
 
 
 # ----------------------------------------------------------------------------- late checks

@@ -77,6 +77,9 @@ def _inputs() -> dict[str, str]:
         zero.symlink_to("/dev/zero")
         out[f"zero.{ext}"] = str(zero)
     out["plan"] = w("ok.txt", "Agent 0:(0,0)->(0,1)->\n")
+    (F / "emptyrun").mkdir()
+    w("garb/trajectories.npz", "hello")
+    w("sw_ok.yaml", f"scenarios: {{Ho: {HOMO}}}\nrepetitions: 1\n")
     out["fleet2"] = w("fleet2.yaml", "types: {a: {footprint: 1}}\nagents: [{type: a, count: 1}]\n")
     return out
 
@@ -115,9 +118,7 @@ def earlier_cases(i: dict[str, str]) -> None:
     case(c, "check bad body", "check", HOMO, "--set", "fleet.types.agv.body_m=[0,0.7]")
     case(c, "check body str", "check", HOMO, "--set", "fleet.types.agv.body_m=big")
     case(c, "render missing", "render", str(F / "nope_dir"), "--out", "x.mp4")
-    (F / "emptyrun").mkdir()
     case(c, "render empty dir", "render", str(F / "emptyrun"), "--out", "x.mp4")
-    w("garb/trajectories.npz", "hello")
     case(c, "render garbage npz", "render", str(F / "garb"), "--out", "x.mp4")
     case(c, "render bad fps", "render", HOMO, "--fps", "0", "--out", "x.mp4")
     case(c, "solve bad map", "solve", w("bad.map", "type octile\nheight 2\nwidth 2\nmap\n..\n"),
@@ -248,8 +249,7 @@ def late_check_cases(i: dict[str, str]) -> None:
     case(c, "solve --out unwritable", "solve", MAP, SCEN, "--agents", "5", "--out",
          unw + ".txt")
     case(c, "solve --out is a dir", "solve", MAP, SCEN, "--agents", "5", "--out", str(F))
-    case(c, "sweep --out is a file", "sweep", w("sw_ok.yaml", f"scenarios: {{Ho: {HOMO}}}\n"
-                                                "repetitions: 1\n"), "--out", afile)
+    case(c, "sweep --out is a file", "sweep", str(F / "sw_ok.yaml"), "--out", afile)
     case(c, "sweep --out unwritable", "sweep", str(F / "sw_ok.yaml"), "--out", unw)
     case(c, "render --out unwritable", "render", str(F / "garb"), "--out", unw + ".mp4")
     case(c, "export-glb out unwritable", "export-glb", unw + ".glb", HOMO)
@@ -470,6 +470,14 @@ def _one_case_main() -> None:
     print(json.dumps(run_case(spec["case"], work, spec["max_s"], spec["max_mb"])))
 
 
+def _one_message(row: dict) -> bool:
+    return not any(p.endswith(" lines") or p.startswith("no '") for p in row["problems"])
+
+
+def _nothing_written(row: dict) -> bool:
+    return not any(p.startswith("wrote") or p == "inputs changed" for p in row["problems"])
+
+
 def main() -> None:
     if "--case" in sys.argv:
         return _one_case_main()
@@ -504,12 +512,19 @@ def main() -> None:
                   f"rc={row['rc']} {row['seconds']:5.1f} s {row['peak_mb']:5d} MB  "
                   f"{', '.join(row['problems'])}  :: {row['message'][:110]}", flush=True)
     print()
-    print("| class | cases | clean | max s | max MB |")
-    print("|---|---|---|---|---|")
+    print("| class | cases | exit code right | one message | no traceback | nothing written "
+          "| max s | max MB | clean |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for name in dict.fromkeys(r["class"] for r in rows):
         rs = [r for r in rows if r["class"] == name]
-        print(f"| {name} | {len(rs)} | {sum(r['clean'] for r in rs)} | "
-              f"{max(r['seconds'] for r in rs):.1f} | {max(r['peak_mb'] for r in rs)} |")
+
+        def ok(word: str, rs=rs) -> int:
+            return sum(not any(p.startswith(word) for p in r["problems"]) for r in rs)
+
+        print(f"| {name} | {len(rs)} | {ok('rc')} | {sum(_one_message(r) for r in rs)} | "
+              f"{ok('traceback')} | {sum(_nothing_written(r) for r in rs)} | "
+              f"{max(r['seconds'] for r in rs):.1f} | {max(r['peak_mb'] for r in rs)} | "
+              f"{sum(r['clean'] for r in rs)} |")
     clean = sum(r["clean"] for r in rows)
     print(f"\n{clean}/{len(rows)} clean")
     if args.json is not None:
