@@ -83,7 +83,10 @@ def _read_lines(path: str | os.PathLike[str], file: str) -> list[str]:
 
     what = "map" if str(path).endswith(".map") else "scenario" if str(path).endswith(
         ".scen") else "MovingAI"
-    data = read_bytes(path, what, MAX_FILE_BYTES)  # a regular file, size-limited
+    try:
+        data = read_bytes(path, what, MAX_FILE_BYTES)  # a regular file, size-limited
+    except ScenarioError as err:
+        raise ScenarioError(err.message, file=file, field="file", value=file) from None
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError:

@@ -123,10 +123,10 @@ def recompute_from_npz(traj: dict) -> tuple[float, float, int]:
     sign = np.array([[1, 1], [-1, 1], [-1, -1], [1, -1]], dtype=float)
     inside_s = intrusion_s = 0.0
     flips = 0
-    grants = {(int(a), int(c)): (float(b), float(e))
-              for a, c, b, e in zip(traj["corridor_caught_agv"], traj["corridor_caught_corridor"],
-                                    traj["corridor_caught_bound_s"],
-                                    traj["corridor_caught_exit_s"], strict=True)}
+    grants = {(int(a), int(c)): (float(s), float(b))
+              for a, c, s, b in zip(traj["corridor_caught_agv"], traj["corridor_caught_corridor"],
+                                    traj["corridor_caught_s"], traj["corridor_caught_bound_s"],
+                                    strict=True)}
     for row, cid in enumerate(traj["corridor_id"].tolist()):
         rects = traj["corridor_rects"][traj["corridor_rect_of"] == row]
         person = shapely.union_all(shapely.box(*rects.T))
@@ -148,12 +148,13 @@ def recompute_from_npz(traj: dict) -> tuple[float, float, int]:
             flips += int(np.count_nonzero(np.diff(inside.astype(int)))) + int(inside[0])
             inside_s += inside.sum() * period
             counted = inside.copy()
-            if (a, cid) in grants:
-                bound, _ = grants[(a, cid)]
-                left = np.flatnonzero(~inside)
+            if (a, cid) in grants:  # caught when it opened, or when repaired inside
+                caught, bound = grants[(a, cid)]
+                after = t[m] >= caught - 1e-9
+                left = np.flatnonzero(~inside & after & (state[m, a] != 7))  # up and out
                 first_out = t[m][left[0]] if len(left) else np.inf
-                exempt_until = min(first_out, t0 + bound)
-                counted &= t[m] >= exempt_until - 1e-9
+                exempt_until = min(first_out, caught + bound)
+                counted &= ~after | (t[m] >= exempt_until - 1e-9)
             intrusion_s += counted.sum() * period
     return inside_s, intrusion_s, flips
 
@@ -170,7 +171,8 @@ def test_npz_corridor_records_recompute_the_intrusion_figures():
     m, traj = res.metrics, res.trajectory
     for key in ("corridor_id", "corridor_agv", "corridor_open_s", "corridor_close_s",
                 "corridor_margin_m", "corridor_rects", "corridor_rect_of",
-                "corridor_caught_agv", "corridor_caught_corridor", "corridor_caught_bound_s",
+                "corridor_caught_agv", "corridor_caught_corridor", "corridor_caught_s",
+                "corridor_caught_bound_s",
                 "corridor_caught_exit_s", "corridor_caught_overran"):
         assert key in traj, key
     assert len(traj["corridor_id"]) == m["failures"] > 0

@@ -512,7 +512,7 @@ def test_file_level_errors(tmp_path, monkeypatch):
     latin.write_bytes(b"agents=1\nmap_file=caf\xe9.map\nsolution=\n0:(1,1),\n")
     with pytest.raises(PlanFormatError, match="byte 21: not UTF-8"):
         read_plan(latin)
-    with pytest.raises(PlanFormatError, match="cannot read"):
+    with pytest.raises(PlanFormatError, match="plan file not found"):
         read_plan(tmp_path / "missing.txt")
     big = tmp_path / "big.txt"
     big.write_text(format_plan(FIXED, "lns"))

@@ -277,7 +277,7 @@ def test_cli_render_and_errors(physics_run, tmp_path):
                               "--size", "1080p", "--viewport", "2,0,12,12"])
     assert res.exit_code == 0, res.output
     assert cv2.imread(str(png)).shape == (1080, 1920, 3)
-    bad = [(["render", str(tmp_path / "none.npz"), "--out", str(out)], "no such"),
+    bad = [(["render", str(tmp_path / "none.npz"), "--out", str(out)], "not found"),
            (["render", str(traj), "--out", str(out), "--size", "big"], "size"),
            (["render", str(traj), "--out", str(png), "--png", "999"], "outside"),
            (["render", str(traj), "--out", str(out), "--viewport", "1,2,3"], "viewport"),

@@ -16,17 +16,18 @@ exit grants):
   AGV is inside when its body (``x``, ``y``, ``heading``, ``body_m``) is closer than the
   margin to that union (Euclidean distance, 0 if they overlap);
 - ``corridor_caught_agv``, ``corridor_caught_corridor`` (G,) int64: AGVs caught inside (or
-  unable to stop before) a corridor as it opened, and that corridor's id;
-  ``corridor_caught_bound_s`` (G,) float64: the time each may take to leave;
-  ``corridor_caught_exit_s`` (G,) float64: seconds from the opening to the first check that
-  found it out (NaN: it did not leave while the corridor was open);
-  ``corridor_caught_overran`` (G,) bool: still inside at ``open_s + bound_s``.
+  unable to stop before) a corridor as it opened, or repaired inside it later, and that
+  corridor's id; ``corridor_caught_s`` (G,) float64: simulated seconds it was caught (the
+  opening, or the repair); ``corridor_caught_bound_s`` (G,) float64: the time each may take
+  to leave; ``corridor_caught_exit_s`` (G,) float64: seconds from being caught to the first
+  check that found it out (NaN: it did not leave while the corridor was open);
+  ``corridor_caught_overran`` (G,) bool: still inside at ``caught_s + bound_s``.
 
 Recomputing ``corridor_inside_agv_s``: over the samples while a corridor is open, sum
 ``1 / trajectory_hz`` for every AGV inside, leaving out the corridor's own AGV and AGVs
 that are down (``state == 7``). ``corridor_intrusion_agv_s`` is the same sum less, for each
-caught AGV, its samples from the opening until it first leaves or its deadline, whichever
-comes first. The executor checks every physics step and the recording samples at
+caught AGV, its samples from when it was caught until it first leaves or its deadline,
+whichever comes first. The executor checks every physics step and the recording samples at
 ``trajectory_hz``, so the two agree to within a sample period per entry or exit.
 """
 
@@ -65,6 +66,7 @@ def corridor_arrays(world: World) -> dict[str, np.ndarray]:
         "corridor_rect_of": np.array(rect_of, dtype=np.int64),
         "corridor_caught_agv": np.array([g.agv for g in grants], dtype=np.int64),
         "corridor_caught_corridor": np.array([g.corridor for g in grants], dtype=np.int64),
+        "corridor_caught_s": np.array([g.open_s for g in grants], dtype=np.float64),
         "corridor_caught_bound_s": np.array([g.bound_s for g in grants], dtype=np.float64),
         "corridor_caught_exit_s": np.array([np.nan if g.exit_s is None else g.exit_s
                                             for g in grants], dtype=np.float64),
