@@ -50,6 +50,8 @@ STUCK_FAILURES = 3
 YIELD_TICKS = 8
 """How long an AGV that makes way stays away."""
 _TRAVEL_STATES = (AgvState.TO_SHELF, AgvState.TO_STATION, AgvState.RETURNING)
+"""States whose goal holds a step planner's AGV once it stands there (its work starts when
+it is at rest); an errand needs no work, so an AGV on an errand is never held."""
 
 
 @dataclass
@@ -66,6 +68,8 @@ class EpisodeResult:
     headings: dict[int, list[int]] | None = None
     """``planner.rotations``: the heading (direction index) of each rotation-aware AGV per
     tick, from tick 0, as the loop tracked it; None otherwise."""
+    plan_s: list[float] = field(default_factory=list)
+    """Wall seconds the planner took at every tick (0 where it was not called)."""
 
 
 class Simulation:
@@ -165,7 +169,7 @@ class Simulation:
         w = self.world
         self._apply_faults()
         self._send_out()
-        w.add_orders(w.stream.arrivals(w.tick))
+        w.add_orders(w.arrivals())
         t0 = time.perf_counter()
         for a in self.scheduler.assign(SchedulerView(w), w.rngs["scheduler"]):
             w.start_trip(a.agv, a.shelf, list(a.orders))
@@ -231,7 +235,8 @@ class Simulation:
             trajectory.update(corridor_arrays(self.world))
         return EpisodeResult(metrics=metrics, events=self.world.events, planned=self.planned,
                              actual=self.actual, world=self.world, trajectory=trajectory,
-                             headings=self.headings if self._rot else None)
+                             headings=self.headings if self._rot else None,
+                             plan_s=list(self.metrics.plan_s))
 
     # ------------------------------------------------------------------------- helpers
 
@@ -335,6 +340,7 @@ class Simulation:
         w = self.world
         out = []
         n = len(w.agvs)
+        high = self.scenario.planner.ties == "high_id"
         for agv in w.agvs:
             goal = w.goal_of(agv)
             # Standing on a task stage's goal: hold there, so that the path ends on the
@@ -351,7 +357,7 @@ class Simulation:
                     self._freeze_yields.discard(agv.id)
             if goal != agv.last_goal:
                 agv.last_goal, agv.goal_since = goal, w.tick
-            age = w.tick - agv.goal_since + (n - agv.id) / (n + 1)
+            age = w.tick - agv.goal_since + ((agv.id if high else n - agv.id) / (n + 1))
             out.append(AgentRequest(
                 agv=agv.id, start=agv.node, goal=goal, k=agv.k, loaded=agv.loaded,
                 ticks_per_move=agv.ticks_per_move,

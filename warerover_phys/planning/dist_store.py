@@ -6,7 +6,7 @@ thousands at the start. :class:`DistStore` keeps one table per goal cell, whoeve
 it first, in a least recently used cache bounded in bytes (``budget_mb``); a table evicted
 while a robot still holds it is found again (a weak reference) instead of being recomputed.
 
-With ``reserve`` (``run_lifelong`` passes its robot count) every table is a row of one 2-D
+With ``reserve`` (the compiled lifelong step, :mod:`.pibt_compiled`, passes its robot count) every table is a row of one 2-D
 array, :attr:`DistStore.slab`, so compiled code reads any robot's table by a row number; a
 row is reused once nobody holds its table.
 

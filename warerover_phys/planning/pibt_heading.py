@@ -34,7 +34,7 @@ import numpy as np
 from .graph import UNREACHABLE as _UNREACHABLE
 from .pibt import in_priority_order
 
-__all__ = ["STEP", "heading_pibt_step", "turns_to_progress"]
+__all__ = ["STEP", "heading_pibt_step", "turns_to_progress", "Facing", "turn_first"]
 
 STEP = ((0, 1), (1, 0), (0, -1), (-1, 0))
 """Headings 0-3: east (+col), south (+row), west (-col), north (-row)."""
@@ -226,3 +226,61 @@ def heading_pibt_step(neighbors: Sequence[Sequence[int]], cols: int, config: Seq
 
     in_priority_order(prio, nxt, push)
     return nxt, nh, acts, frozenset(escaped)
+
+
+# ------------------------------------------------------------------------- the turn-first rule
+
+
+class Facing:
+    """The ``turn-first`` rule's costs: a robot's distances to its goal plus, for the cells
+    next to it, the quarter turns it needs to face them (PIBT then prefers going on
+    straight ahead). Keyed ``(row + dr) * cols + col + dc``, which wraps at the map's side
+    columns (kept: the compiled step, :func:`~.pibt_numba.pibt_step_nb` with ``heading``,
+    reads the same)."""
+
+    __slots__ = ("d", "here", "extra")
+
+    def __init__(self, d, here: int, heading: int, cols: int) -> None:
+        self.d = d
+        self.here = here
+        r, c = divmod(here, cols)
+        self.extra = {}
+        for h, (dr, dc) in enumerate(STEP):
+            turns = (h - heading) % 4
+            self.extra[(r + dr) * cols + c + dc] = min(turns, 4 - turns)
+
+    def __getitem__(self, v: int) -> int:
+        return int(self.d[v]) + self.extra.get(v, 0)
+
+
+def turn_first(config: list[int], nxt: list[int], heading: list[int], acts: list[str],
+               cols: int) -> list[int]:
+    """PIBT's cells under the rotation model: a robot moves only forward; one whose cell lies
+    in another direction turns towards it and stays, and whoever was to enter the cell of a
+    robot that stays, stays too. Updates ``heading`` and ``acts``; returns the cells."""
+    n = len(config)
+    out = list(nxt)
+    for i in range(n):
+        if out[i] == config[i]:
+            continue
+        dr = out[i] // cols - config[i] // cols
+        dc = out[i] % cols - config[i] % cols
+        want = STEP.index((dr, dc))
+        if want != heading[i]:
+            diff = (want - heading[i]) % 4
+            acts[i] = "R" if diff in (1, 2) else "C"
+            heading[i] = (heading[i] + (1 if acts[i] == "R" else -1)) % 4
+            out[i] = config[i]
+    # Cascade: whoever enters a cell whose robot stays, stays.
+    stack = [i for i in range(n) if out[i] == config[i]]
+    entering: dict[int, int] = {out[i]: i for i in range(n) if out[i] != config[i]}
+    while stack:
+        i = stack.pop()
+        j = entering.pop(config[i], None)
+        if j is not None and out[j] != config[j]:
+            out[j] = config[j]
+            stack.append(j)
+    for i in range(n):
+        if out[i] != config[i] and acts[i] == "W":
+            acts[i] = "F"
+    return out

@@ -12,14 +12,14 @@ headings and actions; ``tests/planning/test_pibt_numba.py`` checks it on random 
 over whole lifelong runs. The Python steps stay the reference (and the fallback when numba
 is missing: :data:`AVAILABLE`).
 
-``facing=True`` is the ``turn-first`` rule's cost (``lorr._Facing``): a robot's distance
+``facing=True`` is the ``turn-first`` rule's cost (:class:`~.pibt_heading.Facing`): a robot's distance
 plus the quarter turns to face each of the four cells next to it, keyed as that class keys
 them (``(row + dr) * cols + col + dc``, which wraps at the map's side columns; kept so that
 plans stay the same).
 
 Compile time: the first call in a process without numba's cache compiles (seconds); with
 ``cache=True`` later processes load the machine code from ``__pycache__``
-(:func:`warm_up` does either, and ``run_lifelong`` reports it in ``setup_s``).
+(:func:`warm_up` does either).
 """
 
 from __future__ import annotations
@@ -113,7 +113,7 @@ def robot_tables(tables: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
 @njit(cache=True, inline="always")
 def _dist(tables, i, v, facing, config, heading, cols):
     """Robot ``i``'s cost of cell ``v``: its table, plus (``facing``) the turns to face the
-    cell as ``lorr._Facing`` counts them."""
+    cell as :class:`~.pibt_heading.Facing` counts them."""
     d = np.int64(tables[0][tables[1][i], v])
     if facing:
         here = config[i]
@@ -316,7 +316,7 @@ def _push(root, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, occ_next,
 
 
 @njit(cache=True)
-def _pibt_kernel(nbr, deg, config, goal, tables, order, tie, facing, heading, cols):
+def _pibt_kernel(nbr, deg, config, goal, tables, order, tie, facing, heading, cols, held):
     n = config.shape[0]
     cells = nbr.shape[0]
     occ_now = np.full(cells, -1, dtype=np.int64)
@@ -329,6 +329,10 @@ def _pibt_kernel(nbr, deg, config, goal, tables, order, tie, facing, heading, co
     idx = np.empty(n, dtype=np.int64)
     for i in range(n):
         occ_now[config[i]] = i
+    for i in range(n):  # held robots stay (the reference's forced moves onto their cells)
+        if held[i]:
+            nxt[i] = config[i]
+            occ_next[config[i]] = i
     for r in range(n):
         i = order[r]
         if nxt[i] == -1:
@@ -344,17 +348,21 @@ def priority_order(prio) -> np.ndarray:
 
 
 def pibt_step_nb(st: StepTables, config: np.ndarray, goal: np.ndarray, tables, order: np.ndarray,
-                 tie: np.ndarray, heading: np.ndarray | None = None) -> np.ndarray:
+                 tie: np.ndarray, heading: np.ndarray | None = None,
+                 held: np.ndarray | None = None) -> np.ndarray:
     """:func:`~.pibt.pibt_step` (``goals=goal``, swaps on) compiled: the next cell of every
     robot. ``tables``: :func:`robot_tables`; ``order``: :func:`priority_order` of the
     priorities; ``tie``: the tie-break per cell (float64). With ``heading``, the costs of
-    the ``turn-first`` rule (see the module docstring)."""
+    the ``turn-first`` rule (see the module docstring). ``held``: a bool per robot, True
+    for robots that must stay (the reference's ``forced`` moves onto their own cells)."""
     facing = heading is not None
     hd = np.asarray(heading if facing else np.zeros(1), dtype=np.int64)
-    return _pibt_kernel(st.nbr, st.deg, np.asarray(config, dtype=np.int64),
-                        np.asarray(goal, dtype=np.int64), tables,
+    config = np.asarray(config, dtype=np.int64)
+    held = np.zeros(len(config), dtype=np.bool_) if held is None else \
+        np.asarray(held, dtype=np.bool_)
+    return _pibt_kernel(st.nbr, st.deg, config, np.asarray(goal, dtype=np.int64), tables,
                         np.asarray(order, dtype=np.int64), np.asarray(tie, dtype=np.float64),
-                        facing, hd, st.cols)
+                        facing, hd, st.cols, held)
 
 
 # ------------------------------------------------------------------------- heading PIBT
@@ -537,7 +545,7 @@ def _hpush(root, ag, pus, kinds, cells, heads, nopt, idx, tables, nbr, deg, nbr_
 
 @njit(cache=True)
 def _heading_kernel(nbr, deg, nbr_dir, ahead_of, turns, config, heading, tables, order, tie,
-                    escaping):
+                    escaping, held):
     n = config.shape[0]
     cells = nbr.shape[0]
     occ_now = np.full(cells, -1, dtype=np.int64)
@@ -555,6 +563,10 @@ def _heading_kernel(nbr, deg, nbr_dir, ahead_of, turns, config, heading, tables,
     idx = np.empty(n, dtype=np.int64)
     for i in range(n):
         occ_now[config[i]] = i
+    for i in range(n):  # held robots wait where they are
+        if held[i]:
+            nxt[i] = config[i]
+            occ_next[config[i]] = i
     for r in range(n):
         i = order[r]
         if nxt[i] == -1:
@@ -565,16 +577,19 @@ def _heading_kernel(nbr, deg, nbr_dir, ahead_of, turns, config, heading, tables,
 
 
 def heading_step_nb(st: StepTables, config: np.ndarray, heading: np.ndarray, tables,
-                    order: np.ndarray, tie: np.ndarray, escaping: np.ndarray
+                    order: np.ndarray, tie: np.ndarray, escaping: np.ndarray,
+                    held: np.ndarray | None = None
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`~.pibt_heading.heading_pibt_step` compiled: next cells, next headings, actions
     (``uint8`` ASCII codes of ``F`` / ``R`` / ``C`` / ``W``) and the robots that turned to make
-    way (a bool array: next timestep's ``escaping``)."""
-    return _heading_kernel(st.nbr, st.deg, st.nbr_dir, st.ahead, st.turns,
-                           np.asarray(config, dtype=np.int64),
+    way (a bool array: next timestep's ``escaping``). ``held``: robots that must wait."""
+    config = np.asarray(config, dtype=np.int64)
+    held = np.zeros(len(config), dtype=np.bool_) if held is None else \
+        np.asarray(held, dtype=np.bool_)
+    return _heading_kernel(st.nbr, st.deg, st.nbr_dir, st.ahead, st.turns, config,
                            np.asarray(heading, dtype=np.int64), tables,
                            np.asarray(order, dtype=np.int64), np.asarray(tie, dtype=np.float64),
-                           np.asarray(escaping, dtype=np.bool_))
+                           np.asarray(escaping, dtype=np.bool_), held)
 
 
 @njit(cache=True)
@@ -628,7 +643,7 @@ def _turn_first_kernel(config, nxt, heading, cols, cells):
 
 def turn_first_nb(config: np.ndarray, nxt: np.ndarray, heading: np.ndarray, cols: int,
                   cells: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``lorr._turn_first`` compiled: (cells, headings, action codes) of PIBT's next cells
+    """:func:`~.pibt_heading.turn_first` compiled: (cells, headings, action codes) of PIBT's next cells
     ``nxt`` under the rotation model."""
     return _turn_first_kernel(np.asarray(config, dtype=np.int64),
                               np.asarray(nxt, dtype=np.int64),

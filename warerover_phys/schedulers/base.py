@@ -68,6 +68,13 @@ class SchedulerView:
         """Shelf id -> id of the trip that uses it."""
         return MappingProxyType(self._world.shelf_busy)
 
+    @property
+    def errand_rule(self) -> str | None:
+        """With errand tasks (``orders.pattern: errands``), the rule that assigns them
+        (``orders.errands.assign``: ``roundrobin``, ``greedy`` or ``pool``); else None."""
+        w = self._world
+        return w.scenario.orders.errands.assign if w.errands else None
+
     def pending_orders(self) -> list[Order]:
         """Pending orders, by id."""
         return self._world.pending_orders()
