@@ -436,6 +436,39 @@ class SchedulerSpec(_Model):
     preferred)."""
 
 
+def parse_invoke(text: str) -> tuple[str, float]:
+    """``planner.invoke`` as (``every_tick`` | ``periodic`` | ``event``, its number)."""
+    if not isinstance(text, str):
+        raise ValueError("expected every_tick, periodic:S or event:K")
+    kind, _, num = text.partition(":")
+    if kind == "every_tick" and not num:
+        return kind, 0.0
+    try:
+        value = float(num)
+    except ValueError:
+        value = math.nan
+    if kind == "periodic" and math.isfinite(value) and 0 < value <= MAX_FLOAT:
+        return kind, value
+    if kind == "event" and value.is_integer() and 1 <= value <= MAX_TICKS:
+        return kind, value
+    raise ValueError(f"expected every_tick, periodic:S (seconds > 0) or event:K (ticks >= 1), "
+                     f"got {text!r}")
+
+
+def parse_latency(text: str) -> tuple[str, float]:
+    """``planner.latency`` as (``none`` | ``measured`` | ``fixed``, seconds)."""
+    if text in ("none", "measured"):
+        return text, 0.0
+    kind, _, num = text.partition(":") if isinstance(text, str) else ("", "", "")
+    try:
+        value = float(num)
+    except ValueError:
+        value = math.nan
+    if kind == "fixed" and math.isfinite(value) and 0 <= value <= MAX_FLOAT:
+        return kind, value
+    raise ValueError(f"expected none, measured or fixed:S (seconds >= 0), got {text!r}")
+
+
 class PlannerSpec(_Model):
     name: PlannerName = "astar"
     """``astar``, ``cbs``, ``pibt``, ``lacam``, an entry point, or a plugin class
@@ -471,6 +504,21 @@ class PlannerSpec(_Model):
     """CBS / LaCAM: a wall-clock safety stop per planning call (seconds). The work budgets
     above decide results; when this stop ends a search first it is counted in
     ``planner_budget_hits`` and logged, as the result then depends on machine speed."""
+    invoke: str = "every_tick"
+    """When the loop calls the planner: ``every_tick``; ``periodic:S`` (every ``S`` seconds of
+    simulated time, rounded to whole ticks); ``event:K`` (when some AGV whose committed path
+    does not end on its goal has fewer than ``K`` ticks of it left). Step planners (PIBT)
+    then plan ``window_ticks`` steps a call (windowed PIBT). See :mod:`warerover_phys.invoke`."""
+    latency: str = "none"
+    """How long the planner's computation takes in simulated time: ``none`` (the world waits
+    for it, as planners are usually studied), ``measured`` (its wall-clock time) or
+    ``fixed:S`` (``S`` seconds). With a latency the world keeps moving while it plans: it
+    plans from where the committed paths end at the tick the plan is expected to take
+    effect, and the new plan takes effect at the first tick after it is ready (the committed
+    prefix of the old plan stays)."""
+    window_ticks: Ticks | None = None
+    """Steps a step planner plans per call (windowed PIBT). Default: 1 with ``every_tick``,
+    twice the period (``periodic``) or ``2 K`` (``event``)."""
     rotation_rule: Literal["cascade", "actions", "turn-first"] = "cascade"
     """How lifelong PIBT meets rotations (``rotations: true``). ``cascade``: the
     footprint-aware step of :mod:`~warerover_phys.planning.footprint_pibt` (any fleet).
@@ -487,6 +535,18 @@ class PlannerSpec(_Model):
     ties: Literal["low_id", "high_id"] = "low_id"
     """Lifelong PIBT: which AGV goes first among those whose goals are equally old (Robot
     Runners problems: ``high_id``, as the league's runner this project had)."""
+    @field_validator("invoke")
+    @classmethod
+    def _invoke(cls, value: str) -> str:
+        parse_invoke(value)
+        return value
+
+    @field_validator("latency")
+    @classmethod
+    def _latency(cls, value: str) -> str:
+        parse_latency(value)
+        return value
+
     rotations: bool = False
     """Rotation-aware planning (issue 15): differential-drive AGVs are planned over states
     (cell, heading), move only along their heading and turn in place by quarter turns that
