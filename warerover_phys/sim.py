@@ -97,6 +97,9 @@ class Simulation:
         self._pending: tuple | None = None
         """Between begin_tick and finish_tick: (request, t0, t1, asked at)."""
         self.clock = PlanClock(scenario.planner, scenario.tick_s)
+        self._committed: dict[int, int] = {}
+        """AGVs the executor committed beyond their state: the node a new plan must start
+        from (``StepReport.committed``)."""
         """When the planner is called and when its plans take effect (:mod:`.invoke`)."""
         self.last_report: StepReport | None = None
         """What the executor reported for the last tick (read-only for observers such as
@@ -193,7 +196,8 @@ class Simulation:
             request = None if not agents else PlanRequest(
                 tick=t_eff, agents=agents, graphs=w.graphs,
                 reservations=w.reservations.copy(), rng=w.rngs["planner"],
-                keep_clear=w.keep_clear())
+                keep_clear=w.keep_clear(),
+                acyclic=bool(getattr(self.executor, "acyclic_plans", False)))
         self._pending = (request, t0, t1, time.perf_counter())
         return request
 
@@ -216,6 +220,7 @@ class Simulation:
         report = self.executor.step(self._view())
         self._apply_report(report)
         self.last_report = report
+        self._committed = report.committed
         w.tick += 1
         self._follow_up(report.blocked)
         self._replan_now(report.replan)
@@ -402,6 +407,9 @@ class Simulation:
         for a in agents:
             path = result.paths.get(a.agv)
             if path is not None:
+                old = res.paths.get(a.agv)
+                if old is not None and _stays_put(old, path):
+                    continue  # the same from here on: the executor sees no new plan
                 res.commit(path, a.k, a.heading)
             elif a.agv in failed and a.agv in res.paths:
                 res.commit(res.paths[a.agv], a.k)
@@ -435,7 +443,7 @@ class Simulation:
             if goal != agv.last_goal:
                 agv.last_goal, agv.goal_since = goal, w.tick
             age = w.tick - agv.goal_since + ((agv.id if high else n - agv.id) / (n + 1))
-            start = agv.node
+            start = self._committed.get(agv.id, agv.node)
             if ahead and agv.id in w.reservations.paths:
                 start = w.reservations.paths[agv.id].state_at(t_eff)[1]
             out.append(AgentRequest(
@@ -637,6 +645,18 @@ class Simulation:
 
 
 _DIRS = ((0, 1), (1, 0), (0, -1), (-1, 0))
+
+
+def _stays_put(old: TimedPath, new: TimedPath) -> bool:
+    """Whether ``new`` only stands, facing one way, where ``old`` has ended by ``new``'s
+    start: the same path from then on (a step planner's wait)."""
+    s = new.states[0]
+    if s[0] != s[1] or old.end_tick > new.start_tick or old.states[-1] != s \
+            or any(x != s for x in new.states):
+        return False
+    if new.headings is None:
+        return old.headings is None
+    return old.headings is not None and all(h == old.headings[-1] for h in new.headings)
 
 
 def failure_cause(world: World, freezes: list[dict]) -> dict:

@@ -113,6 +113,14 @@ def test_compiled_steps_match_the_python_steps_on_random_grids(inst):
     assert got == want and all(got[i] == config[i] for i, _ in forced)
     _valid(graph, cols, config, got)
 
+    # cells without cycles of moves (for executors that follow a dependency graph)
+    want = pibt_step(graph, config, views, prio, tie.tolist(), goals=goals, acyclic=True)
+    got = pn.pibt_step_nb(tab, np.array(config), np.array(goals), typed, order, tie,
+                          acyclic=True).tolist()
+    assert got == want
+    _valid(graph, cols, config, got)
+    _no_cycle(config, got)
+
     # actions forward / turn / wait
     w_nxt, w_nh, w_acts, w_esc = heading_pibt_step(
         graph.neighbors, cols, config, heading, views, prio, tie.tolist(),
@@ -123,6 +131,33 @@ def test_compiled_steps_match_the_python_steps_on_random_grids(inst):
     assert g_acts.tobytes().decode("ascii") == "".join(w_acts)
     assert set(np.flatnonzero(g_esc).tolist()) == set(w_esc)
     _valid(graph, cols, config, w_nxt, heading, w_nh, w_acts)
+
+    # ... and without cycles
+    w_nxt, w_nh, w_acts, w_esc = heading_pibt_step(
+        graph.neighbors, cols, config, heading, views, prio, tie.tolist(),
+        frozenset(np.flatnonzero(escaping).tolist()), steps_of(graph.neighbors, cols),
+        acyclic=True)
+    g_nxt, g_nh, g_acts, g_esc = pn.heading_step_nb(tab, np.array(config), np.array(heading),
+                                                    typed, order, tie, escaping, acyclic=True)
+    assert g_nxt.tolist() == w_nxt and g_nh.tolist() == w_nh
+    assert g_acts.tobytes().decode("ascii") == "".join(w_acts)
+    _valid(graph, cols, config, w_nxt, heading, w_nh, w_acts)
+    _no_cycle(config, w_nxt)
+
+
+def _no_cycle(config, nxt):
+    """No cycle of moves: following each robot into the cell it enters never comes back
+    to it (an independent check: the chain of who stood where)."""
+    at = {c: i for i, c in enumerate(config)}
+    for i in range(len(config)):
+        seen, j = {i}, i
+        while nxt[j] != config[j]:
+            k = at.get(nxt[j])
+            if k is None:
+                break
+            assert k not in seen, f"robots {sorted(seen)} move in a cycle"
+            seen.add(k)
+            j = k
 
 
 def _run(problem, ticks: int, rotations: bool, rule: str, engine: str):

@@ -141,6 +141,9 @@ class Accounting:
             if carried is not None and shelf != carried:
                 self.static_contacts += 1
 
+        self.agv_agv_begin = agv_agv
+        """The AGV-AGV ``begin`` callback (installed with the pair's ``pre_solve`` by
+        :func:`.bodies.unsolved_agv_contacts`: one handler per pair)."""
         self.space.on_collision(AGV, AGV, begin=agv_agv)
         self.space.on_collision(AGV, OBSTACLE, begin=agv_static)
         self.space.on_collision(AGV, SHELF, begin=agv_shelf)

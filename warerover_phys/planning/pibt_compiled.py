@@ -46,7 +46,7 @@ def eligible(agents: Sequence[AgentRequest], rule: str) -> bool:
     if rot and rule not in RULES:
         return False
     for a in agents:
-        if a.k != 1 or a.ticks_per_move != 1 or a.loaded or turn_aware(a):
+        if a.k != 1 or a.ticks_per_move != 1 or turn_aware(a) or (rot and a.loaded):
             return False
         if (a.turn_ticks is not None) != rot or (rot and a.turn_ticks[0] != 1):
             return False
@@ -72,21 +72,37 @@ class CompiledStep:
         self._escaping = np.zeros(0, dtype=bool)
 
     def _bind(self, request: PlanRequest, n_ids: int) -> None:
+        """(Re)build the stores and step tables when the loop's graphs changed: the
+        unloaded 1x1 graph, and on a floor with shelves the loaded one (a loaded 1x1 AGV
+        keeps to the aisles; every shelf shares that graph), both tables in one slab."""
         from . import pibt_numba as pn
         from .dist_store import DistStore
 
         graph = request.graphs.get(1, False)
         if graph is not self._graph:
             self._graph = graph
-            self._store = DistStore(graph, self.budget_mb, reserve=n_ids)
-            self._st = pn.step_tables(graph.neighbors, graph.cols)
+            shelves = bool(graph.layout.shelves)
+            self._store = DistStore(graph, self.budget_mb, reserve=n_ids,
+                                    dtype=np.int32 if shelves else None,
+                                    stores=2 if shelves else 1)
+            self._stores = [self._store]
+            self._sts = [pn.step_tables(graph.neighbors, graph.cols)]
+            if shelves:
+                loaded = request.graphs.get(1, True)
+                self._stores.append(DistStore(loaded, self.budget_mb, share=self._store))
+                self._sts.append(pn.step_tables(loaded.neighbors, graph.cols))
+            self._st = self._sts[0]
+            self._neighbors = [graph.neighbors] + (
+                [request.graphs.get(1, True).neighbors] if shelves else [])
             self._goal = np.full(n_ids, -1, dtype=np.int64)
+            self._gidx = np.zeros(n_ids, dtype=np.int64)
             self._rows = np.zeros(n_ids, dtype=np.int64)
             self._held_tables = [None] * n_ids
             pn.warm_up(self._store.dtype)
         if len(self._goal) < n_ids:  # more AGVs than the store was made for
             grow = n_ids - len(self._goal)
             self._goal = np.concatenate([self._goal, np.full(grow, -1, dtype=np.int64)])
+            self._gidx = np.concatenate([self._gidx, np.zeros(grow, dtype=np.int64)])
             self._rows = np.concatenate([self._rows, np.zeros(grow, dtype=np.int64)])
             self._held_tables += [None] * grow
         if len(self._escaping) < n_ids:
@@ -106,37 +122,46 @@ class CompiledStep:
         prio = np.fromiter((float(a.priority[0]) if a.priority else 0.0 for a in agents),
                            dtype=np.float64, count=len(agents))
         held = np.fromiter((a.hold for a in agents), dtype=bool, count=len(agents))
-        for j in np.flatnonzero(self._goal[ids] != goal).tolist():
+        gidx = np.fromiter((a.loaded for a in agents), dtype=np.int64, count=len(agents)) \
+            if len(self._stores) > 1 else np.zeros(len(agents), dtype=np.int64)
+        if gidx.any() and len(self._stores) < 2:
+            raise ValueError("a loaded AGV on a floor without shelves")
+        for j in np.flatnonzero((self._goal[ids] != goal) | (self._gidx[ids] != gidx)).tolist():
             i = int(ids[j])
-            table = store.get(int(goal[j]))
+            table = self._stores[gidx[j]].get(int(goal[j]))
             self._held_tables[i] = table
             self._rows[i] = store.slot(table)
             self._goal[i] = goal[j]
+            self._gidx[i] = gidx[j]
         tabs = (store.slab, self._rows[ids])
+        moves = (tuple(self._sts), gidx) if len(self._sts) > 1 else None
         rng = request.rng if request.rng is not None else np.random.default_rng(0)
         tie = rng.random(self._graph.num_nodes) * 0.5
         rot = agents[0].turn_ticks is not None
         heading = np.fromiter((heading_index(a.heading) for a in agents), dtype=np.int64,
                               count=len(agents)) if rot else None
         if self.engine == "python":
-            nxt, nh = self._python(ids, config, goal, prio, tie, held, heading, rule)
+            nxt, nh = self._python(ids, config, goal, prio, tie, held, heading, rule,
+                                   request.acyclic)
             return _paths(agents, request.tick, config, nxt, heading, nh)
         order = pn.priority_order(prio)
         if not rot:
-            nxt = pn.pibt_step_nb(st, config, goal, tabs, order, tie, held=held)
+            nxt = pn.pibt_step_nb(st, config, goal, tabs, order, tie, held=held, moves=moves,
+                                  acyclic=request.acyclic)
             return _paths(agents, request.tick, config, nxt, None, None)
         if rule == "actions":
             nxt, nh, _, esc = pn.heading_step_nb(st, config, heading, tabs, order, tie,
-                                                 self._escaping[ids], held=held)
+                                                 self._escaping[ids], held=held,
+                                                 acyclic=request.acyclic)
             self._escaping[ids] = esc
         else:
             nxt = pn.pibt_step_nb(st, config, goal, tabs, order, tie, heading=heading,
-                                  held=held)
+                                  held=held, acyclic=request.acyclic)
             nxt, nh, _ = pn.turn_first_nb(config, nxt, heading, st.cols, self._graph.num_nodes)
         return _paths(agents, request.tick, config, nxt, heading, nh)
 
 
-    def _python(self, ids, config, goal, prio, tie, held, heading, rule):
+    def _python(self, ids, config, goal, prio, tie, held, heading, rule, acyclic):
         """The step by the Python references (lists in, arrays out)."""
         from .pibt import pibt_step
         from .pibt_heading import Facing, heading_pibt_step, steps_of, turn_first
@@ -147,7 +172,9 @@ class CompiledStep:
         cfg, pr, tl = config.tolist(), prio.tolist(), tie.tolist()
         forced = [(j, cfg[j]) for j in np.flatnonzero(held).tolist()]
         if heading is None:
-            nxt = pibt_step(graph, cfg, tabs, pr, tl, forced=forced, goals=goal.tolist())
+            nxt = pibt_step(graph, cfg, tabs, pr, tl, forced=forced, goals=goal.tolist(),
+                            tables=[self._neighbors[int(g)] for g in self._gidx[ids].tolist()],
+                            acyclic=acyclic)
             return np.asarray(nxt, dtype=np.int64), None
         if forced:
             raise NotImplementedError("the Python rotation steps hold no AGV")
@@ -155,13 +182,14 @@ class CompiledStep:
         if rule == "actions":
             esc = frozenset(np.flatnonzero(self._escaping[ids]).tolist())
             nxt, nh, _, esc = heading_pibt_step(graph.neighbors, cols, cfg, hd, tabs, pr, tl,
-                                                esc, steps_of(graph.neighbors, cols))
+                                                esc, steps_of(graph.neighbors, cols),
+                                                acyclic=acyclic)
             mask = np.zeros(len(ids), dtype=bool)
             mask[list(esc)] = True
             self._escaping[ids] = mask
             return np.asarray(nxt, dtype=np.int64), np.asarray(nh, dtype=np.int64)
         costs = [Facing(tabs[j], cfg[j], hd[j], cols) for j in range(len(cfg))]
-        nxt = pibt_step(graph, cfg, costs, pr, tl, goals=goal.tolist())
+        nxt = pibt_step(graph, cfg, costs, pr, tl, goals=goal.tolist(), acyclic=acyclic)
         acts = ["W"] * len(cfg)
         nxt = turn_first(cfg, nxt, hd, acts, cols)
         return np.asarray(nxt, dtype=np.int64), np.asarray(hd, dtype=np.int64)

@@ -118,7 +118,7 @@ def heading_pibt_step(neighbors: Sequence[Sequence[int]], cols: int, config: Seq
                       heading: Sequence[int], dists: Sequence[np.ndarray],
                       prio: Sequence[float], tie: np.ndarray,
                       escaping: frozenset[int] = frozenset(),
-                      steps: tuple[list, list] | None = None,
+                      steps: tuple[list, list] | None = None, acyclic: bool = False,
                       ) -> tuple[list[int], list[int], list[str], frozenset[int]]:
     """Next cells, next headings and actions (``F`` forward, ``R`` clockwise, ``C``
     counter-clockwise, ``W`` wait) of every robot; see the module docstring.
@@ -170,9 +170,20 @@ def heading_pibt_step(neighbors: Sequence[Sequence[int]], cols: int, config: Seq
         out.sort(key=lambda o: o[0])
         return out
 
+    active: set[int] = set()
+
     def push(i: int, pusher: int) -> bool:
+        active.add(i)
+        try:
+            return choose(i, pusher)
+        finally:
+            active.discard(i)
+
+    def choose(i: int, pusher: int) -> bool:
         """Choose robot ``i``'s action; ``pusher``: the cell of the robot that wants ``i``'s
-        cell (-1: none), so ``i`` must move forward or fail."""
+        cell (-1: none), so ``i`` must move forward or fail. ``acyclic``: never into the
+        cell of a robot still deciding (the robots pushing, up the chain): that would close
+        a cycle of moves."""
         here = config[i]
         must_leave = pusher >= 0
         for _, act, v, h in options(i):
@@ -185,8 +196,8 @@ def heading_pibt_step(neighbors: Sequence[Sequence[int]], cols: int, config: Seq
             if v in occ_next:
                 continue
             k = occ_now.get(v)
-            if k is not None and nxt[k] == here:
-                continue  # would swap cells with a robot moving into ours
+            if k is not None and (nxt[k] == here or (acyclic and k in active)):
+                continue  # would swap cells with a robot moving into ours, or close a cycle
             nxt[i], nh[i], acts[i] = v, h, "F"
             occ_next[v] = i
             if k is not None and nxt[k] == -1 and not push(k, here):

@@ -178,7 +178,8 @@ class PIBTPlanner:
         result = PlanResult()
         if not agents:
             return result
-        if self.swap and eligible(agents, self.rotation):
+        if self.swap and eligible(agents, self.rotation) and (
+                self._compiled.engine == "numba" or agents[0].turn_ticks is not None):
             return self._compiled.plan(request, agents, self.rotation)
         if self.rotation in RULES and any(a.turn_ticks is not None for a in agents):
             raise ValueError(f"planner.rotation_rule {self.rotation!r} plans 1x1 AGVs that "
@@ -198,7 +199,7 @@ class PIBTPlanner:
         rng = request.rng if request.rng is not None else np.random.default_rng(0)
         tie = rng.random(unloaded.num_nodes) * 0.5
         nxt = pibt_step(unloaded, config, dists, prio, tie, forced=held, goals=goals,
-                        swap=self.swap, tables=tables)
+                        swap=self.swap, tables=tables, acyclic=request.acyclic)
         if nxt is None:  # cannot happen with holds only (they never contradict); be safe
             nxt = list(config)
         res = request.reservations
