@@ -195,7 +195,7 @@ class Simulation:
                         w.reservations.commit(cut(path, t_eff), a.k)
             request = None if not agents else PlanRequest(
                 tick=t_eff, agents=agents, graphs=w.graphs,
-                reservations=w.reservations.copy(), rng=w.rngs["planner"],
+                reservations=w.reservations.snapshot(), rng=w.rngs["planner"],
                 keep_clear=w.keep_clear(),
                 acyclic=bool(getattr(self.executor, "acyclic_plans", False)))
         self._pending = (request, t0, t1, time.perf_counter())
