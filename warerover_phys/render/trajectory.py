@@ -139,8 +139,8 @@ class Recording:
     def at(self, time_s: float, path_ticks: int = 0, ghosts: bool = False) -> Snapshot:
         """The state at simulated time ``time_s`` (clamped to the recording): poses
         interpolated between the two samples around it, discrete fields from the earlier.
-        ``path_ticks``: the planned steps ahead of each AGV to include; ``ghosts``: include
-        the planned poses (:attr:`ghost`, else the plans' poses at that time)."""
+        ``path_ticks``: the planned steps ahead of each AGV to include; planned poses come
+        from :attr:`ghost`, or, with ``ghosts``, from the plans at that time."""
         from .frame import Snapshot
 
         t = self.t
@@ -177,10 +177,8 @@ class Recording:
             if self.plan_execution:
                 progress = plan_progress(index, entry, rel, ex["exec_state"], q, self.tick_s,
                                          *self._run_figures(index))
-        ghost = None
-        if ghosts:
-            ghost = _sample(self.ghost, q) if self.ghost is not None else \
-                self.plan_index().pose_at(tick)
+        ghost = _sample(self.ghost, q) if self.ghost is not None else \
+            self.plan_index().pose_at(tick) if ghosts and self.plans else None
         return Snapshot(scene=self.scene(), time_s=q, tick_s=self.tick_s, x=x, y=y,
                         heading=heading, state=state, loaded=loaded, corridors=corridors,
                         orders_done=done, orders_total=total, paths=paths, ghosts=ghost,
@@ -232,12 +230,14 @@ def _facing(pos: np.ndarray, heading: np.ndarray) -> np.ndarray:
 
 
 def recording_with_ghosts(trajectory: dict, ghost: dict[str, np.ndarray],
-                          source: str = "open loop") -> Recording:
+                          source: str = "open loop",
+                          planned: list[dict] | None = None) -> Recording:
     """A :class:`Recording` of an executor's ``trajectory`` dict with ``ghost`` poses
-    (:func:`ghost_poses`) to draw beside the bodies (``Style(ghosts=True)``)."""
+    (:func:`ghost_poses`) to draw beside the bodies (``Style(ghosts=True)``) and the
+    ``planned`` paths (``{"agv", "tick", "states"}``, as ``EpisodeResult.planned``)."""
     import dataclasses
 
-    rec = _from_dict(trajectory, None, None, source)
+    rec = _from_dict(trajectory, None, planned, source)
     n = rec.num_agvs
     for key in ("x", "y", "heading"):
         if np.asarray(ghost[key]).shape != (len(ghost["t"]), n):
@@ -312,7 +312,7 @@ def _build(traj: dict, events: list[dict] | None, planned: list[dict] | None,
             raise bad(key, f"expected numbers (got {a.dtype})")
         if dtype is np.float64 and not np.isfinite(a).all():
             raise bad(key, "values must be finite")
-        arrays[key] = a.astype(dtype)
+        arrays[key] = a.astype(dtype, copy=False)
     n = arrays["x"].shape[1]
     if any(a.shape[1] != n for a in arrays.values()):
         raise bad("x", "arrays disagree on the number of AGVs")
