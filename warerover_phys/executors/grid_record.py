@@ -83,6 +83,7 @@ def grid_execution(actual: np.ndarray, plans: Iterable[tuple[int, int, Sequence]
     width = max((len(a) for group in by_tick.values() for _, a in group), default=1)
     plan = np.zeros((n, width, 2), dtype=np.int64)
     length = np.zeros(n, dtype=np.int64)       # 0: no plan yet
+    last_move = np.zeros(n, dtype=np.int64)    # index of the first state of the final run
     start = np.zeros(n, dtype=np.int64)
     p = np.zeros(n, dtype=np.int64)            # index of the plan state reached
     rows_n = np.arange(n)
@@ -94,13 +95,15 @@ def grid_execution(actual: np.ndarray, plans: Iterable[tuple[int, int, Sequence]
             plan[agv, :len(arr)] = arr
             plan[agv, len(arr):] = arr[-1]
             length[agv], start[agv], p[agv] = len(arr), t, 0
+            differs = np.flatnonzero((arr != arr[-1]).any(axis=1))
+            last_move[agv] = differs[-1] + 1 if len(differs) else 0
         now = actual[t]
         nxt = actual[t + 1] if t + 1 < ticks else now
         has = length > 0
         want = plan[rows_n, np.minimum(p + 1, np.maximum(length - 1, 0))]
         moving = (now[:, 0] != now[:, 1]) | (nxt != now).any(axis=1)
-        reached = has & (nxt == want).all(axis=1) & (p + 1 < length)
-        at_end = has & (p + 1 >= length)
+        at_end = has & (p >= last_move)
+        reached = has & (nxt == want).all(axis=1) & (p + 1 < length) & ~at_end
         stuck = has & ~moving & ~at_end & (want != now).any(axis=1)
         state = np.where(moving, DRIVING, np.where(stuck, WAITING,
                                                    np.where(at_end | ~has, FINISHED, STANDING)))
