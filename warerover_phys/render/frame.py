@@ -43,6 +43,7 @@ from ..executors.recording import EXEC_STATES, FAILED, WAITING
 from .layers import SHIFT, draw_arrows, draw_bodies, draw_ghosts, draw_paths
 from .layers import fixed as _fixed
 from .plans import PathSet, PlanProgress
+from .raster import draw_lines
 
 __all__ = ["Scene", "Snapshot", "Style", "draw_frame", "PALETTE", "status_of", "Geometry",
            "frame_geometry", "EXEC_LABELS"]
@@ -413,7 +414,20 @@ def _corridors(band: np.ndarray, geo: Geometry, snap: Snapshot, style: Style) ->
         cv2.fillPoly(mask, [poly], 255, cv2.LINE_8, SHIFT)
     cv2.copyTo(_tinted(snap.scene, style, band)[y0:y1, x0:x1], mask, roi)
     thick = max(1, int(round(geo.scale * 0.06)))
-    cv2.polylines(roi, local, True, PALETTE["corridor"], thick, _AA, SHIFT)
+    if thick > 1:
+        cv2.polylines(roi, local, True, PALETTE["corridor"], thick, _AA, SHIFT)
+        return
+    # one pixel wide: every ring closed and padded to one length, drawn in one call
+    width = max(len(r) for r in rings) + 1
+    pts = np.empty((len(rings), width, 2))
+    start = 0
+    for j, r in enumerate(rings):
+        ring = allp[start:start + len(r)]
+        start += len(r)
+        pts[j, :len(r)] = ring
+        pts[j, len(r):] = ring[0]
+    draw_lines(band, pts, np.broadcast_to(np.array(PALETTE["corridor"], np.uint8),
+                                          (len(rings), 3)))
 
 
 def _colors(snap: Snapshot) -> tuple[np.ndarray, np.ndarray]:
