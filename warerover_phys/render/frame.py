@@ -227,6 +227,10 @@ class Geometry:
     font: float
     hud_h: int
     legend_h: int
+    map_w: int = 0
+    map_h: int = 0
+    """Size of the map's rectangle (pixels) at ``ox``, ``oy`` in the band; what is drawn
+    outside it (AGVs beyond a viewport) is wiped."""
 
     def to_px(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Frame pixel coordinates (float) of world points."""
@@ -253,7 +257,8 @@ def _geometry(scene: Scene, style: Style) -> tuple[Geometry, tuple[int, int, int
     ox = round((w - vw * scale) / 2)
     oy = round((band - vh * scale) / 2)
     return (Geometry(scale=scale, x0_m=c0 * scene.cell_m, y0_m=r0 * scene.cell_m, ox=ox, oy=oy,
-                     top=hud_h, bottom=h - legend_h, font=font, hud_h=hud_h, legend_h=legend_h),
+                     top=hud_h, bottom=h - legend_h, font=font, hud_h=hud_h, legend_h=legend_h,
+                     map_w=int(round(vw * scale)), map_h=int(round(vh * scale))),
             (r0, c0, r1, c1))
 
 
@@ -499,6 +504,16 @@ def _arrow_layer(band: np.ndarray, geo: Geometry, snap: Snapshot, cx: np.ndarray
     draw_arrows(band, start, end, half[to].max(axis=1), PALETTE["arrow"], head)
 
 
+def _wipe_margins(band: np.ndarray, floor: np.ndarray, geo: Geometry) -> None:
+    """Put the floor image back outside the map's rectangle (and its outline)."""
+    x0, y0 = max(int(geo.ox) - 1, 0), max(int(geo.oy) - 1, 0)
+    x1, y1 = int(geo.ox) + geo.map_w + 1, int(geo.oy) + geo.map_h + 1
+    band[:y0] = floor[:y0]
+    band[y1:] = floor[y1:]
+    band[y0:y1, :x0] = floor[y0:y1, :x0]
+    band[y0:y1, x1:] = floor[y0:y1, x1:]
+
+
 def _hud_text(snap: Snapshot, failures: int) -> str:
     tick = snap.time_s / snap.tick_s if snap.tick_s > 0 else 0.0
     parts = [f"t {snap.time_s:.1f} s"]
@@ -566,6 +581,7 @@ def draw_frame(snapshot: Snapshot, style: Style | None = None) -> np.ndarray:
                 outline=PALETTE["outline"], cargo=PALETTE["shelf"])
     if style.arrows and snapshot.blocker is not None:
         _arrow_layer(band, geo, snapshot, cx, cy, half)
+    _wipe_margins(band, background[geo.top:geo.bottom], geo)
     if style.show_hud:
         _hud(img, geo, snapshot, style, int(failed.sum()))
     return img

@@ -147,9 +147,10 @@ def draw_paths(band: np.ndarray, px: np.ndarray, colors: np.ndarray, thick: int,
 
 
 def draw_arrows(band: np.ndarray, start: np.ndarray, end: np.ndarray, back: np.ndarray,
-                color: tuple[int, int, int], head_px: float) -> None:
+                color: tuple[int, int, int], head_px: float, alpha: float = 0.6) -> None:
     """Arrows from ``start`` to ``end`` (M, 2 pixels), stopping ``back`` (M,) pixels short
-    of ``end`` (the blocker's edge); heads ``head_px`` long where the arrow is longer."""
+    of ``end`` (the blocker's edge); heads ``head_px`` long where the arrow is longer.
+    Blended at ``alpha``: a crowd's arrows do not hide the floor."""
     if len(start) == 0:
         return
     d = end - start
@@ -166,7 +167,8 @@ def draw_arrows(band: np.ndarray, start: np.ndarray, end: np.ndarray, back: np.n
     n = np.stack([-u[:, 1], u[:, 0]], axis=1)
     base = tip - u * head
     pts = np.stack([start, tip, base + n * head * 0.5, tip, base - n * head * 0.5], axis=1)
-    draw_lines(band, pts, np.broadcast_to(np.array(color, dtype=np.uint8), (len(pts), 3)))
+    draw_lines(band, pts, np.broadcast_to(np.array(color, dtype=np.uint8), (len(pts), 3)),
+               alpha)
 
 
 def draw_ghosts(band: np.ndarray, gx: np.ndarray, gy: np.ndarray, gh: np.ndarray,

@@ -91,7 +91,8 @@ def _plot(img, x, y, b, g, r, w):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
-def _lines(img, pts, color):  # pragma: no cover - compiled
+def _lines(img, pts, color, alpha):  # pragma: no cover - compiled
+    full = np.int32(alpha)
     for i in range(pts.shape[0]):
         b, g, r = np.int32(color[i, 0]), np.int32(color[i, 1]), np.int32(color[i, 2])
         for k in range(pts.shape[1] - 1):
@@ -108,9 +109,9 @@ def _lines(img, pts, color):  # pragma: no cover - compiled
                 if k == 0:
                     xi, yi = int(math.floor(x0 + 0.5)), int(math.floor(y0 + 0.5))
                     if steep:
-                        _plot(img, yi, xi, b, g, r, 256)
+                        _plot(img, yi, xi, b, g, r, full)
                     else:
-                        _plot(img, xi, yi, b, g, r, 256)
+                        _plot(img, xi, yi, b, g, r, full)
                 continue
             grad = dy / dx
             xs = int(math.floor(x0 + 0.5))
@@ -118,20 +119,21 @@ def _lines(img, pts, color):  # pragma: no cover - compiled
             y = y0 + grad * (xs - x0)
             for x in range(xs, xe + 1):
                 yi = int(math.floor(y))
-                f = np.int32((y - yi) * 256.0)
+                f = np.int32((y - yi) * alpha)
                 if steep:
-                    _plot(img, yi, x, b, g, r, 256 - f)
+                    _plot(img, yi, x, b, g, r, full - f)
                     _plot(img, yi + 1, x, b, g, r, f)
                 else:
-                    _plot(img, x, yi, b, g, r, 256 - f)
+                    _plot(img, x, yi, b, g, r, full - f)
                     _plot(img, x, yi + 1, b, g, r, f)
                 y += grad
 
 
-def draw_lines(img: np.ndarray, pts: np.ndarray, color: np.ndarray) -> None:
+def draw_lines(img: np.ndarray, pts: np.ndarray, color: np.ndarray,
+               alpha: float = 1.0) -> None:
     """One-pixel anti-aliased polylines into ``img`` (H, W, 3) uint8: ``pts`` (M, K, 2)
     pixel coordinates (OpenCV's: pixel ``(r, c)``'s centre at ``(c, r)``), ``color``
-    (M, 3) uint8.
+    (M, 3) uint8, blended at ``alpha`` (1: opaque).
 
     >>> img = np.zeros((5, 9, 3), np.uint8)
     >>> draw_lines(img, np.array([[[1.0, 2.0], [7.0, 2.0]]]), np.array([[0, 255, 0]], np.uint8))
@@ -141,4 +143,4 @@ def draw_lines(img: np.ndarray, pts: np.ndarray, color: np.ndarray) -> None:
     if len(pts) == 0:
         return
     _lines(img, np.ascontiguousarray(pts, dtype=np.float64),
-           np.ascontiguousarray(color, dtype=np.uint8))
+           np.ascontiguousarray(color, dtype=np.uint8), float(min(max(alpha, 0.0), 1.0)) * 256.0)
