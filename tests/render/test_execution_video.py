@@ -299,3 +299,27 @@ def test_grid_execution_records_what_each_agv_does(tmp_path):
     assert rec.exec_state[:, 1].tolist()[:6] == [0, 0, 0, 0, DRIVING, FINISHED]
     assert rec.plan_tick[:6, 1].tolist() == [1, 2, 3, 4, 5, 5]
     assert (rec.blocker == -1).all()
+
+
+def test_marks_of_many_big_bodies_at_once():
+    """Detail marks (outline, heading, cargo, failure cross) of several bodies are drawn
+    in batches: failed and loaded AGVs in every mix of colours, all in one frame."""
+    from warerover_phys.render import Recording
+
+    n = 6
+    x = np.array([1.5, 3.5, 5.5, 7.5, 9.5, 11.5])
+    rec = Recording(t=np.array([0.0, 1.0]), x=np.stack([x, x]), y=np.full((2, n), 1.5),
+                    heading=np.zeros((2, n)), state=np.full((2, n), 1, np.int8),
+                    loaded=np.tile([True, False, True, False, False, True], (2, 1)),
+                    footprint=np.ones(n, int), body_m=np.full((n, 2), 0.8), cell_m=1.0,
+                    tick_s=1.0, grid=np.zeros((3, 13), np.int8),
+                    exec_state=np.tile(np.array([5, 5, 1, 3, 5, 6], np.int8), (2, 1)),
+                    blocker=np.full((2, n), -1, np.int32), plan_tick=np.zeros((2, n), np.int32))
+    style = Style(size=(1300, 300), label_min_px=1e9)       # no ids over the marks
+    img = draw_frame(rec.at(0.5), style)
+    geo = frame_geometry(rec.scene(), style)
+    for i in (0, 1, 4):                     # failed: a white cross through the middle
+        cx, cy = geo.to_px(x[i] - 0.2, 1.5 - 0.2)
+        assert img[int(round(cy)), int(round(cx))].min() > 200, i
+    cx, cy = geo.to_px(x[2] - 0.1, 1.5)     # loaded, driving: the shelf-coloured cargo
+    assert np.abs(img[int(cy), int(cx)].astype(int) - PALETTE["shelf"]).max() < 30

@@ -31,8 +31,9 @@ _SY = np.array([1, 1, -1, -1])[None, :, None]
 
 
 def fixed(px: np.ndarray) -> np.ndarray:
-    """Pixel coordinates as OpenCV fixed-point integers (``SHIFT`` fractional bits)."""
-    return np.round(px * (1 << SHIFT)).astype(np.int32)
+    """Pixel coordinates as OpenCV fixed-point integers (``SHIFT`` fractional bits), in
+    C order (OpenCV refuses other layouts of a point array)."""
+    return np.ascontiguousarray(np.round(px * (1 << SHIFT)), dtype=np.int32)
 
 
 def ink_for(colors: np.ndarray) -> np.ndarray:
