@@ -153,6 +153,20 @@ def test_mp4_of_paper_heterogeneous_with_failure(physics_run, tmp_path):
     assert checked_agvs == 3 and checked_corridor >= 2
 
 
+def test_closed_loop_header_keeps_orders_and_throughput(physics_run):
+    """A run with orders is no plan execution: its heads-up line gives orders and TP (and
+    what the AGVs do), not the plan-execution figures."""
+    from warerover_phys.render.frame import _hud_text
+
+    rec = load_trajectory(physics_run)
+    assert not rec.plan_execution and rec.exec_state is not None
+    snap = rec.at(rec.end_s, 4)
+    assert snap.progress is None and snap.orders_total
+    text = _hud_text(snap, 1)
+    assert f"orders {snap.orders_done}/{snap.orders_total}" in text and "TP " in text
+    assert "makespan" not in text and "waiting " in text
+
+
 def _blend(under, over, alpha):
     return [u * (1 - alpha) + o * alpha for u, o in zip(under, over, strict=True)]
 
