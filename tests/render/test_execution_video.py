@@ -323,3 +323,37 @@ def test_marks_of_many_big_bodies_at_once():
         assert img[int(round(cy)), int(round(cx))].min() > 200, i
     cx, cy = geo.to_px(x[2] - 0.1, 1.5)     # loaded, driving: the shelf-coloured cargo
     assert np.abs(img[int(cy), int(cx)].astype(int) - PALETTE["shelf"]).max() < 30
+
+
+@pytest.mark.parametrize("size", [(1200, 400), (300, 120)])   # thick and one-pixel outlines
+def test_overlapping_corridors_stay_filled_and_the_cached_zones_follow_the_corridors(size):
+    """Two corridors whose zones overlap: the overlap is tinted too (OpenCV's even-odd
+    fill would leave it empty); a later frame with other corridors shows those, not the
+    zones kept from the frame before."""
+    from warerover_phys.render import Recording
+
+    rec = Recording(t=np.array([0.0, 1.0]), x=np.full((2, 1), 0.5), y=np.full((2, 1), 0.5),
+                    heading=np.zeros((2, 1)), state=np.zeros((2, 1), np.int8),
+                    loaded=np.zeros((2, 1), bool), footprint=np.array([1]),
+                    body_m=np.array([[0.5, 0.5]]), cell_m=1.0, tick_s=1.0,
+                    grid=np.zeros((4, 12), np.int8))
+
+    def box(x0, x1):
+        return {"id": x0, "zone": [[[x0, 1.0], [x1, 1.0], [x1, 3.0], [x0, 3.0]]]}
+
+    style = Style(size=size, show_paths=False, show_legend=False, show_hud=False)
+    geo = frame_geometry(rec.scene(), style)
+    tint = np.array(PALETTE["floor"]) * (1 - style.corridor_alpha) + \
+        np.array(PALETTE["corridor"]) * style.corridor_alpha
+
+    def tinted(img, x, y):
+        px, py = geo.to_px(x, y)
+        return np.abs(img[int(py), int(px)].astype(float) - tint).max() < 12
+
+    snap = rec.at(0.0)
+    first = draw_frame(dataclasses.replace(snap, corridors=(box(2, 6), box(4, 8))), style)
+    # (off the grid lines: at cell centres)
+    assert all(tinted(first, x, 1.5) for x in (3.5, 5.5, 7.5))      # 5.5: the overlap
+    assert not tinted(first, 10.5, 1.5)
+    second = draw_frame(dataclasses.replace(snap, corridors=(box(9, 11),)), style)
+    assert tinted(second, 10.5, 1.5) and not tinted(second, 5.5, 1.5)

@@ -400,6 +400,13 @@ for ex in ("grid", "physics"):
     sim.step()
     sim.fail(1)
     write_outputs(sim.run(), {str(tmp_path)!r} + "/" + ex)
+from typer.testing import CliRunner
+plan = {str(tmp_path)!r} + "/plan.txt"
+open(plan, "w").write("Agent 0:(0,0)->(0,1)->(0,2)->\\n")
+for ex in ("grid", "physics"):   # plan executions write their recordings too
+    r = CliRunner().invoke(warerover_phys.cli.app, ["execute", {str(REPO / "tests/data/random-32-32-10.map")!r},
+                           "--plan", plan, "--executor", ex, "--out", {str(tmp_path)!r} + "/x" + ex, "-q"])
+    assert r.exit_code == 0, r.output
 print(sorted(m for m in ("cv2", "av") if m in sys.modules))
 import warerover_phys.render
 print(sorted(m for m in ("cv2", "av") if m in sys.modules))

@@ -40,8 +40,15 @@ import cv2
 import numpy as np
 
 from ..executors.recording import EXEC_STATES, FAILED, WAITING
-from .layers import SHIFT, draw_arrows, draw_bodies, draw_ghosts, draw_paths
-from .layers import fixed as _fixed
+from .layers import (
+    SHIFT,
+    corridor_key,
+    corridor_layer,
+    draw_arrows,
+    draw_bodies,
+    draw_ghosts,
+    draw_paths,
+)
 from .plans import PathSet, PlanProgress
 from .raster import draw_lines
 
@@ -397,42 +404,31 @@ def _tinted(scene: Scene, style: Style, band: np.ndarray) -> np.ndarray:
 
 
 def _corridors(band: np.ndarray, geo: Geometry, snap: Snapshot, style: Style) -> None:
-    """Every open corridor's zone: the zones filled into one mask (a call per ring, so that
-    overlapping zones stay filled), the tinted floor copied through it, and the outlines
-    drawn in one call. Corridors are the first layer over the floor."""
+    """Every open corridor's zone: the tinted floor copied through the zones' mask and the
+    outlines drawn in one call. Corridors are the first layer over the floor."""
     rings = [np.asarray(r, dtype=np.float64) for c in snap.corridors
              for r in (c.get("zone") or c.get("polygon") or []) if len(r) >= 3]
     if not rings:
         return
-    allp = np.vstack(rings)
-    allp = np.stack(_to_band(geo, allp[:, 0], allp[:, 1]), axis=1)
-    bh, bw = band.shape[:2]
-    x0, y0 = np.maximum(np.floor(allp.min(axis=0)).astype(int) - 2, 0)
-    x1, y1 = np.ceil(allp.max(axis=0)).astype(int) + 2
-    x1, y1 = min(x1, bw), min(y1, bh)
-    if x1 <= x0 or y1 <= y0:
+    cache, digest = snap.scene._cache, corridor_key(rings)
+    hit = cache.get(("corridors", style))
+    if hit is None or hit[0] != digest:      # corridors stay open for many frames
+        pts = np.vstack(rings)
+        pts = np.stack(_to_band(geo, pts[:, 0], pts[:, 1]), axis=1)
+        hit = cache[("corridors", style)] = (digest, corridor_layer(
+            band.shape, pts, [len(r) for r in rings], max(1, int(round(geo.scale * 0.06)))))
+    layer = hit[1]
+    if layer is None:
         return
+    y0, y1, x0, x1, mask, outlines = layer
     roi = band[y0:y1, x0:x1]
-    local = np.split(_fixed(allp - (x0, y0)), np.cumsum([len(r) for r in rings])[:-1])
-    mask = np.zeros(roi.shape[:2], dtype=np.uint8)
-    for poly in local:
-        cv2.fillPoly(mask, [poly], 255, cv2.LINE_8, SHIFT)
     cv2.copyTo(_tinted(snap.scene, style, band)[y0:y1, x0:x1], mask, roi)
-    thick = max(1, int(round(geo.scale * 0.06)))
-    if thick > 1:
-        cv2.polylines(roi, local, True, PALETTE["corridor"], thick, _AA, SHIFT)
-        return
-    # one pixel wide: every ring closed and padded to one length, drawn in one call
-    width = max(len(r) for r in rings) + 1
-    pts = np.empty((len(rings), width, 2))
-    start = 0
-    for j, r in enumerate(rings):
-        ring = allp[start:start + len(r)]
-        start += len(r)
-        pts[j, :len(r)] = ring
-        pts[j, len(r):] = ring[0]
-    draw_lines(band, pts, np.broadcast_to(np.array(PALETTE["corridor"], np.uint8),
-                                          (len(rings), 3)))
+    if isinstance(outlines, list):
+        cv2.polylines(roi, outlines, True, PALETTE["corridor"],
+                      max(1, int(round(geo.scale * 0.06))), _AA, SHIFT)
+    else:
+        draw_lines(band, outlines, np.broadcast_to(np.array(PALETTE["corridor"], np.uint8),
+                                                   (len(outlines), 3)))
 
 
 def _colors(snap: Snapshot) -> tuple[np.ndarray, np.ndarray]:

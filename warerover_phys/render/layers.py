@@ -6,7 +6,9 @@
 - :func:`draw_paths`: the paths ahead, one ``polylines`` call per colour;
 - :func:`draw_arrows`: a thin arrow from each AGV waiting on a dependency to its blocker
   (shafts in one call, heads in another);
-- :func:`draw_ghosts`: planned poses as outlines and a line to the body when apart.
+- :func:`draw_ghosts`: planned poses as outlines and a line to the body when apart;
+- :func:`corridor_layer`: the open corridors' zones as one mask (made again only when the
+  set of zones changes) and their outlines.
 
 Coordinates: OpenCV puts pixel ``(r, c)``'s centre at ``(c, r)``; :class:`~.frame.
 Geometry` gives those coordinates; the compiled fill takes pixel corners (``+ 0.5``).
@@ -20,7 +22,7 @@ import numpy as np
 from .raster import draw_lines, fill_boxes
 
 __all__ = ["draw_bodies", "draw_paths", "draw_arrows", "draw_ghosts", "ink_for", "SHIFT",
-           "fixed"]
+           "fixed", "corridor_layer", "corridor_key"]
 
 SHIFT = 4
 """Sub-pixel bits for OpenCV drawing (coordinates are multiplied by 16)."""
@@ -186,3 +188,52 @@ def draw_ghosts(band: np.ndarray, gx: np.ndarray, gy: np.ndarray, gh: np.ndarray
     if apart.any():
         seg = np.stack([np.stack([gx, gy], axis=1), np.stack([rx, ry], axis=1)], axis=1)[apart]
         cv2.polylines(band, fixed(seg), False, color, max(1, thick // 2), _AA, SHIFT)
+
+
+def _apart(points: np.ndarray, starts: np.ndarray) -> list[list[int]]:
+    """The rings (``points`` from each of ``starts`` to the next) in groups whose bounding
+    boxes do not touch: OpenCV fills several polygons in one call by the even-odd rule, so
+    an overlap of two in the same call would stay empty (greedy colouring of the overlap
+    graph; a handful of groups even for hundreds of corridors)."""
+    lo, hi = np.minimum.reduceat(points, starts), np.maximum.reduceat(points, starts)
+    touch = ((lo[:, None, :] <= hi[None, :, :]) & (lo[None, :, :] <= hi[:, None, :])).all(axis=2)
+    group = np.full(len(starts), -1)
+    for j in range(len(starts)):
+        used = set(group[touch[j]].tolist())
+        g = 0
+        while g in used:
+            g += 1
+        group[j] = g
+    return [np.flatnonzero(group == g).tolist() for g in range(int(group.max()) + 1)]
+
+
+def corridor_key(rings: list[np.ndarray]) -> int:
+    """A key of a set of corridor rings (metres): equal sets, equal keys."""
+    return hash((np.vstack(rings).tobytes(), tuple(len(r) for r in rings)))
+
+
+def corridor_layer(shape: tuple[int, ...], pts: np.ndarray, lengths: list[int],
+                   thick: int) -> tuple | None:
+    """Corridor rings (``pts``: every ring's points in band pixels, one after another,
+    ``lengths`` of each) in a band of ``shape`` as ``(y0, y1, x0, x1, mask, outlines)``:
+    their bounding box, the filled mask over it and the outlines (``thick`` > 1: fixed-point
+    rings in the box for OpenCV; else rings closed and padded to one length, in band
+    pixels, for :func:`.raster.draw_lines`). None when they are off the band."""
+    bh, bw = shape[:2]
+    x0, y0 = np.maximum(np.floor(pts.min(axis=0)).astype(int) - 2, 0)
+    x1, y1 = np.ceil(pts.max(axis=0)).astype(int) + 2
+    x1, y1 = min(x1, bw), min(y1, bh)
+    if x1 <= x0 or y1 <= y0:
+        return None
+    starts = np.cumsum([0] + list(lengths))[:-1]
+    local = np.split(fixed(pts - (x0, y0)), starts[1:])
+    mask = np.zeros((y1 - y0, x1 - x0), dtype=np.uint8)
+    for group in _apart(pts, starts):
+        cv2.fillPoly(mask, [local[j] for j in group], 255, cv2.LINE_8, SHIFT)
+    if thick > 1:
+        return y0, y1, x0, x1, mask, local
+    outlines = np.empty((len(lengths), max(lengths) + 1, 2))
+    for j, (s0, n) in enumerate(zip(starts.tolist(), lengths, strict=True)):
+        outlines[j, :n] = pts[s0:s0 + n]
+        outlines[j, n:] = pts[s0]
+    return y0, y1, x0, x1, mask, outlines
