@@ -8,7 +8,8 @@ piece starts with a key frame, and all were made with the same encoder settings,
 joined stream is one valid H.264 stream (the pieces' decoder set-ups are compared first).
 
 Processes are forked (``can_fork``): they share the recording with the parent without
-copying or pickling it. Each reports its frames done through shared memory; the parent
+copying or pickling it. They draw (with OpenCV's own thread pool off), encode and count
+frames: nothing the parent's other threads (a progress bar's) hold is needed there. Each reports its frames done through shared memory; the parent
 calls ``progress`` as they come in. A piece that fails stops the render with its error.
 """
 
@@ -54,7 +55,11 @@ def _piece(recording: Recording, path: str, times: np.ndarray, fps: float, style
            preset: str, threads: int, done, slot: int, errors) -> None:
     """A worker: draw and encode ``times`` into ``path``; count frames in ``done[slot]``."""
     try:
+        import cv2
+
         from .video import VideoWriter, draw_frames
+
+        cv2.setNumThreads(1)     # no OpenCV thread pool carried over the fork; one core each
 
         with VideoWriter(path, fps, style.size, preset=preset, threaded=True,
                          threads=threads) as writer:
@@ -79,8 +84,11 @@ def render_parallel(recording: Recording, path: Path, times: np.ndarray, fps: fl
     folder = Path(tempfile.mkdtemp(prefix=".render-", dir=Path(path).parent))
     done = ctx.Array("q", len(runs), lock=False)
     errors = ctx.SimpleQueue()
-    # Draw one frame first, so that every worker inherits the drawn floor and compiled code.
-    recording.at(float(times[0]))
+    # Draw one frame first, so that every worker inherits the drawn floor and the loaded
+    # compiled kernels instead of making them again.
+    from .video import draw_frames
+
+    next(draw_frames(recording, times[:1], style))
     procs = []
     try:
         for k, (lo, hi) in enumerate(runs):
