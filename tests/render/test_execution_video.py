@@ -11,6 +11,7 @@ import dataclasses
 import json
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import av
@@ -357,3 +358,25 @@ def test_overlapping_corridors_stay_filled_and_the_cached_zones_follow_the_corri
     assert not tinted(first, 10.5, 1.5)
     second = draw_frame(dataclasses.replace(snap, corridors=(box(9, 11),)), style)
     assert tinted(second, 10.5, 1.5) and not tinted(second, 5.5, 1.5)
+
+
+def test_workers_start_after_opencv_used_its_thread_pool(pocket, tmp_path):
+    """A forked worker inherits OpenCV's thread pool without its threads; the parent shuts
+    the pool before forking. (A worker that touched the pool itself waited forever.) In a
+    fresh process whose OpenCV ran a parallel operation first."""
+    code = f"""
+import cv2, numpy as np
+from warerover_phys.render import Style, load_trajectory, render_video
+cv2.setNumThreads(4)
+big = np.random.default_rng(0).integers(0, 255, (3000, 3000, 3), dtype=np.uint8)
+for _ in range(3):
+    cv2.GaussianBlur(big, (31, 31), 0)          # runs on OpenCV's thread pool
+info = render_video(load_trajectory({str(pocket)!r}), {str(tmp_path / "w.mp4")!r}, fps=10,
+                    speed=2.0, style=Style(size=(320, 180)), workers=2)
+print(info["workers"], info["frames"], cv2.getNumThreads())
+"""
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=240, cwd=REPO)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    workers, frames, pool = proc.stdout.split()
+    assert workers == "2" and int(frames) > 10 and pool == "4"   # the pool is set back

@@ -8,8 +8,10 @@ piece starts with a key frame, and all were made with the same encoder settings,
 joined stream is one valid H.264 stream (the pieces' decoder set-ups are compared first).
 
 Processes are forked (``can_fork``): they share the recording with the parent without
-copying or pickling it. They draw (with OpenCV's own thread pool off), encode and count
-frames: nothing the parent's other threads (a progress bar's) hold is needed there. Each reports its frames done through shared memory; the parent
+copying or pickling it. OpenCV's thread pool is shut (one thread) in the parent before the
+fork and set back after: a pool's threads do not exist in a forked child, and touching the
+pool there (even to shut it) can wait forever on them. The workers draw, encode and count
+frames; nothing the parent's other threads (a progress bar's) hold is needed there. Each reports its frames done through shared memory; the parent
 calls ``progress`` as they come in. A piece that fails stops the render with its error.
 """
 
@@ -55,11 +57,7 @@ def _piece(recording: Recording, path: str, times: np.ndarray, fps: float, style
            preset: str, threads: int, done, slot: int, errors) -> None:
     """A worker: draw and encode ``times`` into ``path``; count frames in ``done[slot]``."""
     try:
-        import cv2
-
         from .video import VideoWriter, draw_frames
-
-        cv2.setNumThreads(1)     # no OpenCV thread pool carried over the fork; one core each
 
         with VideoWriter(path, fps, style.size, preset=preset, threaded=True,
                          threads=threads) as writer:
@@ -78,19 +76,23 @@ def render_parallel(recording: Recording, path: Path, times: np.ndarray, fps: fl
                     style: Style, preset: str, workers: int,
                     progress: Callable[[int, int], None] | None = None) -> int:
     """Render ``times`` to ``path`` (H.264 MP4) with ``workers`` processes; frames written."""
+    import cv2
+
     ctx = mp.get_context("fork")
     runs = split(len(times), workers)
     threads = max(1, (os.cpu_count() or 1) // len(runs))
     folder = Path(tempfile.mkdtemp(prefix=".render-", dir=Path(path).parent))
     done = ctx.Array("q", len(runs), lock=False)
     errors = ctx.SimpleQueue()
-    # Draw one frame first, so that every worker inherits the drawn floor and the loaded
-    # compiled kernels instead of making them again.
-    from .video import draw_frames
-
-    next(draw_frames(recording, times[:1], style))
+    pool = cv2.getNumThreads()
     procs = []
     try:
+        cv2.setNumThreads(1)
+        # Draw one frame first, so that every worker inherits the drawn floor and the
+        # loaded compiled kernels instead of making them again.
+        from .video import draw_frames
+
+        next(draw_frames(recording, times[:1], style))
         for k, (lo, hi) in enumerate(runs):
             p = ctx.Process(target=_piece, name=f"render-{k}", daemon=True, args=(
                 recording, str(folder / f"{k}.mp4"), times[lo:hi], fps, style, preset,
@@ -105,6 +107,7 @@ def render_parallel(recording: Recording, path: Path, times: np.ndarray, fps: fl
                 p.terminate()
             p.join()
         shutil.rmtree(folder, ignore_errors=True)
+        cv2.setNumThreads(pool)
     return len(times)
 
 
