@@ -380,3 +380,12 @@ print(info["workers"], info["frames"], cv2.getNumThreads())
     assert proc.returncode == 0, proc.stderr[-2000:]
     workers, frames, pool = proc.stdout.split()
     assert workers == "2" and int(frames) > 10 and pool == "4"   # the pool is set back
+
+
+def test_frame_rate_text_for_the_progress_bar(monkeypatch):
+    import warerover_phys.render.video as video
+
+    clock = iter([100.0, 102.0])
+    monkeypatch.setattr(video.time, "perf_counter", lambda: next(clock))
+    rate = video.FrameRate()
+    assert rate(50, 200) == "25.0 fps, ETA 0:06"
