@@ -54,14 +54,13 @@ def split(count: int, parts: int) -> list[tuple[int, int]]:
 
 
 def _piece(recording: Recording, path: str, times: np.ndarray, fps: float, style: Style,
-           preset: str, threads: int, done, slot: int, errors) -> None:
+           preset: str, threads: int, done, slot: int, errors, draw: Callable,
+           writer_type: type) -> None:
     """A worker: draw and encode ``times`` into ``path``; count frames in ``done[slot]``."""
     try:
-        from .video import VideoWriter, draw_frames
-
-        with VideoWriter(path, fps, style.size, preset=preset, threaded=True,
+        with writer_type(path, fps, style.size, preset=preset, threaded=True,
                          threads=threads) as writer:
-            for img in draw_frames(recording, times, style):
+            for img in draw(recording, times, style):
                 writer.write(img)
                 done[slot] += 1
         if writer.codec != "h264":
@@ -74,8 +73,11 @@ def _piece(recording: Recording, path: str, times: np.ndarray, fps: float, style
 
 def render_parallel(recording: Recording, path: Path, times: np.ndarray, fps: float,
                     style: Style, preset: str, workers: int,
-                    progress: Callable[[int, int], None] | None = None) -> int:
-    """Render ``times`` to ``path`` (H.264 MP4) with ``workers`` processes; frames written."""
+                    progress: Callable[[int, int], None] | None, *, draw: Callable,
+                    writer_type: type) -> int:
+    """Render ``times`` to ``path`` (H.264 MP4) with ``workers`` processes; frames written.
+    ``draw(recording, times, style)`` yields the frames (``video.draw_frames``),
+    ``writer_type`` writes them (``video.VideoWriter``)."""
     import cv2
 
     ctx = mp.get_context("fork")
@@ -90,13 +92,11 @@ def render_parallel(recording: Recording, path: Path, times: np.ndarray, fps: fl
         cv2.setNumThreads(1)
         # Draw one frame first, so that every worker inherits the drawn floor and the
         # loaded compiled kernels instead of making them again.
-        from .video import draw_frames
-
-        next(draw_frames(recording, times[:1], style))
+        next(draw(recording, times[:1], style))
         for k, (lo, hi) in enumerate(runs):
             p = ctx.Process(target=_piece, name=f"render-{k}", daemon=True, args=(
                 recording, str(folder / f"{k}.mp4"), times[lo:hi], fps, style, preset,
-                threads, done, k, errors))
+                threads, done, k, errors, draw, writer_type))
             p.start()
             procs.append(p)
         _wait(procs, done, len(times), errors, progress)

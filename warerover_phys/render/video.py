@@ -286,8 +286,9 @@ def render_video(recording: Recording, path: str | Path, *, fps: float = 30.0,
     with replacing(path) as tmp:    # ``path`` is replaced only once the video is whole
         if workers > 1 and codec == "h264" and len(times) >= 2 * workers and can_fork() \
                 and _has_av():
-            frames, used = render_parallel(recording, tmp, times, fps, style, preset,
-                                           workers, progress), "h264"
+            frames, used = render_parallel(recording, tmp, times, fps, style, preset, workers,
+                                           progress, draw=draw_frames,
+                                           writer_type=VideoWriter), "h264"
         else:
             frames, used = _render_serial(recording, tmp, times, fps, style, codec, preset,
                                           progress)
