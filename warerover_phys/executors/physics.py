@@ -411,7 +411,8 @@ class PhysicsExecutor:
 
     def trajectory(self) -> dict[str, np.ndarray] | None:
         """Recorded poses: ``t`` (T,), ``x``, ``y``, ``heading`` (T, N), ``state`` (task
-        state, 7 = failed) and ``loaded`` (T, N), and what a renderer needs to draw them:
+        state, 7 = failed) and ``loaded`` (T, N), what each AGV was doing (``exec_state``,
+        ``blocker``, ``plan_tick``: :mod:`.recording`), and what a renderer needs to draw them:
         ``footprint``, ``body_m``, ``cell_m``, ``tick_s`` and the layout ``grid`` (the loop
         adds ``corridors_json``: the episode's corridors, see ``World.corridor_log``).
         Recordings longer than :data:`~.recording.CHUNK` samples are read-only memory maps
