@@ -14,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Collection
 from dataclasses import dataclass, field
 from enum import IntEnum
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,6 +26,9 @@ from .orders import Order, OrderStream
 from .planning.base import State, TimedPath
 from .planning.graph import UNREACHABLE, GraphSet
 from .planning.reservation import ReservationTable
+
+if TYPE_CHECKING:
+    from .schedulers.costs import TripCosts
 
 __all__ = ["AgvState", "OrderStatus", "Agv", "Trip", "World", "make_rngs", "WORK_STATES",
            "STAGE_OF"]
@@ -219,6 +223,26 @@ class World:
         if busy and self.scenario.orders.requeue_after_ticks is not None:
             out += busy
         return out
+
+    def usable_shelves(self) -> np.ndarray:
+        """Bool per shelf: :meth:`free_shelves_for` may list it (nobody is using it, or
+        any shelf with ``orders.requeue_after_ticks``), whoever asks."""
+        mask = np.ones(len(self.layout.shelves), dtype=bool)
+        if self.scenario.orders.requeue_after_ticks is None and self.shelf_busy:
+            mask[list(self.shelf_busy)] = False
+        return mask
+
+    def trip_costs(self) -> TripCosts:
+        """Trip lengths as arrays (:class:`~warerover_phys.schedulers.costs.TripCosts`) on
+        the current motion graphs: a new one whenever the graphs are replaced (corridors
+        opening or closing), as :meth:`trip_distance` starts a new cache."""
+        costs = self.__dict__.get("_trip_costs")
+        if costs is None or costs.graphs is not self.graphs:
+            from .schedulers.costs import TripCosts
+
+            costs = self.__dict__["_trip_costs"] = TripCosts(self.layout, self.graphs,
+                                                              self.station_anchor)
+        return costs
 
     def keep_clear(self) -> np.ndarray:
         """Flat mask of the cells any AGV of the fleet covers while at a station, and the

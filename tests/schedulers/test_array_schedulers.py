@@ -1,0 +1,165 @@
+"""The array schedulers (TA, RD) give the same assignments as the Python ones they replaced.
+
+Every tick of whole episodes, the shipped scheduler and the reference copy of the old one
+(``reference_schedulers.py``) are asked on the same world with the same generator state:
+the assignments must be equal and the generator must end in the same state (RD's draws).
+"""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import numpy as np
+import pytest
+from reference_schedulers import ReferenceRD, ReferenceTA
+
+from warerover_phys import load_scenario, scenario_from_dict
+from warerover_phys.faults.model import _close_cells
+from warerover_phys.orders import Order
+from warerover_phys.planning.graph import GraphSet
+from warerover_phys.schedulers import RandomDispatch, TaskAssignment
+from warerover_phys.schedulers.base import SchedulerView
+from warerover_phys.sim import Simulation
+from warerover_phys.world import World
+
+LAYOUTS = Path(__file__).resolve().parents[2] / "layouts"
+PAPER = ("paper_homogeneous", "paper_heterogeneous", "paper_fault", "warerover_basic",
+         "warerover_hetero")
+
+
+class Twin:
+    """Asks the shipped scheduler and the reference on the same view and generator state,
+    checks they agree, and returns the shipped one's answer."""
+
+    def __init__(self, spec) -> None:
+        pair = {"ta": (TaskAssignment, ReferenceTA), "rd": (RandomDispatch, ReferenceRD)}
+        new, ref = pair[spec.name]
+        self.name = spec.name
+        self.new, self.ref = new(spec), ref(spec)
+        self.calls = self.assigned = 0
+
+    def assign(self, view, rng):
+        probe = copy.deepcopy(rng)
+        want = self.ref.assign(view, probe)
+        got = self.new.assign(view, rng)
+        assert got == want, f"tick {view.tick}: {got} != reference {want}"
+        assert rng.bit_generator.state == probe.bit_generator.state, \
+            f"tick {view.tick}: the generator was drawn differently"
+        self.calls += 1
+        self.assigned += len(got)
+        return got
+
+
+def run_twin(path: Path, scheduler: str, seed: int, overrides=(), ticks: int | None = None):
+    sc = load_scenario(path, [("scheduler.name", scheduler), *overrides])
+    sim = Simulation(sc, seed=seed)
+    twin = sim.scheduler = Twin(sc.scheduler)
+    limit = sc.max_ticks if ticks is None else ticks
+    while not sim.done and sim.world.tick < limit:
+        sim.step()
+    return twin, sim
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("scheduler", ["ta", "rd"])
+@pytest.mark.parametrize("layout", PAPER)
+def test_same_assignments_as_reference_over_episodes(layout, scheduler, seed):
+    twin, sim = run_twin(LAYOUTS / f"{layout}.yaml", scheduler, seed)
+    assert twin.assigned > 0 and twin.calls == sim.world.tick
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+@pytest.mark.parametrize("scheduler", ["ta", "rd"])
+def test_same_assignments_with_more_orders_and_trip_cost(scheduler, seed):
+    """A longer order list (groups of several orders, shelves out on trips) and TA's
+    ``trip`` cost, on the heterogeneous floor (1x1 and 2x2 AGVs, two shelf sizes)."""
+    twin, _ = run_twin(LAYOUTS / "paper_heterogeneous.yaml", scheduler, seed,
+                       [("orders.oneshot.count", 80), ("scheduler.ta_cost", "trip"),
+                        ("scheduler.candidate_shelves", 2)], ticks=250)
+    assert twin.assigned > 20
+
+
+@pytest.mark.parametrize("scheduler", ["ta", "rd"])
+def test_same_assignments_on_the_industrial_floor(scheduler):
+    """1,680 shelves, 2,000 SKUs, a constant order stream, lifelong PIBT."""
+    twin, _ = run_twin(LAYOUTS / "industrial.yaml", scheduler, 5,
+                       [("fleet.agvs.0.count", 120), ("orders.constant.batch", 60)], ticks=40)
+    assert twin.assigned > 60
+
+
+TWO_TYPES = [
+    ("fleet.types.slow", {"footprint": 1, "body_m": [0.7, 0.7], "max_speed_mps": 0.5,
+                          "max_accel_mps2": 1.0, "max_turn_rate_radps": 2.5}),
+    ("fleet.agvs", [{"type": "agv", "count": 100}, {"type": "slow", "count": 60}]),
+]
+
+
+@pytest.mark.parametrize("scheduler", ["ta", "rd"])
+def test_same_assignments_with_many_shelves_per_sku_and_two_types(scheduler):
+    """150 SKUs on 1,680 shelves (about 45 shelves each: the Manhattan cut to
+    ``candidate_shelves`` and its ties matter) and two AGV types that carry the same
+    shelves (a shelf one type takes is gone for the other)."""
+    twin, sim = run_twin(LAYOUTS / "industrial.yaml", scheduler, 6,
+                         [*TWO_TYPES, ("layout.inventory.num_skus", 150),
+                          ("orders.constant.batch", 40)], ticks=40)
+    types = {sim.world.agvs[a["agv"]].type_name for a in sim.world.events
+             if a["event"] == "trip_started"}
+    assert twin.assigned > 60 and types == {"agv", "slow"}
+
+
+def ask_both(w: World, scheduler: str, seed: int = 0):
+    """The shipped scheduler's and the reference's assignments on ``w``, checked equal."""
+    twin = Twin(w.scenario.scheduler.model_copy(update={"name": scheduler}))
+    return twin.assign(SchedulerView(w), np.random.default_rng(seed))
+
+
+# The AGV parks at (2, 9); a shelf at each end holds SKU 0; the station is at (0, 9).
+CORRIDOR_GRID = [".........R..........",
+                 "....................",
+                 "S........P.........S",
+                 "...................."]
+
+
+def test_closed_cells_start_new_trip_costs():
+    """Closing cells (a corridor) replaces the motion graphs: the trip costs start over
+    exactly then, and the choice of shelf follows the new distances (left shelf 9 + 11
+    moves, right 10 + 12; with column 4 closed below row 0 the left one takes 13 + 11)."""
+    w = World.build(scenario_from_dict({
+        "layout": {"grid": CORRIDOR_GRID, "inventory": {"num_skus": 1, "skus_per_shelf": 1}},
+        "fleet": {"agvs": [{"count": 1}]}, "scheduler": {"candidate_shelves": 2}}))
+    w.add_orders([Order(0, 0, 0, 0, 1)])
+    left = next(s.id for s in w.layout.shelves if s.anchor == (2, 0))
+    costs = w.trip_costs()
+    assert [a.shelf for a in ask_both(w, "ta")] == [left]
+    assert w.trip_costs() is costs  # same graphs, same cache
+    mask = np.zeros((w.layout.rows, w.layout.cols), dtype=bool)
+    mask[1:, 4] = True
+    w.graphs = GraphSet(w.layout, closed=mask)
+    assert [a.shelf for a in ask_both(w, "ta")] != [left]
+    assert w.trip_costs() is not costs
+    assert w.trip_costs().to_shelves(1, np.array([w.agvs[0].node]), np.array([left])) == 13
+    w.graphs = GraphSet(w.layout)  # the corridor closes again
+    assert [a.shelf for a in ask_both(w, "ta")] == [left]
+
+
+def test_closing_a_real_corridor_renews_the_costs():
+    """The fault model's own cell closing (``faults.model._close_cells``) swaps the graphs."""
+    w = World.build(load_scenario(LAYOUTS / "paper_fault.yaml"))
+    costs = w.trip_costs()
+    _close_cells(w)
+    assert w.trip_costs() is not costs
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_rd_a_shelf_taken_by_one_type_is_gone_for_the_other(seed):
+    """One shelf holds the SKU, two AGV types can carry it, two orders wait: whichever AGV
+    draws first takes the shelf; the other has no option left (and draws nothing)."""
+    w = World.build(scenario_from_dict({
+        "layout": {"grid": ["R..................R", "....................",
+                            "P.S................P"],
+                   "inventory": {"num_skus": 1, "skus_per_shelf": 1}},
+        "fleet": {"types": {"a": {"footprint": 1}, "b": {"footprint": 1, "max_speed_mps": 0.5}},
+                  "agvs": [{"type": "a", "count": 1}, {"type": "b", "count": 1}]}}))
+    w.add_orders([Order(0, 0, 0, 0, 1), Order(1, 0, 0, 1, 1)])
+    assert len(ask_both(w, "rd", seed)) == 1
