@@ -62,6 +62,7 @@ def new_state(w: World, orders: int, rng: np.random.Generator) -> None:
     w.orders.clear()
     w.status.clear()
     w._pending.clear()
+    w._open = 0
     skus = np.array(sorted(w.layout.sku_shelves))
     w.add_orders([Order(i, 0, int(rng.choice(skus)), int(rng.integers(len(w.layout.stations))),
                         1) for i in range(orders)])

@@ -162,7 +162,9 @@ class World:
     requeued: int = 0
     """Orders sent back to pending by ``orders.requeue_after_ticks`` (counting repeats)."""
     _pending: set[int] = field(default_factory=set, repr=False)
-    """Orders that were held by an AGV when it failed."""
+    """Pending orders, by id (kept by ``_set_status``)."""
+    _open: int = field(default=0, repr=False)
+    """Orders not completed (kept by ``_set_status``): ``all_done`` without a scan."""
 
     # ------------------------------------------------------------------------- building
 
@@ -311,13 +313,16 @@ class World:
 
     def all_done(self) -> bool:
         # Arrivals of ticks < self.tick are in; none may come later.
-        return self.tick > 0 and self.stream.exhausted(self.tick - 1) and all(
-            s == OrderStatus.COMPLETED for s in self.status.values())
+        return self.tick > 0 and self.stream.exhausted(self.tick - 1) and self._open == 0
 
     # ------------------------------------------------------------------------- changes
 
     def _set_status(self, order_id: int, status: OrderStatus) -> None:
-        """The one place order statuses change (keeps the pending set in step)."""
+        """The one place order statuses change (keeps the pending set and the count of
+        orders not completed in step)."""
+        before = self.status.get(order_id)
+        self._open += (status != OrderStatus.COMPLETED) - (
+            before is not None and before != OrderStatus.COMPLETED)
         self.status[order_id] = status
         if status == OrderStatus.PENDING:
             self._pending.add(order_id)

@@ -8,20 +8,23 @@ the assignments must be equal and the generator must end in the same state (RD's
 from __future__ import annotations
 
 import copy
+import json
 from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from reference_schedulers import ReferenceRD, ReferenceTA
 
 from warerover_phys import load_scenario, scenario_from_dict
 from warerover_phys.faults.model import _close_cells
 from warerover_phys.orders import Order
-from warerover_phys.planning.graph import GraphSet
+from warerover_phys.planning.graph import UNREACHABLE, GraphSet
 from warerover_phys.schedulers import RandomDispatch, TaskAssignment
 from warerover_phys.schedulers.base import SchedulerView
 from warerover_phys.sim import Simulation
-from warerover_phys.world import World
+from warerover_phys.world import AgvState, World
 
 LAYOUTS = Path(__file__).resolve().parents[2] / "layouts"
 PAPER = ("paper_homogeneous", "paper_heterogeneous", "paper_fault", "warerover_basic",
@@ -163,3 +166,87 @@ def test_rd_a_shelf_taken_by_one_type_is_gone_for_the_other(seed):
                   "agvs": [{"type": "a", "count": 1}, {"type": "b", "count": 1}]}}))
     w.add_orders([Order(0, 0, 0, 0, 1), Order(1, 0, 0, 1, 1)])
     assert len(ask_both(w, "rd", seed)) == 1
+
+
+@pytest.mark.parametrize("closed", [False, True])
+def test_trip_costs_equal_the_worlds_trip_distances(closed):
+    """Both footprints of the heterogeneous floor, with and without a closed area: the
+    unloaded part for AGV cells (any cell, also ones the graph does not expand) x every
+    shelf, and whole trips, equal ``MotionGraph.distance`` and ``World.trip_distance``."""
+    w = World.build(load_scenario(LAYOUTS / "paper_heterogeneous.yaml"))
+    if closed:
+        mask = np.zeros((w.layout.rows, w.layout.cols), dtype=bool)
+        mask[3:6, 4:9] = True
+        w.graphs = GraphSet(w.layout, closed=mask)
+    costs = w.trip_costs()
+    rng = np.random.default_rng(1)
+    shelves = np.arange(len(w.layout.shelves))
+    for k in (1, 2):
+        graph = w.graphs.get(k, False)
+        nodes = rng.choice(w.layout.rows * w.layout.cols, 40, replace=False)
+        # Standing on a shelf's anchor, and in the last cell (no 2x2 AGV fits there).
+        nodes = np.append(nodes, [*costs.anchor_node[:3], w.layout.rows * w.layout.cols - 1])
+        assert k == 1 or not graph.expandable(int(nodes[-1]))
+        got = costs.to_shelves(k, nodes, shelves)
+        want = [[graph.distance(w.cell(int(n)), w.layout.shelves[s].anchor) for s in shelves]
+                for n in nodes.tolist()]
+        assert got.tolist() == want
+    for agv in w.agvs:
+        carry = costs.carry_mask(agv.type_name, agv.spec)
+        ids = np.flatnonzero(carry)
+        for stations in ((0,), (1, 0), (0, 1, 2)):
+            stations = tuple(s for s in stations if s < len(w.layout.stations))
+            j = np.zeros(len(ids), dtype=np.int64)
+            legs = costs.legs(agv.k, j, ids, [stations])
+            trips = costs.to_shelves(agv.k, np.array([agv.node]), ids)[0] + legs
+            want = [w.trip_distance(agv, int(s), list(stations)) for s in ids]
+            assert np.minimum(trips, UNREACHABLE).tolist() == np.minimum(want, UNREACHABLE) \
+                .tolist()
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 10_000), orders=st.integers(1, 30), agvs=st.integers(1, 8),
+       busy=st.integers(0, 4), candidates=st.integers(1, 4), per_trip=st.integers(1, 4),
+       trip_cost=st.booleans(), requeue=st.booleans())
+def test_same_assignments_on_random_worlds(seed, orders, agvs, busy, candidates, per_trip,
+                                           trip_cost, requeue):
+    """Random AGV cells, orders, shelves out on trips and scheduler settings on a floor
+    with 1x1 and 2x2 AGVs: both schedulers agree with the reference."""
+    rng = np.random.default_rng(seed)
+    sc = load_scenario(LAYOUTS / "paper_heterogeneous.yaml", [
+        ("scheduler.candidate_shelves", candidates), ("scheduler.max_orders_per_trip", per_trip),
+        ("scheduler.ta_cost", "trip" if trip_cost else "per_order"),
+        ("orders.requeue_after_ticks", 30 if requeue else None),
+        ("layout.inventory.seed", seed)])
+    w = World.build(sc)
+    for agv in w.agvs:  # anywhere its unloaded graph lets it stand
+        valid = np.flatnonzero(w.graphs.get(agv.k, False).valid.ravel())
+        node = int(rng.choice(valid))
+        agv.pos = (node, node)
+    skus = sorted(w.layout.sku_shelves)
+    w.add_orders([Order(i, 0, int(rng.choice(skus)), int(rng.integers(len(w.layout.stations))),
+                        1) for i in range(orders)])
+    for n, sid in enumerate(rng.choice(len(w.layout.shelves), busy, replace=False).tolist()):
+        w.shelf_busy[sid] = 1000 + n
+    for agv in rng.choice(len(w.agvs), len(w.agvs) - agvs if agvs < len(w.agvs) else 0,
+                          replace=False).tolist():
+        w.agvs[agv].state = AgvState.TO_SHELF  # not idle
+    for name in ("ta", "rd"):
+        ask_both(w, name, seed)
+
+
+def test_bench_scheduler_runs_and_agrees(tmp_path):
+    """tools/bench_scheduler.py on a small fleet: its table, JSON, and old == new."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "bench_scheduler", Path(__file__).resolve().parents[2] / "tools" / "bench_scheduler.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    out = tmp_path / "b.json"
+    assert bench.main(["--agvs", "30", "--orders", "20", "--reps", "2", "--old-reps", "1",
+                       "--json", str(out)]) == 0
+    doc = json.loads(out.read_text())
+    assert {(r["scheduler"], r["impl"]) for r in doc["rows"]} == {
+        ("ta", "new"), ("ta", "old"), ("rd", "new"), ("rd", "old")}
+    assert all(r["same_as_old"] for r in doc["rows"]) and doc["rows"][0]["assigned_mean"] > 0

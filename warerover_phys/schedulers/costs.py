@@ -88,7 +88,6 @@ class TripCosts:
         self._sku_shelf = np.array([s for sku in range(top) for s in sku_shelves.get(sku, ())],
                                    dtype=np.int64)
         self._to_shelf: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        self._expandable: dict[int, np.ndarray] = {}
         self._legs: dict[tuple[int, int, tuple[int, ...]], int] = {}
         self._first: np.ndarray | None = None
         self._anchor_nbrs: np.ndarray | None = None
@@ -122,14 +121,12 @@ class TripCosts:
     def to_shelves(self, k: int, nodes: np.ndarray, shelves: np.ndarray) -> np.ndarray:
         """Unloaded moves from each of ``nodes`` to each of ``shelves``' anchors
         (``(len(nodes), len(shelves))`` int64, :data:`UNREACHABLE` where none), as
-        :meth:`MotionGraph.distance` gives them."""
+        :meth:`MotionGraph.distance` gives them (an unloaded graph has no sinks, so a node
+        it does not expand has no moves at all: the table's UNREACHABLE there is
+        ``distance``'s too)."""
         dist, far = self._table(k, shelves)
         out = dist[nodes][:, shelves].astype(np.int64)
         out[out == far] = UNREACHABLE
-        out[nodes[:, None] == self.anchor_node[shelves][None, :]] = 0
-        extra, extra_row = self._odd_starts(k, nodes)
-        for i in np.flatnonzero(extra_row >= 0).tolist():
-            out[i] = extra[extra_row[i], shelves]
         return out
 
     def _table(self, k: int, shelves: np.ndarray) -> tuple[np.ndarray, int]:
@@ -148,24 +145,6 @@ class TripCosts:
             self._fill(self.graphs.get(k, False), dist, np.unique(missing))
             filled[missing] = True
         return dist, (_FAR16 if dist.dtype == np.uint16 else UNREACHABLE)
-
-    def _odd_starts(self, k: int, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """For AGVs on a cell the unloaded graph does not expand (a sink; none in practice:
-        unloaded graphs have none) their distances to every shelf through
-        :meth:`MotionGraph.distance` (rows of the first array; the second: the row per
-        AGV, -1 for the rest)."""
-        graph = self.graphs.get(k, False)
-        expandable = self._expandable.get(k)
-        if expandable is None:
-            expandable = self._expandable[k] = np.asarray(graph.expandable_flat, dtype=bool)
-        odd = np.flatnonzero(~expandable[nodes])
-        row = np.full(len(nodes), -1, dtype=np.int64)
-        extra = np.zeros((len(odd), self.num_shelves), dtype=np.int64)
-        for x, i in enumerate(odd.tolist()):
-            start = divmod(int(nodes[i]), self.layout.cols)
-            extra[x] = [graph.distance(start, tuple(a)) for a in self.anchor_rc.tolist()]
-            row[i] = x
-        return extra, row
 
     def _fill(self, graph: MotionGraph, table: np.ndarray, shelves: np.ndarray) -> None:
         """Columns ``shelves`` of ``table``: the moves to each shelf's anchor, searched
@@ -217,9 +196,9 @@ class TripCosts:
 
     def _first_column(self, station: int) -> np.ndarray:
         """Loaded moves (1x1) from every shelf's anchor to ``station``'s, as
-        :meth:`MotionGraph.distance` counts them: 0 on the goal; a cell the graph expands
-        reads the goal's table; a sink (a shelf's home: every anchor of a 1x1 shelf) is
-        left through its best neighbour."""
+        :meth:`MotionGraph.distance` counts them: a cell the graph expands reads the goal's
+        table; a sink (a shelf's home: every anchor of a 1x1 shelf) is left through its
+        best neighbour (a shelf's anchor is never a station's)."""
         loaded = self.graphs.get(1, True)
         goal = self._station_anchor(station, 1)
         table = np.append(loaded.dist_to(divmod(goal, self.layout.cols)), UNREACHABLE)
@@ -231,9 +210,7 @@ class TripCosts:
         via = table[self._anchor_nbrs].min(axis=1, initial=UNREACHABLE).astype(np.int64)
         via = np.where(via >= UNREACHABLE, UNREACHABLE, via + 1)
         expandable = np.asarray(loaded.expandable_flat, dtype=bool)[self.anchor_node]
-        out = np.where(expandable, table[self.anchor_node], via)
-        out[self.anchor_node == goal] = 0
-        return out
+        return np.where(expandable, table[self.anchor_node], via)
 
     def _between(self, a: int, b: int) -> int:
         """Loaded moves (1x1) from station ``a``'s anchor to station ``b``'s."""
@@ -287,8 +264,7 @@ class TripCosts:
             starts, lens = _runs(j)
             nodes = np.array([agvs[i].node for i in rows], dtype=np.int64)
             dist, far = self._table(agv.k, shelf)
-            extra, extra_row = self._odd_starts(agv.k, nodes)
-            best_trips(dist, far, extra, extra_row, nodes, nodes // cols, nodes % cols,
+            best_trips(dist, far, nodes, nodes // cols, nodes % cols,
                        self.anchor_node, self.anchor_rc[:, 0], self.anchor_rc[:, 1], shelf,
                        starts, starts + lens, leg, candidates, UNREACHABLE,
                        np.asarray(rows, dtype=np.int64), j[starts], table.best, table.trip,

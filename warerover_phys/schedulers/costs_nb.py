@@ -25,7 +25,7 @@ __all__ = ["AVAILABLE", "best_trips"]
 
 
 @njit(cache=True)
-def best_trips(table, far, extra, extra_row, nodes, agv_r, agv_c, anchor_node, anchor_r,
+def best_trips(table, far, nodes, agv_r, agv_c, anchor_node, anchor_r,
                anchor_c, shelf, starts, ends, leg, keep, unreachable, rows, cols, best,
                opt_d, opt_s):  # pragma: no cover - compiled
     """For AGV ``i`` and SKU run ``g`` fill ``best[rows[i], cols[g]]`` (the shortest trip,
@@ -33,16 +33,15 @@ def best_trips(table, far, extra, extra_row, nodes, agv_r, agv_c, anchor_node, a
     ``opt_s``: its candidates' trips (``unreachable``: none, and from the count of
     candidates on) and shelves, in no order.
 
-    Trip of AGV ``i`` with the shelf of pair ``p``: 0 if the AGV stands on the shelf's
-    anchor, else ``table[nodes[i], s]`` (``far``: none) or, for an AGV with
-    ``extra_row[i] >= 0``, ``extra[extra_row[i], s]``; plus ``leg[p]``. Pairs ``starts[g]
+    Trip of AGV ``i`` with the shelf ``s`` of pair ``p``: ``table[nodes[i], s]`` (``far``:
+    none) plus ``leg[p]``. Pairs ``starts[g]
     .. ends[g] - 1`` hold run ``g``'s shelves ``shelf[p]``.
     """
     big = anchor_node.shape[0]
     near = np.empty(keep, dtype=np.int64)
     near_key = np.empty(keep, dtype=np.int64)
     for i in range(nodes.shape[0]):
-        node, r, c, x = nodes[i], agv_r[i], agv_c[i], extra_row[i]
+        node, r, c = nodes[i], agv_r[i], agv_c[i]
         for g in range(starts.shape[0]):
             # The ``keep`` nearest by (Manhattan distance, shelf id), insertion-sorted.
             nc = 0
@@ -59,14 +58,9 @@ def best_trips(table, far, extra, extra_row, nodes, agv_r, agv_c, anchor_node, a
             bi, bj = rows[i], cols[g]
             for q in range(nc):
                 s = shelf[near[q]]
-                if node == anchor_node[s]:
-                    u = 0
-                elif x >= 0:
-                    u = np.int64(extra[x, s])
-                else:
-                    u = np.int64(table[node, s])
-                    if u == far:
-                        u = unreachable
+                u = np.int64(table[node, s])
+                if u == far:
+                    u = unreachable
                 d = min(u + leg[near[q]], unreachable)
                 opt_d[bi, bj, q] = d
                 opt_s[bi, bj, q] = s
