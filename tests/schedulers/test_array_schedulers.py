@@ -250,3 +250,14 @@ def test_bench_scheduler_runs_and_agrees(tmp_path):
     assert {(r["scheduler"], r["impl"]) for r in doc["rows"]} == {
         ("ta", "new"), ("ta", "old"), ("rd", "new"), ("rd", "old")}
     assert all(r["same_as_old"] for r in doc["rows"]) and doc["rows"][0]["assigned_mean"] > 0
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("scheduler", ["ta", "rd"])
+def test_same_assignments_with_many_orders_and_frequent_failures(scheduler, seed):
+    """150 orders and an AGV failure every few ticks: corridors open and close all the
+    time, so the motion graphs (and the trip costs) are replaced again and again."""
+    twin, sim = run_twin(LAYOUTS / "paper_fault.yaml", scheduler, seed,
+                         [("orders.oneshot.count", 150), ("faults.random.prob_per_tick", 0.03),
+                          ("faults.random.repair_ticks", 15)], ticks=600)
+    assert twin.assigned > 30 and len(sim.world.corridor_log) > 20
