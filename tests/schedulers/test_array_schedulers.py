@@ -142,7 +142,10 @@ def test_closed_cells_start_new_trip_costs():
     assert [a.shelf for a in ask_both(w, "ta")] != [left]
     assert w.trip_costs() is not costs
     assert w.trip_costs().to_shelves(1, np.array([w.agvs[0].node]), np.array([left])) == 13
-    w.graphs = GraphSet(w.layout)  # the corridor closes again
+    mask[:, 15] = mask[:, 4] = True  # walled in: no shelf can be reached, no trip
+    w.graphs = GraphSet(w.layout, closed=mask)
+    assert ask_both(w, "ta") == []
+    w.graphs = GraphSet(w.layout)  # the corridors close again
     assert [a.shelf for a in ask_both(w, "ta")] == [left]
 
 
@@ -261,3 +264,50 @@ def test_same_assignments_with_many_orders_and_frequent_failures(scheduler, seed
                          [("orders.oneshot.count", 150), ("faults.random.prob_per_tick", 0.03),
                           ("faults.random.repair_ticks", 15)], ticks=600)
     assert twin.assigned > 30 and len(sim.world.corridor_log) > 20
+
+
+def test_an_agv_that_reaches_no_shelf_is_no_candidate():
+    """AGV 0 is walled in by closed cells; AGV 1 is near the right shelf. TA must cost AGV
+    0 as infeasible (not as a long trip, which would pull AGV 1 to the left shelf to
+    leave the cheaper-per-order right group to AGV 0)."""
+    grid = [".........R..........",
+            "....................",
+            "S........P.........S",
+            "..................P."]
+    w = World.build(scenario_from_dict({
+        "layout": {"grid": grid, "inventory": {"num_skus": 2, "skus_per_shelf": 1}},
+        "fleet": {"agvs": [{"count": 2}]}}))
+    left = next(s for s in w.layout.shelves if s.anchor == (2, 0))
+    right = next(s for s in w.layout.shelves if s.anchor == (2, 19))
+    w.add_orders([Order(0, 0, left.skus[0], 0, 1), Order(1, 0, right.skus[0], 0, 1),
+                  Order(2, 0, right.skus[0], 0, 1)])
+    walled = next(a for a in w.agvs if w.cell(a.node) == (2, 9))
+    mask = np.zeros((w.layout.rows, w.layout.cols), dtype=bool)
+    mask[1:4, 8:11] = True
+    mask[2, 9] = False  # a ring of closed cells around it
+    w.graphs = GraphSet(w.layout, closed=mask)
+    out = ask_both(w, "ta")
+    assert [(a.agv, a.shelf) for a in out] == [(1 - walled.id, right.id)]
+
+
+def test_a_shelf_the_agv_cannot_reach_is_not_its_fallback():
+    """Both shelves hold both SKUs; a closed area around the left shelf keeps AGVs out
+    (though a loaded AGV could leave it for the station). Two orders
+    (one per SKU, one per trip): the first trip takes the right shelf, the second AGV's
+    only reachable option is gone, so it gets no trip (not the unreachable left shelf)."""
+    grid = [".........R..........",
+            "....................",
+            "S........P.........S",
+            "..................P."]
+    w = World.build(scenario_from_dict({
+        "layout": {"grid": grid, "inventory": {"num_skus": 2, "skus_per_shelf": 2}},
+        "fleet": {"agvs": [{"count": 2}]},
+        "scheduler": {"max_orders_per_trip": 1, "candidate_shelves": 2}}))
+    right = next(s for s in w.layout.shelves if s.anchor == (2, 19))
+    w.add_orders([Order(0, 0, 0, 0, 1), Order(1, 0, 1, 0, 1)])
+    mask = np.zeros((w.layout.rows, w.layout.cols), dtype=bool)
+    mask[1:4, 0:2] = True  # no way in; a loaded AGV inside may leave (to the station)
+    w.graphs = GraphSet(w.layout, closed=mask)
+    left = next(s for s in w.layout.shelves if s.anchor == (2, 0))
+    assert w.trip_costs().legs(1, np.array([0]), np.array([left.id]), [(0,)])[0] < 20
+    assert [a.shelf for a in ask_both(w, "ta")] == [right.id]

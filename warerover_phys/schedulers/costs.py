@@ -30,7 +30,7 @@ import numpy as np
 from ..planning.graph import UNREACHABLE
 from ..planning.pibt_numba import AVAILABLE as BFS_AVAILABLE
 from ..planning.pibt_numba import bfs_fill
-from .costs_nb import best_trips
+from .costs_nb import best_trips, ranked_options
 
 if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
@@ -249,7 +249,7 @@ class TripCosts:
         ``skus[j]`` that the AGV can carry nearest to it by Manhattan distance (ties by
         shelf id), with their trip lengths via ``stations[j]``; see :class:`OptionTable`.
         ``usable``: bool per shelf (free, or any with ``orders.requeue_after_ticks``)."""
-        table = OptionTable(len(agvs), len(skus), candidates)
+        table = OptionTable(len(agvs), len(skus))
         by_type: dict[str, list[int]] = {}
         for i, agv in enumerate(agvs):
             by_type.setdefault(agv.type_name, []).append(i)
@@ -260,15 +260,15 @@ class TripCosts:
             j, shelf = self.sku_pairs(sku_arr, usable & self.carry_mask(name, agv.spec))
             if len(shelf) == 0:
                 continue
-            leg = self.legs(agv.k, j, shelf, stations)
             starts, lens = _runs(j)
             nodes = np.array([agvs[i].node for i in rows], dtype=np.int64)
             dist, far = self._table(agv.k, shelf)
-            best_trips(dist, far, nodes, nodes // cols, nodes % cols,
-                       self.anchor_node, self.anchor_rc[:, 0], self.anchor_rc[:, 1], shelf,
-                       starts, starts + lens, leg, candidates, UNREACHABLE,
-                       np.asarray(rows, dtype=np.int64), j[starts], table.best, table.trip,
-                       table.shelf)
+            args = (dist, far, nodes, nodes // cols, nodes % cols, self.anchor_rc[:, 0],
+                    self.anchor_rc[:, 1], shelf, starts, starts + lens,
+                    self.legs(agv.k, j, shelf, stations), candidates, UNREACHABLE)
+            rows_arr = np.asarray(rows, dtype=np.int64)
+            best_trips(*args, rows_arr, j[starts], table.best)
+            table.add_block(rows_arr, j[starts], args)
         return table
 
 
@@ -282,21 +282,36 @@ def _runs(j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 class OptionTable:
     """Trip options per AGV ``i`` and SKU ``j``: :attr:`best` ``(agvs, skus)`` int64 is the
-    shortest trip (:data:`UNREACHABLE` where there is none) and :meth:`shelves` the
-    candidate shelves with a trip, shortest first (ties by shelf id)."""
+    shortest trip (:data:`UNREACHABLE` where there is none); :meth:`ranked` gives the
+    candidate shelves of chosen pairs, shortest trip first (ties by shelf id)."""
 
-    def __init__(self, num_agvs: int, num_skus: int, candidates: int) -> None:
+    def __init__(self, num_agvs: int, num_skus: int) -> None:
         self.best = np.full((num_agvs, num_skus), UNREACHABLE, dtype=np.int64)
-        self.trip = np.empty((num_agvs, num_skus, candidates), dtype=np.int32)
-        """Per AGV and SKU its candidates' trips (:data:`UNREACHABLE`: none) in no order
-        (written where :attr:`best` has a trip)."""
-        self.shelf = np.empty((num_agvs, num_skus, candidates), dtype=np.int32)
-        """The shelves of those candidates."""
+        self._blocks: list[tuple[np.ndarray, np.ndarray, tuple]] = []
 
-    def shelves(self, i: int, j: int) -> list[int]:
-        """The candidate shelves of AGV ``i`` for SKU ``j`` with a trip, best first (ties by
-        shelf id)."""
-        if self.best[i, j] >= UNREACHABLE:
-            return []
-        return [s for d, s in sorted(zip(self.trip[i, j].tolist(), self.shelf[i, j].tolist(),
-                                         strict=True)) if d < UNREACHABLE]
+    def add_block(self, rows: np.ndarray, skus: np.ndarray, args: tuple) -> None:
+        """AGVs ``rows`` x SKU columns ``skus`` (runs in order) and the arguments of
+        :func:`~.costs_nb.best_trips` they were costed with."""
+        self._blocks.append((rows, skus, args))
+
+    def ranked(self, pairs: Sequence[tuple[int, int]]) -> dict[tuple[int, int], list[int]]:
+        """For each ``(i, j)`` of ``pairs``, the candidate shelves with a trip, best
+        first (empty where there is none)."""
+        out: dict[tuple[int, int], list[int]] = {p: [] for p in pairs}
+        if not pairs:
+            return out
+        at = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+        for rows, skus, args in self._blocks:
+            local = np.full(len(self.best), -1, dtype=np.int64)
+            local[rows] = np.arange(len(rows))
+            run = np.full(self.best.shape[1], -1, dtype=np.int64)
+            run[skus] = np.arange(len(skus))
+            mine = np.flatnonzero((local[at[:, 0]] >= 0) & (run[at[:, 1]] >= 0))
+            if len(mine) == 0:
+                continue
+            keep = args[11]  # candidates
+            shelves = np.empty((len(mine), keep), dtype=np.int64)
+            ranked_options(*args, local[at[mine, 0]], run[at[mine, 1]], shelves)
+            for m, row in zip(mine.tolist(), shelves.tolist(), strict=True):
+                out[pairs[m]] = [s for s in row if s >= 0]
+        return out

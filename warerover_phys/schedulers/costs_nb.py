@@ -1,9 +1,12 @@
-"""TA's options per AGV x SKU, compiled: the nearest candidate shelves and their best trips.
+"""TA's options per AGV x SKU, compiled: the nearest candidate shelves and their trips.
 
-One pass over idle AGVs x (SKU, usable shelf) pairs, with no temporary as large as the
-pairs: per AGV and SKU it keeps the ``keep`` shelves nearest by Manhattan distance (ties by
-shelf id) in a small sorted buffer, then their trip lengths and the shortest.
-Without numba the same function runs as Python (numba is a dependency; slow but the same).
+One pass over idle AGVs x (SKU, usable shelf) pairs with no temporary as large as the pairs:
+per AGV and SKU the ``keep`` shelves nearest by Manhattan distance (ties by shelf id) go
+into a small sorted buffer, then their trip lengths are read and the shortest kept
+(:func:`best_trips`). The ranked option shelves are wanted only for the pairs the matching
+picks; :func:`ranked_options` computes them for those alone (at 5,000 AGVs x 800 SKUs,
+keeping every pair's options would take 100 MB a call).
+Without numba the same functions run as Python (numba is a dependency; slow but the same).
 """
 
 from __future__ import annotations
@@ -21,60 +24,86 @@ except ImportError:  # pragma: no cover - numba is a dependency; the Python loop
             return args[0]
         return lambda f: f
 
-__all__ = ["AVAILABLE", "best_trips"]
+__all__ = ["AVAILABLE", "best_trips", "ranked_options"]
 
 
 @njit(cache=True)
-def best_trips(table, far, nodes, agv_r, agv_c, anchor_node, anchor_r,
-               anchor_c, shelf, starts, ends, leg, keep, unreachable, rows, cols, best,
-               opt_d, opt_s):  # pragma: no cover - compiled
-    """For AGV ``i`` and SKU run ``g`` fill ``best[rows[i], cols[g]]`` (the shortest trip,
-    ``unreachable`` where none) and, at ``[rows[i], cols[g], :keep]``, ``opt_d`` and
-    ``opt_s``: its candidates' trips (``unreachable``: none, and from the count of
-    candidates on) and shelves, in no order.
+def best_trips(table, far, nodes, agv_r, agv_c, anchor_r, anchor_c, shelf, starts, ends,
+               leg, keep, unreachable, rows, cols, best):  # pragma: no cover - compiled
+    """``best[rows[i], cols[g]]``: the shortest trip of AGV ``i`` (standing on ``nodes[i]``,
+    cell ``agv_r[i], agv_c[i]``) with one of the ``keep`` shelves of run ``g`` nearest to
+    it, ``unreachable`` where none has a trip.
 
-    Trip of AGV ``i`` with the shelf ``s`` of pair ``p``: ``table[nodes[i], s]`` (``far``:
-    none) plus ``leg[p]``. Pairs ``starts[g]
-    .. ends[g] - 1`` hold run ``g``'s shelves ``shelf[p]``.
+    Run ``g`` is pairs ``starts[g] .. ends[g] - 1``, pair ``p`` is shelf ``shelf[p]``; the
+    trip with it is ``table[nodes[i], shelf[p]]`` (``far``: no way) plus ``leg[p]``. (The
+    loops are written out here, not shared with :func:`ranked_options` through a helper:
+    a compiled call per AGV and SKU doubles the time.)
     """
-    big = anchor_node.shape[0]
     near = np.empty(keep, dtype=np.int64)
     near_key = np.empty(keep, dtype=np.int64)
     for i in range(nodes.shape[0]):
         node, r, c = nodes[i], agv_r[i], agv_c[i]
         for g in range(starts.shape[0]):
-            # The ``keep`` nearest by (Manhattan distance, shelf id), insertion-sorted.
-            nc = 0
             if ends[g] - starts[g] <= keep:  # every shelf of the run is a candidate
+                nc = 0
                 for p in range(starts[g], ends[g]):
                     near[nc] = p
                     nc += 1
             else:
-                nc = _nearest(shelf, anchor_r, anchor_c, starts[g], ends[g], r, c, big, keep,
-                              near, near_key)
-            # Their trips (unsorted: OptionTable.shelves sorts the few TA commits) and the
-            # shortest.
+                nc = _nearest(shelf, anchor_r, anchor_c, starts[g], ends[g], r, c, keep, near,
+                              near_key)
             bd = unreachable
-            bi, bj = rows[i], cols[g]
             for q in range(nc):
-                s = shelf[near[q]]
-                u = np.int64(table[node, s])
+                u = np.int64(table[node, shelf[near[q]]])
                 if u == far:
                     u = unreachable
-                d = min(u + leg[near[q]], unreachable)
-                opt_d[bi, bj, q] = d
-                opt_s[bi, bj, q] = s
-                bd = min(bd, d)
-            for q in range(nc, keep):
-                opt_d[bi, bj, q] = unreachable
-            best[bi, bj] = bd
+                bd = min(bd, u + leg[near[q]])
+            best[rows[i], cols[g]] = min(bd, unreachable)
 
 
 @njit(cache=True)
-def _nearest(shelf, anchor_r, anchor_c, start, end, r, c, big, keep, near,
+def ranked_options(table, far, nodes, agv_r, agv_c, anchor_r, anchor_c, shelf, starts, ends,
+                   leg, keep, unreachable, agv, run, out):  # pragma: no cover - compiled
+    """For each ``(agv[m], run[m])`` (indices as in :func:`best_trips`): ``out[m]`` the
+    candidate shelves with a trip, by (trip, shelf id), -1 after."""
+    near = np.empty(keep, dtype=np.int64)
+    near_key = np.empty(keep, dtype=np.int64)
+    ranked = np.empty(keep, dtype=np.int64)
+    for m in range(agv.shape[0]):
+        i, g = agv[m], run[m]
+        if ends[g] - starts[g] <= keep:
+            nc = 0
+            for p in range(starts[g], ends[g]):
+                near[nc] = p
+                nc += 1
+        else:
+            nc = _nearest(shelf, anchor_r, anchor_c, starts[g], ends[g], agv_r[i], agv_c[i],
+                          keep, near, near_key)
+        no = 0
+        for q in range(nc):  # insertion by (trip, shelf id); no trip, no option
+            u = np.int64(table[nodes[i], shelf[near[q]]])
+            d = unreachable if u == far else min(u + leg[near[q]], unreachable)
+            s = shelf[near[q]]
+            if d >= unreachable:
+                continue
+            k = no
+            no += 1
+            while k > 0 and (ranked[k - 1] > d or (ranked[k - 1] == d and out[m, k - 1] > s)):
+                ranked[k] = ranked[k - 1]
+                out[m, k] = out[m, k - 1]
+                k -= 1
+            ranked[k] = d
+            out[m, k] = s
+        for q in range(no, keep):
+            out[m, q] = -1
+
+
+@njit(cache=True)
+def _nearest(shelf, anchor_r, anchor_c, start, end, r, c, keep, near,
              near_key):  # pragma: no cover - compiled
     """The ``keep`` pairs of ``start .. end - 1`` whose shelves are nearest to ``(r, c)`` by
-    (Manhattan distance, shelf id), into ``near`` (insertion-sorted); returns the count."""
+    (Manhattan distance, shelf id), into ``near`` (insertion-sorted); returns ``keep``."""
+    big = anchor_r.shape[0]
     nc = 0
     for p in range(start, end):
         s = shelf[p]

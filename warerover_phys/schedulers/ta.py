@@ -71,10 +71,11 @@ class TaskAssignment:
         out: list[Assignment] = []
         taken_orders: set[int] = set()
         taken_shelves: set[int] = set()
+        options = table.ranked([ij for ij in pairs if cost[ij] < INFEASIBLE])
         for i, j in pairs:
             if cost[i, j] >= INFEASIBLE:
                 continue
-            shelf = next((s for s in table.shelves(i, j) if s not in taken_shelves), None)
+            shelf = next((s for s in options[(i, j)] if s not in taken_shelves), None)
             if shelf is None:
                 continue
             orders = [o.id for o in groups[skus[j]] if o.id not in taken_orders][:cap]
