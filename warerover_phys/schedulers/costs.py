@@ -1,24 +1,27 @@
-"""Trip lengths for schedulers as arrays: every idle AGV x candidate shelf in one numpy pass.
+"""Trip lengths for schedulers as arrays: every idle AGV x candidate shelf in one compiled pass.
 
 A trip is the drive to the shelf unloaded, then loaded from the shelf to each station in
 turn (:meth:`World.trip_distance <warerover_phys.world.World.trip_distance>`). The two parts
 are kept apart:
 
 - *to the shelf*: per footprint ``k`` one table ``(cells, shelves)``, column ``s`` the moves
-  from every cell to shelf ``s``'s anchor on the unloaded graph (the graph's own
-  :meth:`~warerover_phys.planning.graph.MotionGraph.dist_to` table, filled the first time a
-  scheduler looks at the shelf), so the lengths for many AGVs and shelves are one gather;
-- *with the shelf*: the loaded legs shelf -> stations, which do not depend on the AGV, kept
-  per ``(k, shelf, stations)``.
+  from every cell to shelf ``s``'s anchor on the unloaded graph (the breadth-first search
+  :meth:`~warerover_phys.planning.graph.MotionGraph.dist_to` runs, compiled; filled the
+  first time a scheduler looks at the shelf). Rows by cell, so the lengths from one AGV to
+  many shelves are read from one row. ``uint16`` below 65,535 cells: 25 MB on the
+  1,680-shelf industrial floor (cells x shelves x 2 bytes; int32 above, twice that);
+- *with the shelf*: the loaded legs shelf -> stations, which do not depend on the AGV: for
+  1x1 AGVs (one loaded graph) a shelves x stations table plus station -> station lengths,
+  for bigger ones (a loaded graph per shelf carried) per ``(k, shelf, stations)``.
 
 A :class:`TripCosts` belongs to one set of motion graphs: when corridors open or close the
 world's graphs are replaced and :meth:`World.trip_costs <warerover_phys.world.World.trip_costs>`
-starts a new one, as it starts a new trip-distance cache. Every length equals
-``World.trip_distance`` for the same AGV cell, shelf and stations, move for move.
+starts a new one, as :meth:`World.trip_distance <warerover_phys.world.World.trip_distance>`
+starts a new cache. Every length equals ``World.trip_distance``'s, move for move.
 
 :meth:`TripCosts.options` is what TA ranks: per idle AGV and SKU, the nearest
-``candidate_shelves`` usable shelves by Manhattan distance (ties by shelf id), their trip
-lengths, the best first.
+``candidate_shelves`` usable shelves by Manhattan distance (ties by shelf id) and the
+shortest of their trips (:mod:`.costs_nb`); the ranked shelves of the pairs it picks.
 """
 
 from __future__ import annotations
@@ -44,7 +47,8 @@ __all__ = ["TripCosts", "OptionTable", "ranges"]
 
 _FAR16 = np.iinfo(np.uint16).max
 LEG_CACHE = 200_000
-"""Loaded-leg lengths kept before the cache starts over (as the world's trip cache)."""
+"""Loaded-leg lengths of AGVs bigger than 1x1 kept before the cache starts over (as the
+world's trip cache)."""
 
 
 def ranges(starts: np.ndarray, lens: np.ndarray) -> np.ndarray:
