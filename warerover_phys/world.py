@@ -18,6 +18,7 @@ from __future__ import annotations
 from collections.abc import Collection
 from dataclasses import dataclass, field
 from enum import IntEnum
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -29,6 +30,9 @@ from .orders import Order, OrderStream
 from .planning.base import State, TimedPath
 from .planning.graph import UNREACHABLE, GraphSet
 from .planning.reservation import ReservationTable
+
+if TYPE_CHECKING:
+    from .schedulers.costs import TripCosts
 
 __all__ = ["AgvState", "OrderStatus", "Agv", "Trip", "World", "make_rngs", "WORK_STATES",
            "STAGE_OF"]
@@ -165,7 +169,9 @@ class World:
     requeued: int = 0
     """Orders sent back to pending by ``orders.requeue_after_ticks`` (counting repeats)."""
     _pending: set[int] = field(default_factory=set, repr=False)
-    """Orders that were held by an AGV when it failed."""
+    """Pending orders, by id (kept by ``_set_status``)."""
+    _open: int = field(default=0, repr=False)
+    """Orders not completed (kept by ``_set_status``): ``all_done`` without a scan."""
 
     # ------------------------------------------------------------------------- building
 
@@ -234,6 +240,26 @@ class World:
         if busy and self.scenario.orders.requeue_after_ticks is not None:
             out += busy
         return out
+
+    def usable_shelves(self) -> np.ndarray:
+        """Bool per shelf: :meth:`free_shelves_for` may list it (nobody is using it, or
+        any shelf with ``orders.requeue_after_ticks``), whoever asks."""
+        mask = np.ones(len(self.layout.shelves), dtype=bool)
+        if self.scenario.orders.requeue_after_ticks is None and self.shelf_busy:
+            mask[list(self.shelf_busy)] = False
+        return mask
+
+    def trip_costs(self) -> TripCosts:
+        """Trip lengths as arrays (:class:`~warerover_phys.schedulers.costs.TripCosts`) on
+        the current motion graphs: a new one whenever the graphs are replaced (corridors
+        opening or closing), as :meth:`trip_distance` starts a new cache."""
+        costs = self.__dict__.get("_trip_costs")
+        if costs is None or costs.graphs is not self.graphs:
+            from .schedulers.costs import TripCosts
+
+            costs = self.__dict__["_trip_costs"] = TripCosts(self.layout, self.graphs,
+                                                              self.station_anchor)
+        return costs
 
     def keep_clear(self) -> np.ndarray:
         """Flat mask of the cells any AGV of the fleet covers while at a station, and the
@@ -312,13 +338,16 @@ class World:
 
     def all_done(self) -> bool:
         # Arrivals of ticks < self.tick are in; none may come later.
-        return self.tick > 0 and self.stream.exhausted(self.tick - 1) and all(
-            s == OrderStatus.COMPLETED for s in self.status.values())
+        return self.tick > 0 and self.stream.exhausted(self.tick - 1) and self._open == 0
 
     # ------------------------------------------------------------------------- changes
 
     def _set_status(self, order_id: int, status: OrderStatus) -> None:
-        """The one place order statuses change (keeps the pending set in step)."""
+        """The one place order statuses change (keeps the pending set and the count of
+        orders not completed in step)."""
+        before = self.status.get(order_id)
+        self._open += (status != OrderStatus.COMPLETED) - (
+            before is not None and before != OrderStatus.COMPLETED)
         self.status[order_id] = status
         if status == OrderStatus.PENDING:
             self._pending.add(order_id)
