@@ -80,9 +80,11 @@ def test_the_cases_cover_every_command_with_json():
 
 
 def test_without_json_lorr_still_says_what_it_wrote(tmp_path):
-    """The human form is unchanged: ``lorr --out`` says what it wrote, on stdout."""
+    """Without ``--json`` too, ``lorr --out`` says what it wrote (on stderr, as every
+    progress note)."""
     proc = subprocess.run(cli_argv("lorr", LORR, "--ticks", "5", "--out", tmp_path / "o"),
                           cwd=tmp_path, env=cli_env(), capture_output=True, text=True,
                           timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
-    assert "wrote" in proc.stdout and "output.json" in proc.stdout
+    assert "wrote" in proc.stderr and "output.json" in proc.stderr
+    assert "wrote" not in proc.stdout

@@ -1,6 +1,6 @@
 """The Robot Runners start kit's output fields of a lifelong run, as functions of what the
 run recorded: when each robot took each task, when it did each errand, how many timesteps
-ran. :func:`warerover_phys.lorr.output_json` writes them.
+ran. :func:`warerover_phys.problems.robotrunners.output_json` writes them.
 
 Which version of the start kit each field follows (``MAPF-Competition/Start-Kit``,
 ``src/CompetitionSystem.cpp`` ``BaseSystem::simulate`` and ``saveResults``,
