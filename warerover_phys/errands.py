@@ -55,8 +55,10 @@ def read_text(path: Path, what: str, source: str, limit: int = MAX_FILE_BYTES) -
         raise ScenarioError(f"cannot read the {what} file: {e.strerror}", file=source,
                             field=what, value=str(path)) from None
     if not stat.S_ISREG(st.st_mode):
-        raise ScenarioError(f"the {what} is not a regular file", file=source, field=what,
-                            value=str(path))
+        from .inputs import describe
+
+        raise ScenarioError(f"the {what} is {describe(path)}, not a regular file", file=source,
+                            field=what, value=str(path))
     try:
         with open(path, "rb") as f:
             data = f.read(limit + 1)
