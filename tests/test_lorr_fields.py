@@ -127,6 +127,13 @@ def test_2024_events_schedule_and_idle_robots(tmp_path):
         assert paths[i][t] == (flat[2 * done - 2], flat[2 * done - 1])
     assert doc["numTaskFinished"] == sum(1 for _, _, k, d in doc["events"]
                                          if d == len(tasks[k][1]) // 2)
+    # the kit's per-robot cost, recounted from the schedule and the events alone: a task
+    # recorded "t:k" was taken at t - 1 and is held until its last errand (or the end)
+    done_at = {k: t for t, _, k, d in doc["events"] if d == len(tasks[k][1]) // 2}
+    held = [sum(min(done_at.get(k, ticks), ticks) - (t - 1) for t, k in
+                (map(int, item.split(":")) for item in filter(None, s.split(","))))
+            for s in doc["actualSchedule"]]
+    assert doc["sumOfCost"] == sum(held) and doc["makespan"] == max(held)
 
 
 def _cells(actions: str, start: list, model: str) -> list[tuple[int, int]]:
