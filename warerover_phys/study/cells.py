@@ -57,7 +57,11 @@ class PlanTask:
     n: int
     seed: int
     planner: str
+    """The first planner label of the task (the plan's name)."""
     entry: PlannerEntry
+    """How the plan is made (the planners of the task differ at most in ``timing``)."""
+    entries: dict[str, PlannerEntry]
+    """Every planner label of the task's cells."""
     planner_model: AgvTypeSpec
     """The robot model the planner assumes (rotation-aware planners: its turn ticks)."""
     cells: tuple[Cell, ...]
@@ -135,13 +139,18 @@ def expand(spec: StudySpec) -> list[Cell]:
 
 
 def _plan_key(spec: StudySpec, inst_map: str, scen: str, cell: Cell) -> tuple:
+    """What a cell's plan depends on: the instance, the seed, how the plan is made (the
+    planner's settings but ``timing``, which only reads the plan) and, for rotation-aware
+    planners, the turn ticks of the planner's robot model."""
     entry = spec.planners[cell.planner]
     model: Any = None
-    if entry.rotations:  # a rotation-aware plan depends on the model's turn ticks only
+    if entry.rotations:
         from ..planning.rotation import agent_turn_ticks
 
         model = agent_turn_ticks(spec.robots[cell.robot], spec.execution.tick_s)
-    return (inst_map, scen, cell.n, cell.seed, cell.planner, json.dumps(model))
+    how = entry.model_dump(mode="json", exclude={"timing"})
+    return (inst_map, scen, cell.n, cell.seed, json.dumps(how, sort_keys=True),
+            json.dumps(model))
 
 
 def tasks_for(spec: StudySpec, cells: list[Cell], out_dir: str | Path,
@@ -155,17 +164,19 @@ def tasks_for(spec: StudySpec, cells: list[Cell], out_dir: str | Path,
         groups.setdefault(_plan_key(spec, str(spec.path(inst.map).resolve()), scen, c),
                           []).append(c)
     tasks = []
-    for (map_path, scen_path, n, seed, planner, _), group in groups.items():
-        entry = spec.planners[planner]
+    for key, group in groups.items():
+        map_path, scen_path, n, seed = key[:4]
+        planner = group[0].planner
+        entries = {c.planner: spec.planners[c.planner] for c in group}
+        entry = entries[planner]
         if entry.plans is not None:  # the workers do not know the study file's folder
             entry = entry.model_copy(update={"plans": str(spec.path(entry.plans).resolve())})
-        pid = content_hash([map_path, scen_path, n, seed, planner,
-                            entry.model_dump(mode="json"),
-                            _plan_key(spec, map_path, scen_path, group[0])[-1]])
+        pid = content_hash(list(key))
         tasks.append(PlanTask(
             plan_id=f"{Path(scen_path).stem}-{n}-{planner}-s{seed}-{pid}".replace("/", "_"),
             map_path=map_path, scen_path=scen_path, n=n, seed=seed, planner=planner,
-            entry=entry, planner_model=spec.robots[group[0].robot], cells=tuple(group),
+            entry=entry, entries=entries, planner_model=spec.robots[group[0].robot],
+            cells=tuple(group),
             robots=dict(spec.robots), mismatch=dict(spec.mismatch), delays=dict(spec.delays),
             execution=spec.execution, out_dir=str(out_dir),
             solvers={k: v for k, v in solvers.items() if k in entry.solver_names()}))

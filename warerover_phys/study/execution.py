@@ -43,7 +43,7 @@ def _now() -> str:
 
 
 def _base(task: PlanTask, cell: Cell) -> dict[str, Any]:
-    e = task.entry
+    e = task.entries[cell.planner]
     return {"key": cell.key, "kind": "oneshot", "status": "ok", "stage": None, "error": None,
             "instance": cell.instance, "map": Path(task.map_path).stem, "scen": cell.scen,
             "scen_index": cell.scen_index, "agents": cell.n, "planner": cell.planner,
@@ -115,9 +115,9 @@ def _prepare(task: PlanTask, outcome: PlanOutcome) -> dict[str, Any] | str:
     assert given is not None
     sizes = [1] * given.num_agents
     try:
-        plan, repairs = repair_cycles(given, layout, sizes, source=task.planner)
+        plan, repairs = repair_cycles(given, layout, sizes, source="plan")
         if repairs:
-            validate_plan(plan, layout, sizes, source=task.planner)
+            validate_plan(plan, layout, sizes, source="plan")
     except PlanError as err:
         return f"rotation repair: {err}"
     paths = plan_to_paths(plan, layout.cols)
@@ -155,7 +155,7 @@ def _execute_cell(task: PlanTask, cell: Cell, prepared: dict[str, Any],
     report, agents, actions = open_loop_report(run)
     unit = {"planned_soc_unit_s": report["planned_sum_of_costs_s"],
             "planned_makespan_unit_s": report["planned_makespan_s"]}
-    if task.entry.timing == "motion":
+    if task.entries[cell.planner].timing == "motion":
         if cell.robot not in schedules:  # the planner's model: no mismatch
             from ..planning.timing import schedule_plan
 

@@ -155,7 +155,7 @@ def _builtin(task: PlanTask, obstacles: np.ndarray, starts: list, goals: list) -
                                       tick_s=task.execution.tick_s)
         wall = time.perf_counter() - t0
         if plan is None:
-            return PlanOutcome(None, wall, error=f"{task.planner}: {stats.pop('reason')}",
+            return PlanOutcome(None, wall, error=str(stats.pop("reason")),
                                stage="solve", stats=stats)
         return PlanOutcome(plan, wall, stats=stats)
     from ..errors import PlanningError
@@ -166,13 +166,13 @@ def _builtin(task: PlanTask, obstacles: np.ndarray, starts: list, goals: list) -
                     time_limit_s=entry.time_limit_s, seed=task.seed, guide=entry.guide,
                     refine=entry.refine)
     except PlanningError as err:
-        return PlanOutcome(None, error=f"{task.planner}: {err}", stage="solve")
+        return PlanOutcome(None, error=str(err), stage="solve")
     stats = {k: v for k, v in res.stats.items() if isinstance(v, int | float | str)}
     if entry.refine and "refine" in res.stats:
         stats["first_soc"] = res.stats["refine"].get("first_soc")
     if not res.success:
-        return PlanOutcome(None, res.wall_s, res.lower_bound, f"{task.planner}: no solution "
-                           f"within {entry.time_limit_s:g} s", "solve", stats)
+        return PlanOutcome(None, res.wall_s, res.lower_bound, f"no solution within"
+                           f" {entry.time_limit_s:g} s", "solve", stats)
     return PlanOutcome(Plan(tuple(tuple(p) for p in res.paths)), res.wall_s, res.lower_bound,
                        stats=stats)
 
@@ -193,25 +193,25 @@ def _command(task: PlanTask) -> PlanOutcome:
         proc = subprocess.run(argv, stdin=subprocess.DEVNULL, capture_output=True,
                               timeout=2 * entry.time_limit_s + COMMAND_GRACE_S, check=False)
     except subprocess.TimeoutExpired:
-        return PlanOutcome(None, time.perf_counter() - t0, error=f"{task.planner}: command "
+        return PlanOutcome(None, time.perf_counter() - t0, error="command "
                            f"still running after {2 * entry.time_limit_s + COMMAND_GRACE_S:g} "
                            "s (killed)", stage="solve")
     except OSError as err:
-        return PlanOutcome(None, error=f"{task.planner}: cannot run {argv[0]!r}: "
+        return PlanOutcome(None, error=f"cannot run {argv[0]!r}: "
                            f"{err.strerror or err}", stage="solve")
     wall = time.perf_counter() - t0
     if proc.returncode != 0:
         tail = proc.stderr.decode("utf-8", "replace").strip().splitlines()[-1:] or \
             proc.stdout.decode("utf-8", "replace").strip().splitlines()[-1:]
-        return PlanOutcome(None, wall, error=f"{task.planner}: command exited with code "
+        return PlanOutcome(None, wall, error=f"command exited with code "
                            f"{proc.returncode}" + (f": {tail[0][:200]}" if tail else ""),
                            stage="solve")
     if not out.is_file() or out.stat().st_size == 0:
-        return PlanOutcome(None, wall, error=f"{task.planner}: the command wrote no plan to "
+        return PlanOutcome(None, wall, error=f"the command wrote no plan to "
                            f"{{out}} ({out.name})", stage="solve")
     plan = read_plan(out, entry.format)
     if str(plan.meta.get("solved", "1")).strip() == "0":
-        return PlanOutcome(None, wall, error=f"{task.planner}: the solver reports no solution "
+        return PlanOutcome(None, wall, error="the solver reports no solution "
                            "(solved=0)", stage="solve")
     return PlanOutcome(plan, wall, stats=_meta_figures(plan))
 
@@ -235,7 +235,7 @@ def _from_folder(task: PlanTask) -> PlanOutcome:
                                 n=task.n, seed=task.seed)
     path = Path(entry.plans or ".") / name  # made absolute by tasks_for
     if not path.is_file():
-        return PlanOutcome(None, error=f"{task.planner}: plan file not found: {path}",
+        return PlanOutcome(None, error=f"plan file not found: {path}",
                            stage="read")
     plan = read_plan(path, entry.format)
     stats = _meta_figures(plan)
@@ -261,7 +261,7 @@ def check_plan(plan: Plan, obstacles: np.ndarray, starts: list, goals: list,
             return f"agent {i} ends at {p[-1]}, its goal is {g}"
     layout = load_floor(task.map_path)[0]
     try:
-        validate_plan(plan, layout, [1] * plan.num_agents, source=task.planner)
+        validate_plan(plan, layout, [1] * plan.num_agents, source="plan")
     except PlanError as err:
         return str(err)
     if plan.headings is not None:
@@ -279,4 +279,4 @@ def _check_headings(plan: Plan, cols: int, task: PlanTask) -> str | None:
     heads = {i: list(h) for i, h in enumerate(plan.headings)}
     bad = validate_headings(states, heads, cols, turn_ticks=dict.fromkeys(states, tt),
                             max_conflicts=1)
-    return f"{task.planner}: heading check: {bad[0]}" if bad else None
+    return f"heading check: {bad[0]}" if bad else None

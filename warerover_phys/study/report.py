@@ -37,24 +37,30 @@ from ..errors import WareroverError
 from ..sweep.report import mean_ci
 from .runner import load_results
 
-__all__ = ["write_study_report", "rank_correlation", "bootstrap_ci", "tables", "BOOTSTRAP"]
+__all__ = ["write_study_report", "rank_correlation", "bootstrap_ci", "spearman_rows",
+           "kendall_rows", "tables", "BOOTSTRAP"]
 
 BOOTSTRAP = 2000
 """Bootstrap resamples of a rank correlation's interval."""
 
 
 def bootstrap_ci(x: Sequence[float], y: Sequence[float],
-                 stat: Callable[[np.ndarray, np.ndarray], float], *, resamples: int = BOOTSTRAP,
-                 level: float = 0.95, seed: int = 0) -> tuple[float, float]:
-    """Percentile interval of ``stat(x, y)`` over ``resamples`` resamples of the pairs
-    (resamples where the statistic is undefined, e.g. all x equal, are skipped)."""
+                 stat: Callable[[np.ndarray, np.ndarray], np.ndarray], *,
+                 resamples: int = BOOTSTRAP, level: float = 0.95,
+                 seed: int = 0) -> tuple[float, float]:
+    """Percentile interval of ``stat`` over ``resamples`` resamples of the pairs ``(x, y)``.
+    ``stat`` takes ``(R, n)`` arrays (one resample per row) and returns ``R`` values, NaN
+    where it is undefined (e.g. all x equal); those resamples are skipped, and the interval
+    is NaN when more than half are."""
     xa, ya = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
     n = len(xa)
     if n < 3:
         return math.nan, math.nan
     rng = np.random.default_rng(seed)
     idx = rng.integers(0, n, size=(resamples, n))
-    vals = np.array([stat(xa[i], ya[i]) for i in idx])
+    chunk = max(1, 2_000_000 // (n * n))  # Kendall's pairs: bound the (chunk, n, n) arrays
+    vals = np.concatenate([stat(xa[idx[i:i + chunk]], ya[idx[i:i + chunk]])
+                           for i in range(0, resamples, chunk)])
     vals = vals[np.isfinite(vals)]
     if len(vals) < resamples // 2:
         return math.nan, math.nan
@@ -62,28 +68,37 @@ def bootstrap_ci(x: Sequence[float], y: Sequence[float],
     return float(lo), float(hi)
 
 
-def _spearman(x: np.ndarray, y: np.ndarray) -> float:
-    from scipy.stats import spearmanr
+def spearman_rows(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Spearman's rho of each row pair of ``(R, n)`` arrays (average ranks for ties; NaN
+    for a constant row)."""
+    from scipy.stats import rankdata
 
-    if np.ptp(x) == 0 or np.ptp(y) == 0:
-        return math.nan
-    return float(spearmanr(x, y).statistic)
+    rx = rankdata(x, axis=-1)
+    ry = rankdata(y, axis=-1)
+    rx -= rx.mean(axis=-1, keepdims=True)
+    ry -= ry.mean(axis=-1, keepdims=True)
+    den = np.sqrt((rx * rx).sum(-1) * (ry * ry).sum(-1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 0, (rx * ry).sum(-1) / np.where(den > 0, den, 1), np.nan)
 
 
-def _kendall(x: np.ndarray, y: np.ndarray) -> float:
-    from scipy.stats import kendalltau
-
-    if np.ptp(x) == 0 or np.ptp(y) == 0:
-        return math.nan
-    return float(kendalltau(x, y).statistic)
+def kendall_rows(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Kendall's tau-b of each row pair of ``(R, n)`` arrays (NaN for a constant row)."""
+    dx = np.sign(x[:, :, None] - x[:, None, :]).astype(np.int8)
+    dy = np.sign(y[:, :, None] - y[:, None, :]).astype(np.int8)
+    num = (dx * dy).sum((1, 2), dtype=np.int64)
+    den = np.sqrt((dx * dx).sum((1, 2), dtype=np.int64).astype(float) *
+                  (dy * dy).sum((1, 2), dtype=np.int64))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 0, num / np.where(den > 0, den, 1), np.nan)
 
 
 def rank_correlation(x: Sequence[float], y: Sequence[float], seed: int = 0) -> dict[str, Any]:
     """Spearman's rho and Kendall's tau of the pairs with their bootstrap 95% intervals."""
     xa, ya = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
     out: dict[str, Any] = {"points": len(xa)}
-    for name, fn in (("spearman", _spearman), ("kendall", _kendall)):
-        out[name] = fn(xa, ya) if len(xa) >= 3 else math.nan
+    for name, fn in (("spearman", spearman_rows), ("kendall", kendall_rows)):
+        out[name] = float(fn(xa[None], ya[None])[0]) if len(xa) >= 3 else math.nan
         out[f"{name}_lo"], out[f"{name}_hi"] = bootstrap_ci(xa, ya, fn, seed=seed)
     return out
 
