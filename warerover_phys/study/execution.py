@@ -36,6 +36,15 @@ ROW_PARTS = ("dependency", "accel_decel", "turning", "control", "injected",
 :data:`warerover_phys.gap_open.PARTS`)."""
 
 
+def _cpu() -> float:
+    """CPU seconds of this process and its finished children (an external solver)."""
+    import resource
+
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
 def _now() -> str:
     import datetime as dt
 
@@ -66,17 +75,19 @@ def fail_task(task: PlanTask | LifelongTask, error: str) -> list[dict[str, Any]]
 def run_plan_task(task: PlanTask) -> list[dict[str, Any]]:
     """One row per cell of ``task``; never raises for an error of a plan or a cell."""
     t0 = time.perf_counter()
+    c0 = _cpu()
     try:
         outcome = obtain_plan(task)
         prepared = _prepare(task, outcome) if outcome.plan is not None else None
+        solve_cpu = _cpu() - c0
     except Exception as err:  # noqa: BLE001 - recorded in the rows
         tb = "".join(traceback.format_exception(err)[-8:])
         return [{**r, "traceback": tb} for r in fail_task(task, f"{type(err).__name__}: {err}")]
     rows = []
     schedules: dict[str, Any] = {}
     for cell in task.cells:
-        c0 = time.perf_counter()
-        row = {**_base(task, cell), **_plan_figures(outcome, task)}
+        w0, c0 = time.perf_counter(), _cpu()
+        row = {**_base(task, cell), **_plan_figures(outcome, task), "plan_cpu_s": solve_cpu}
         if outcome.plan is None or isinstance(prepared, str):
             error = outcome.error if outcome.plan is None else prepared
             row.update(status="failed", stage=outcome.stage or "repair", error=error)
@@ -87,7 +98,8 @@ def run_plan_task(task: PlanTask) -> list[dict[str, Any]]:
                 row.update(status="failed", stage="execute",
                            error=f"{type(err).__name__}: {err}",
                            traceback="".join(traceback.format_exception(err)[-8:]))
-        row["cell_wall_s"] = time.perf_counter() - c0
+        row["cell_wall_s"] = time.perf_counter() - w0
+        row["cell_cpu_s"] = _cpu() - c0
         row["finished"] = _now()
         rows.append(row)
     for row in rows:

@@ -165,15 +165,14 @@ def solve_vs_agents(rows: list[dict], planners: list[str], path: Path) -> Path:
     return _save(fig, path)
 
 
-def draw_all(rows: list[dict], spec: dict | None, out_dir: Path) -> dict[str, Path]:
-    """Every picture that the rows allow; raises ImportError without matplotlib."""
+def draw_all(rows: list[dict], spec: dict | None, out_dir: Path,
+             ref: dict[str, str]) -> dict[str, Path]:
+    """Every picture that the rows allow (``ref``: the reference robot, mismatch and delays
+    labels); raises ImportError without matplotlib."""
     _plt()
-    from .report import _reference
-
     one = [r for r in rows if r.get("kind") == "oneshot"]
     if not one:
         return {}
-    ref = _reference(spec, one)
     planners = list((spec or {}).get("planners") or {}) or list(dict.fromkeys(
         r["planner"] for r in one))
     mismatch = list((spec or {}).get("mismatch") or {}) or list(dict.fromkeys(

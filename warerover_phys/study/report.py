@@ -387,7 +387,8 @@ def write_study_report(out_dir: str | Path, *, pictures: bool = True) -> dict[st
         from .figures import draw_all
 
         try:
-            pics = draw_all(rows, spec, out_dir)
+            one = [r for r in rows if r.get("kind") == "oneshot"]
+            pics = draw_all(rows, spec, out_dir, _reference(spec, one) if one else {})
         except ImportError:
             notes.append("no pictures: matplotlib is not installed (pip install "
                          "'warerover-phys[report]')")
