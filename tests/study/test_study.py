@@ -273,17 +273,26 @@ def test_lifelong_cells_report_throughput(tmp_path):
     path.write_text(yaml.safe_dump({"lifelong": {
         "scenarios": {"Ho": str(scenario)},
         "planners": {"astar": {"planner.name": "astar"}, "pibt": {"planner.name": "pibt"}},
-        "set": {"orders.oneshot.count": 6, "max_ticks": 80}, "seeds": [0, 1]}}))
+        "grid": {"orders.oneshot.count": [4, 6]},
+        "set": {"max_ticks": 80}, "seeds": [0, 1]}}))
     run_study(load_study(path), tmp_path / "out", workers=2)
     rows = lines(tmp_path / "out")
-    assert len(rows) == 4 and all(r["kind"] == "lifelong" and r["status"] == "ok" for r in rows)
-    r = next(r for r in rows if r["planner"] == "pibt" and r["seed"] == 1)
+    assert len(rows) == 8 and all(r["kind"] == "lifelong" and r["status"] == "ok" for r in rows)
+    r = next(r for r in rows if r["planner"] == "pibt" and r["seed"] == 1
+             and r["variant"] == "orders.oneshot.count=6")
     direct = run_episode(load_scenario(scenario, [("orders.oneshot.count", 6),
                                                   ("max_ticks", 80),
                                                   ("planner.name", "pibt")]), seed=1).metrics
     assert r["throughput"] == direct["throughput"] and r["ticks"] == direct["ticks"]
     report = write_study_report(tmp_path / "out", pictures=False)
-    assert len(report["tables"]["lifelong"]) == 2
+    assert len(report["tables"]["lifelong"]) == 4
+    # an override the scenario schema does not know stops the study before it runs
+    bad = yaml.safe_load(path.read_text())
+    bad["lifelong"]["grid"] = {"planner.no_such_key": [1]}
+    path.write_text(yaml.safe_dump(bad))
+    result = CliRunner().invoke(app, ["study", str(path), "--out", str(tmp_path / "o2")])
+    assert result.exit_code == 2 and "planner.no_such_key" in " ".join(result.output.split())
+    assert "Traceback" not in result.output
 
 
 def test_rank_correlation_and_its_interval():

@@ -26,7 +26,7 @@ from ..config import AgvTypeSpec, DelaySpec
 from .spec import Execution, Mismatch, PlannerEntry, StudyError, StudySpec, content_hash
 
 __all__ = ["Cell", "PlanTask", "LifelongTask", "expand", "tasks_for", "lifelong_tasks",
-           "resolve_solvers", "cell_id"]
+           "check_lifelong", "resolve_solvers", "cell_id"]
 
 
 @dataclass(frozen=True)
@@ -205,6 +205,25 @@ def lifelong_tasks(spec: StudySpec, out_dir: str | Path) -> list[LifelongTask]:
                     out.append(LifelongTask(key, label, path, planner, overrides,
                                             tuple(combo.items()), seed, str(out_dir)))
     return out
+
+
+def check_lifelong(spec: StudySpec, tasks: list[LifelongTask]) -> None:
+    """Load every distinct (scenario, overrides) of ``tasks`` once: a bad override path or
+    value is a :class:`StudyError` naming the study file before anything runs."""
+    from ..config import load_scenario
+    from ..errors import ScenarioError
+
+    seen: set[str] = set()
+    for t in tasks:
+        key = json.dumps([t.file, t.overrides], sort_keys=True, default=str)
+        if key in seen:
+            continue
+        seen.add(key)
+        try:
+            load_scenario(t.file, list(t.overrides))
+        except ScenarioError as err:
+            raise StudyError(f"lifelong cell {t.scenario} x {t.planner}: {err}",
+                             file=spec.source, field="lifelong") from None
 
 
 def resolve_solvers(spec: StudySpec, given: dict[str, str] | None = None) -> dict[str, str]:

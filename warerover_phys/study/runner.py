@@ -24,7 +24,15 @@ from typing import Any
 from ..sweep.lock import sweep_lock
 from ..sweep.results import RESULTS_NAME, ResultsFile
 from ..sweep.runner import _term_as_interrupt, run_pool, run_ray
-from .cells import LifelongTask, PlanTask, expand, lifelong_tasks, resolve_solvers, tasks_for
+from .cells import (
+    LifelongTask,
+    PlanTask,
+    check_lifelong,
+    expand,
+    lifelong_tasks,
+    resolve_solvers,
+    tasks_for,
+)
 from .execution import fail_task, run_any
 from .spec import StudySpec
 
@@ -89,7 +97,9 @@ def plan_study(spec: StudySpec, out_dir: str | Path, *, retry_failed: bool = Fal
             if any(c.key in retry for c in task.cells):
                 forget(task)
             tasks.append(replace(task, cells=mine))
-    tasks += [t for t in life if t.key not in rows]
+    todo_life = [t for t in life if t.key not in rows]
+    check_lifelong(spec, todo_life)
+    tasks += todo_life
     total = len(keys)
     summary = StudySummary(total=total, done_before=sum(1 for k in rows if k in keys),
                            failed_total=sum(1 for k, r in rows.items()
