@@ -59,20 +59,29 @@ def _ok(rows: list[dict], ref: dict[str, str]) -> list[dict]:
             and all(r.get(k) == v for k, v in ref.items())]
 
 
-def aet_vs_soc(rows: list[dict], ref: dict[str, str], planners: list[str], path: Path) -> Path:
+def _by_instance(rows: list[dict], planners: list[str], xlabel: str, ylabel: str):
+    """The figure, and per instance its panel (titled, labelled) and its rows; the caller
+    draws each panel and adds the legend to the first."""
     insts = list(dict.fromkeys(r["instance"] for r in rows))
     fig, axes = _panels(len(insts))
-    col = _colors(planners)
     for ax, inst in zip(axes, insts, strict=True):
-        mine = _ok([r for r in rows if r["instance"] == inst], ref)
+        ax.set_title(inst, fontsize=9)
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
+    return fig, [(ax, [r for r in rows if r["instance"] == inst])
+                 for ax, inst in zip(axes, insts, strict=True)]
+
+
+def aet_vs_soc(rows: list[dict], ref: dict[str, str], planners: list[str], path: Path) -> Path:
+    col = _colors(planners)
+    fig, panels = _by_instance(rows, planners, "planned SoC per agent (ticks)", "AET (s)")
+    for ax, mine in panels:
+        mine = _ok(mine, ref)
         for p in planners:
             pts = [(r["soc"] / r["agents"], r["aet_s"]) for r in mine if r["planner"] == p]
             if pts:
                 ax.scatter(*zip(*pts, strict=True), s=14, color=col[p], label=p, alpha=0.8)
-        ax.set_title(inst, fontsize=9)
-        ax.set_xlabel("planned SoC per agent (ticks)")
-        ax.set_ylabel("AET (s)")
-    axes[0].legend(fontsize=7)
+    panels[0][0].legend(fontsize=7)
     fig.suptitle(f"AET vs sum of costs ({ref['robot']}, {ref['mismatch']}, {ref['delays']})",
                  fontsize=10)
     return _save(fig, path)
@@ -88,11 +97,10 @@ def _line(ax, xs_ys: dict[Any, list[float]], color, label: str, marker: str = "o
 
 def aet_vs_agents(rows: list[dict], ref: dict[str, str], planners: list[str],
                   path: Path) -> Path:
-    insts = list(dict.fromkeys(r["instance"] for r in rows))
-    fig, axes = _panels(len(insts))
     col = _colors(planners)
-    for ax, inst in zip(axes, insts, strict=True):
-        mine = _ok([r for r in rows if r["instance"] == inst], ref)
+    fig, panels = _by_instance(rows, planners, "agents", "AET (s)")
+    for ax, mine in panels:
+        mine = _ok(mine, ref)
         for p in planners:
             by: dict[int, list[float]] = {}
             for r in mine:
@@ -100,10 +108,7 @@ def aet_vs_agents(rows: list[dict], ref: dict[str, str], planners: list[str],
                     by.setdefault(r["agents"], []).append(r["aet_s"])
             if by:
                 _line(ax, by, col[p], p)
-        ax.set_title(inst, fontsize=9)
-        ax.set_xlabel("agents")
-        ax.set_ylabel("AET (s)")
-    axes[0].legend(fontsize=7)
+    panels[0][0].legend(fontsize=7)
     return _save(fig, path)
 
 
@@ -132,14 +137,12 @@ def aet_vs_mismatch(rows: list[dict], mismatch: list[str], planners: list[str],
 
 
 def solve_vs_agents(rows: list[dict], planners: list[str], path: Path) -> Path:
-    insts = list(dict.fromkeys(r["instance"] for r in rows))
-    fig, axes = _panels(len(insts))
     col = _colors(planners)
-    for ax, inst in zip(axes, insts, strict=True):
+    fig, panels = _by_instance(rows, planners, "agents", "solve time (s); x: no plan")
+    for ax, mine in panels:
         plans: dict[str, dict] = {}
-        for r in rows:
-            if r["instance"] == inst:
-                plans.setdefault(r.get("plan_id") or r["key"], r)
+        for r in mine:
+            plans.setdefault(r.get("plan_id") or r["key"], r)
         for p in planners:
             by: dict[int, list[float]] = {}
             unsolved = set()
@@ -158,10 +161,7 @@ def solve_vs_agents(rows: list[dict], planners: list[str], path: Path) -> Path:
                          if r["planner"] == p)
                 ax.scatter(none, [tl] * len(none), marker="x", color=col[p], s=30)
         ax.set_yscale("log")
-        ax.set_title(f"{inst} (x: no plan)", fontsize=9)
-        ax.set_xlabel("agents")
-        ax.set_ylabel("solve time (s)")
-    axes[0].legend(fontsize=7)
+    panels[0][0].legend(fontsize=7)
     return _save(fig, path)
 
 

@@ -17,13 +17,12 @@ import json
 import os
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from ..sweep.lock import sweep_lock
 from ..sweep.results import RESULTS_NAME, ResultsFile
-from ..sweep.runner import _term_as_interrupt, run_pool, run_ray
+from ..sweep.runner import SweepSummary, _term_as_interrupt, run_pool, run_ray
 from .cells import (
     LifelongTask,
     PlanTask,
@@ -51,19 +50,8 @@ COLUMNS = ("kind", "status", "stage", "error", "instance", "map", "scen", "scen_
 """The leading columns of the tidy table (the rest follow in name order)."""
 
 
-@dataclass
-class StudySummary:
-    total: int
-    done_before: int
-    ran: int = 0
-    failed: int = 0
-    failed_total: int = 0
-    wall_s: float = 0.0
-    out_dir: Path = field(default_factory=Path)
-
-    @property
-    def results(self) -> Path:
-        return self.out_dir / RESULTS_NAME
+StudySummary = SweepSummary
+"""What a run did: cells in the study, already done before, run now, failed (the sweep's)."""
 
 
 def plan_study(spec: StudySpec, out_dir: str | Path, *, retry_failed: bool = False,
