@@ -363,3 +363,23 @@ def test_motion_timing_reads_the_same_plan_and_predicts_aet_better(tmp_path):
         assert abs(motion["aet_over_planned"] - 1) < abs(unit["aet_over_planned"] - 1)
         assert rot["rotations"] and rot["plan_id"] != unit["plan_id"]
         assert rot["soc"] >= rot["lower_bound"]
+
+
+def test_a_folder_of_plan_files_is_read_and_a_missing_one_is_a_row(tmp_path):
+    from warerover_phys.planning.oneshot import solve, write_plan
+
+    grid = read_map(MAP)
+    scen = read_scen(SCEN, 6, grid)
+    res = solve(grid.obstacles, [a.start for a in scen], [a.goal for a in scen],
+                planner="pibt", time_limit_s=5)
+    folder = tmp_path / "plans"
+    folder.mkdir()
+    write_plan(folder / f"{SCEN.stem}-6.txt", res)  # no plan for 8 agents
+    spec = load_study(write_spec(tmp_path, planners={"given": {"plans": "plans"}},
+                                 robots={"quick": ROBOTS["quick"]}))
+    run_study(spec, tmp_path / "out", workers=1)
+    rows = {r["agents"]: r for r in lines(tmp_path / "out")}
+    assert rows[6]["status"] == "ok" and rows[6]["soc"] == res.sum_of_costs
+    assert rows[6]["planner_kind"] == "plans" and rows[6]["aet_s"] > 0
+    assert rows[8]["status"] == "failed" and rows[8]["stage"] == "read"
+    assert rows[8]["error"].startswith("plan file not found:")
