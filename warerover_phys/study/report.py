@@ -4,7 +4,8 @@ of costs and executed time, pictures, and ``report.md``.
 Tables (each also a CSV in the results folder):
 
 - **planners** (``report_planners.csv``): per instance x agent count x planner, the share of
-  cells solved, solve time, SoC / lower bound (per distinct plan), and the executed figures
+  plans solved, solve time, SoC / lower bound (per distinct plan; for a rotation-aware
+  planner, the plans for the reference robot model), and the executed figures
   (AET, executed makespan, makespan ratio, contacts) under the *reference condition*: the
   first robot model, mismatch level and delay setting of the study file;
 - **conditions** (``report_conditions.csv``): AET per instance x agents x planner x robot x
@@ -155,7 +156,8 @@ def _ci_cols(name: str, stat: tuple[float, float]) -> dict[str, float]:
 def _planner_table(rows: list[dict], ref: dict[str, str]) -> list[dict]:
     out = []
     for (inst, n, planner), group in _group(rows, ("instance", "agents", "planner")).items():
-        plans = _plans(group)
+        # a rotation-aware planner's plans differ by robot model: those of the reference
+        plans = _plans([r for r in group if r.get("robot") == ref.get("robot")] or group)
         nominal = [r for r in group if all(r.get(k) == v for k, v in ref.items())
                    and r.get("status") == "ok"]
         out.append({
