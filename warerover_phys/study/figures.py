@@ -39,14 +39,25 @@ def _panels(count: int, width: float = 4.2, height: float = 3.4):
     plt = _plt()
     cols = min(count, 3)
     rows = -(-count // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(width * cols, height * rows), squeeze=False)
+    fig, axes = plt.subplots(rows, cols, figsize=(width * cols + 1.6, height * rows),
+                             squeeze=False, layout="constrained")
     for ax in axes.flat[count:]:
         ax.set_visible(False)
     return fig, list(axes.flat[:count])
 
 
+def _legend(fig, planners: list[str], rows: list[dict], marker: str = "o") -> None:
+    """One legend for the figure: every planner that has a row, in study order."""
+    from matplotlib.lines import Line2D
+
+    col = _colors(planners)
+    present = {r["planner"] for r in rows}
+    handles = [Line2D([], [], color=col[p], marker=marker, ls="", label=p)
+               for p in planners if p in present]
+    fig.legend(handles=handles, loc="outside right center", fontsize=8)
+
+
 def _save(fig, path: Path) -> Path:
-    fig.tight_layout()
     tmp = path.with_name(path.stem + ".tmp.png")
     fig.savefig(tmp, dpi=110)
     _plt().close(fig)
@@ -81,7 +92,7 @@ def aet_vs_soc(rows: list[dict], ref: dict[str, str], planners: list[str], path:
             pts = [(r["soc"] / r["agents"], r["aet_s"]) for r in mine if r["planner"] == p]
             if pts:
                 ax.scatter(*zip(*pts, strict=True), s=14, color=col[p], label=p, alpha=0.8)
-    panels[0][0].legend(fontsize=7)
+    _legend(fig, planners, rows)
     fig.suptitle(f"AET vs sum of costs ({ref['robot']}, {ref['mismatch']}, {ref['delays']})",
                  fontsize=10)
     return _save(fig, path)
@@ -108,7 +119,7 @@ def aet_vs_agents(rows: list[dict], ref: dict[str, str], planners: list[str],
                     by.setdefault(r["agents"], []).append(r["aet_s"])
             if by:
                 _line(ax, by, col[p], p)
-    panels[0][0].legend(fontsize=7)
+    _legend(fig, planners, rows)
     return _save(fig, path)
 
 
@@ -132,7 +143,7 @@ def aet_vs_mismatch(rows: list[dict], mismatch: list[str], planners: list[str],
         ax.set_xticks(range(len(mismatch)), mismatch, fontsize=8)
         ax.set_title(f"robot {robot}", fontsize=9)
         ax.set_ylabel(f"AET / AET ({mismatch[0]})")
-    axes[0].legend(fontsize=7)
+    _legend(fig, planners, rows)
     return _save(fig, path)
 
 
@@ -161,7 +172,7 @@ def solve_vs_agents(rows: list[dict], planners: list[str], path: Path) -> Path:
                          if r["planner"] == p)
                 ax.scatter(none, [tl] * len(none), marker="x", color=col[p], s=30)
         ax.set_yscale("log")
-    panels[0][0].legend(fontsize=7)
+    _legend(fig, planners, rows)
     return _save(fig, path)
 
 
