@@ -383,3 +383,26 @@ def test_a_folder_of_plan_files_is_read_and_a_missing_one_is_a_row(tmp_path):
     assert rows[6]["planner_kind"] == "plans" and rows[6]["aet_s"] > 0
     assert rows[8]["status"] == "failed" and rows[8]["stage"] == "read"
     assert rows[8]["error"].startswith("plan file not found:")
+
+
+UNTIMED = ("host", "pid", "finished", "cell_wall_s", "cell_cpu_s", "task_wall_s", "plan_cpu_s",
+           "solve_s", "execute_wall_s", "real_time_factor", "plan_kept")
+
+
+@pytest.mark.slow
+def test_pool_and_ray_give_the_same_rows(tmp_path):
+    ray = pytest.importorskip("ray")
+    spec = load_study(write_spec(tmp_path, planners={"lacam": {"solver": "lacam"}}))
+    run_study(spec, tmp_path / "pool", workers=2)
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        summary = run_study(spec, tmp_path / "ray", ray_address="auto")
+        pids = {r["pid"] for r in lines(tmp_path / "ray")}
+    finally:
+        ray.shutdown()
+    assert summary.ran == 4 and summary.failed == 0 and os.getpid() not in pids
+
+    def untimed(out):
+        return {r["key"]: {k: v for k, v in r.items() if k not in UNTIMED} for r in lines(out)}
+
+    assert untimed(tmp_path / "pool") == untimed(tmp_path / "ray")
