@@ -295,6 +295,33 @@ def test_lifelong_cells_report_throughput(tmp_path):
     assert "Traceback" not in result.output
 
 
+def test_robot_runners_lifelong_cells_sweep_invoke_and_latency(tmp_path):
+    from warerover_phys.problems.robotrunners import problem_scenario, read_problem
+    from warerover_phys.sim import run_episode
+
+    problem = DATA / "lorr2023_warehouse_small" / "warehouse_small_50.json"
+    path = tmp_path / "rr.yaml"
+    path.write_text(yaml.safe_dump({"lifelong": {
+        "scenarios": {"small50": str(problem)}, "planners": {"pibt": {}},
+        "grid": {"planner.latency": ["none", "fixed:2"]},
+        "set": {"max_ticks": 40}, "seeds": [0]}}))
+    run_study(load_study(path), tmp_path / "out", workers=1)
+    rows = {r["variant"]: r for r in lines(tmp_path / "out")}
+    assert set(rows) == {"planner.latency=none", "planner.latency=fixed:2"}
+    assert all(r["status"] == "ok" and r["agents"] == 50 and r["ticks"] == 40
+               for r in rows.values())
+    for latency in ("none", "fixed:2"):
+        sc = problem_scenario(read_problem(problem), ticks=40, seed=0,
+                              overrides=[("planner.latency", latency)])
+        direct = run_episode(sc, seed=0).metrics
+        row = rows[f"planner.latency={latency}"]
+        assert (row["throughput"], row["orders_completed"]) == \
+            (direct["throughput"], direct["orders_completed"])
+    # plans that arrive two ticks late cost throughput on this problem
+    assert rows["planner.latency=fixed:2"]["orders_completed"] < \
+        rows["planner.latency=none"]["orders_completed"]
+
+
 def test_rank_correlation_and_its_interval():
     up = rank_correlation([1, 2, 3, 4, 5, 6], [10, 20, 30, 40, 50, 60])
     assert up["spearman"] == pytest.approx(1.0) and up["kendall"] == pytest.approx(1.0)

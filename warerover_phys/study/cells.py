@@ -26,7 +26,7 @@ from ..config import AgvTypeSpec, DelaySpec
 from .spec import Execution, Mismatch, PlannerEntry, StudyError, StudySpec, content_hash
 
 __all__ = ["Cell", "PlanTask", "LifelongTask", "expand", "tasks_for", "lifelong_tasks",
-           "check_lifelong", "resolve_solvers", "cell_id"]
+           "check_lifelong", "lifelong_scenario", "resolve_solvers", "cell_id"]
 
 
 @dataclass(frozen=True)
@@ -207,10 +207,25 @@ def lifelong_tasks(spec: StudySpec, out_dir: str | Path) -> list[LifelongTask]:
     return out
 
 
+def lifelong_scenario(file: str, overrides: tuple[tuple[str, Any], ...] | list, seed: int
+                      ) -> Any:
+    """The scenario of a lifelong cell: a scenario YAML, or a League of Robot Runners
+    problem (``*.json``: its map, agents and task stream, lifelong PIBT on the league's
+    rotation model, 1,000 timesteps unless ``max_ticks`` is overridden), with
+    ``overrides`` (``--set`` pairs: ``planner.invoke``, ``planner.latency``, ...)."""
+    if Path(file).suffix.lower() == ".json":
+        from ..problems.robotrunners import problem_scenario, read_problem
+
+        return problem_scenario(read_problem(file), ticks=1000, seed=seed,
+                                overrides=list(overrides))
+    from ..config import load_scenario
+
+    return load_scenario(file, list(overrides))
+
+
 def check_lifelong(spec: StudySpec, tasks: list[LifelongTask]) -> None:
     """Load every distinct (scenario, overrides) of ``tasks`` once: a bad override path or
     value is a :class:`StudyError` naming the study file before anything runs."""
-    from ..config import load_scenario
     from ..errors import ScenarioError
 
     seen: set[str] = set()
@@ -220,7 +235,7 @@ def check_lifelong(spec: StudySpec, tasks: list[LifelongTask]) -> None:
             continue
         seen.add(key)
         try:
-            load_scenario(t.file, list(t.overrides))
+            lifelong_scenario(t.file, t.overrides, t.seed)
         except ScenarioError as err:
             raise StudyError(f"lifelong cell {t.scenario} x {t.planner}: {err}",
                              file=spec.source, field="lifelong") from None

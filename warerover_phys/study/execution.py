@@ -244,13 +244,13 @@ LIFELONG_KEYS = ("throughput", "success_rate", "orders_completed", "orders_gener
 
 def run_lifelong_task(task: LifelongTask) -> list[dict[str, Any]]:
     """One closed-loop episode (``warerover run``); throughput in place of AET."""
-    from ..config import load_scenario
     from ..sim import run_episode
+    from .cells import lifelong_scenario
 
     row = _life_base(task)
     t0 = time.perf_counter()
     try:
-        sc = load_scenario(task.file, list(task.overrides))
+        sc = lifelong_scenario(task.file, task.overrides, task.seed)
         metrics = run_episode(sc, seed=task.seed).metrics
         row.update({k: metrics.get(k) for k in LIFELONG_KEYS})
         row["agents"] = sc.fleet.size

@@ -28,9 +28,9 @@ file)::
     exclude:                         # combinations left out (all given items must match)
       - {agents: [400, 700], robots: [fast]}
     lifelong:                        # lifelong cells: scenario x planner x overrides
-      scenarios: {Ho: ../layouts/paper_homogeneous.yaml}
-      planners: {astar: {planner.name: astar}}
-      grid: {orders.pattern: [oneshot, burst]}
+      scenarios: {Ho: ../layouts/paper_homogeneous.yaml, rr: ../rr/warehouse_small_50.json}
+      planners: {astar: {planner.name: astar}}   # a *.json: a Robot Runners problem
+      grid: {planner.invoke: [every_tick, "periodic:5"], planner.latency: [none, measured]}
 
 A *cell* is one (instance, agent count, scen, planner, robot, mismatch, delays, seed) or one
 lifelong (scenario, planner, overrides, seed). Its key names every label with a short hash
