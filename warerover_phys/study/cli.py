@@ -36,7 +36,7 @@ def study(target: Annotated[str, typer.Argument(
               help="Local worker processes (default: CPU count).")] = None,
           ray: Annotated[str | None, typer.Option(
               "--ray", metavar="ADDRESS|auto|local",
-              help="Run on Ray (needs the ray extra: pip install warerover-phys with [ray]).")] = None,
+              help="Run on Ray (needs the ray extra: pip install 'warerover-phys\\[ray]').")] = None,
           solver: Annotated[list[str] | None, typer.Option(
               "--solver", metavar="NAME=PATH",
               help="The binary of a solver the study's commands name, e.g. "
