@@ -53,62 +53,35 @@ def _plain(text: str | None) -> str:
     return re.sub(r"\[/?(bold|italic|dim|red|green|yellow|cyan|magenta|blue)\]", "", text)
 
 
-def _type_name(param) -> str:
-    import click
-
-    t = param.type
-    if isinstance(t, click.Choice):
-        return " \\| ".join(f"`{c}`" for c in t.choices)
-    if getattr(param, "is_flag", False):
-        return "flag"
-    name = getattr(t, "name", str(t)).lower()
-    return name + (" (repeatable)" if getattr(param, "multiple", False) else "")
-
-
-def _default(param) -> str:
-    default = param.default
-    if getattr(param, "is_flag", False) and getattr(param, "secondary_opts", None):
-        return param.opts[0] if default else param.secondary_opts[0]
-    if default is None or default == () or getattr(param, "required", False):
-        return ""
-    if callable(default) or type(default).__name__ in ("Sentinel", "_Missing"):
-        return ""
-    if getattr(param, "is_flag", False):
-        return "on" if default else ""
-    return f"`{default}`"
+def _record(param, ctx) -> tuple[str, str]:
+    """What ``--help`` prints for ``param``: its names with the value's kind, and its help
+    with the default (typer's own click copy and plain click both have these)."""
+    rec = param.get_help_record(ctx) if hasattr(param, "get_help_record") else None
+    if rec is None:  # a plain click argument: no help record
+        return (param.name or "").upper(), ""
+    return rec[0], _plain(rec[1])
 
 
 def _command_section(name: str, cmd, parent_ctx) -> list[str]:
-    import click
-
-    ctx = click.Context(cmd, info_name=name, parent=parent_ctx)
+    ctx = cmd.context_class(cmd, info_name=name, parent=parent_ctx)
     usage = " ".join([ctx.command_path, *cmd.collect_usage_pieces(ctx)])
     out = [f"## `{name}`", "", f"```text\n{usage}\n```", "", _plain(cmd.help), ""]
-    args = [p for p in cmd.params if isinstance(p, click.Argument)]
-    opts = [p for p in cmd.params if isinstance(p, click.Option) and not p.hidden]
-    if args:
-        out += ["| argument | type | required | help |", "|---|---|---|---|"]
-        out += [f"| `{p.human_readable_name}` | {_type_name(p)} | "
-                f"{'yes' if p.required else 'no'} | {_cell(_plain(getattr(p, 'help', '')))} |"
-                for p in args]
-        out.append("")
-    if opts:
-        out += ["| option | type | default | help |", "|---|---|---|---|"]
-        for p in opts:
-            names = ", ".join(f"`{o}`" for o in [*p.opts, *p.secondary_opts])
-            out.append(f"| {names} | {_type_name(p)} | {_default(p)} | "
-                       f"{_cell(_plain(p.help))} |")
-        out.append("")
+    # typer may bring its own copy of click: tell parameters apart by their kind's name
+    for kind in ("argument", "option"):
+        params = [p for p in cmd.params if p.param_type_name == kind and not p.hidden]
+        if params:
+            out += [f"| {kind} | help |", "|---|---|"]
+            out += ["| `{}` | {} |".format(*(_cell(x) for x in _record(p, ctx))) for p in params]
+            out.append("")
     return out
 
 
 def cli_markdown(app) -> str:
     """Every command of the typer ``app``: usage, help, arguments and options."""
-    import click
     import typer
 
     group = typer.main.get_command(app)
-    root = click.Context(group, info_name="warerover")
+    root = group.context_class(group, info_name="warerover")
     out = [_plain(group.help), ""]
     names = group.list_commands(root)
     out += ["| command | what it does |", "|---|---|"]
@@ -161,6 +134,11 @@ def _models(model) -> dict[str, Any]:
     return seen
 
 
+def _excluded(model) -> frozenset[str]:
+    """Fields never read from a file (``Field(exclude=True)``: set by the loader)."""
+    return frozenset(n for n, f in model.model_fields.items() if f.exclude)
+
+
 def _type(s: dict) -> str:
     if "$ref" in s:
         name = s["$ref"].rsplit("/", 1)[-1]
@@ -194,7 +172,18 @@ def _limits(s: dict) -> str:
     return ", ".join(dict.fromkeys(parts))
 
 
-def _model_table(name: str, schema: dict, docs: dict[str, str]) -> list[str]:
+def _default_cell(s: dict) -> str:
+    if "default" not in s:
+        return ""
+    ref = s.get("$ref") or next((x["$ref"] for x in s.get("allOf", []) if "$ref" in x), None)
+    if ref and isinstance(s["default"], dict):  # a whole sub-model: its own table has them
+        name = ref.rsplit("/", 1)[-1]
+        return f"the defaults of [{name}](#{name.lower()})"
+    return f"`{json.dumps(s['default'])}`"
+
+
+def _model_table(name: str, schema: dict, docs: dict[str, str],
+                 hidden: frozenset[str] = frozenset()) -> list[str]:
     out = [f"## {name}", ""]
     if schema.get("description"):
         out += [inspect.cleandoc(schema["description"]), ""]
@@ -204,8 +193,9 @@ def _model_table(name: str, schema: dict, docs: dict[str, str]) -> list[str]:
     required = set(schema.get("required", []))
     out += ["| field | type | default | limits | description |", "|---|---|---|---|---|"]
     for field, s in props.items():
-        default = "required" if field in required else (
-            f"`{json.dumps(s['default'])}`" if "default" in s else "")
+        if field in hidden:
+            continue
+        default = "required" if field in required else _default_cell(s)
         desc = docs.get(field) or s.get("description") or ""
         out.append(f"| `{field}` | {_type(s)} | {_cell(default)} | {_cell(_limits(s))} | "
                    f"{_cell(desc)} |")
@@ -221,8 +211,9 @@ def schema_markdown(model) -> str:
     out = [f"The root is [{model.__name__}](#{model.__name__.lower()}); the whole JSON "
            "schema, for editors and validators: `warerover_phys.Scenario.model_json_schema()`.",
            ""]
-    out += _model_table(model.__name__, schema, _field_docs(model))
+    out += _model_table(model.__name__, schema, _field_docs(model), _excluded(model))
     for name in sorted(defs):
         cls = classes.get(name)
-        out += _model_table(name, defs[name], _field_docs(cls) if cls else {})
+        out += _model_table(name, defs[name], _field_docs(cls) if cls else {},
+                            _excluded(cls) if cls else frozenset())
     return "\n".join(out)
