@@ -9,6 +9,8 @@ mkdocs.yml only to give it a place of its own.
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 from mkdocs.structure.nav import Section
 
 _HOMES = {"results/": "Results", "reference/": "Reference"}
@@ -36,6 +38,6 @@ def on_nav(nav, config, files):  # noqa: ARG001 (hook API)
         section.children.append(page)
         page.parent = section
         nav.pages.append(page)
-    for prev, nxt in zip(nav.pages, nav.pages[1:]):
+    for prev, nxt in pairwise(nav.pages):
         prev.next_page, nxt.previous_page = nxt, prev
     return nav

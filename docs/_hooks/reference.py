@@ -20,6 +20,7 @@ import inspect
 import json
 import re
 import textwrap
+from itertools import pairwise
 from typing import Any
 
 _MARKER = re.compile(r"^<!-- generated: (cli|schema) ([\w.]+):([\w.]+) -->$", re.M)
@@ -106,7 +107,7 @@ def _field_docs(model) -> dict[str, str]:
         except (OSError, TypeError, SyntaxError):
             continue
         body = tree.body[0].body if tree.body and isinstance(tree.body[0], ast.ClassDef) else []
-        for a, b in zip(body, body[1:]):
+        for a, b in pairwise(body):
             if (isinstance(a, ast.AnnAssign) and isinstance(a.target, ast.Name)
                     and isinstance(b, ast.Expr) and isinstance(b.value, ast.Constant)
                     and isinstance(b.value.value, str)):
