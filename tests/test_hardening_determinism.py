@@ -28,3 +28,17 @@ def cases():
 def test_same_seed_same_episode(scenario, planner, executor):
     args = (scenario, planner, executor, 1, MAX_TICKS.get(scenario))
     assert digest_in_subprocess(*args, hashseed=1) == digest_in_subprocess(*args, hashseed=2)
+
+
+PHYSICS_SHORT = (("executor.delays.model", "bernoulli"), ("executor.delays.prob", 0.05),
+                 ("executor.delays.min_ticks", 1), ("executor.delays.max_ticks", 3))
+"""Random delays on: their draws, and who they stop, must not follow a hash order."""
+
+
+@pytest.mark.parametrize("scenario", ["paper_fault", "paper_heterogeneous"])
+def test_physics_same_seed_same_episode_across_hash_seeds(scenario):
+    """The default set's physics check (the full matrix above is slow): a short episode
+    with failures or mixed footprints and random delays, in two interpreters with different
+    ``PYTHONHASHSEED``s, the same metrics, events, paths and poses bit for bit."""
+    args = (scenario, "astar", "physics", 1, 40, PHYSICS_SHORT)
+    assert digest_in_subprocess(*args, hashseed=1) == digest_in_subprocess(*args, hashseed=2)
