@@ -3,7 +3,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench wheel clean
+.PHONY: demo test test-slow test-all lint lacam3 bench wheel clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV) || python3 -m venv $(VENV)
@@ -17,8 +17,27 @@ demo: $(STAMP)
 	$(BIN)/warerover run layouts/paper_homogeneous.yaml --seed 1 --executor physics --out runs/demo \
 		--video videos/demo.mp4
 
+# The default set (pyproject's addopts leave the slow tests out): the first signal, in minutes.
 test: $(STAMP)
 	$(BIN)/python -m pytest -n auto --dist loadfile
+
+# The slow set alone (-m slow replaces the default "not slow"); worksteal spreads the many
+# slow cases of one file (the determinism matrix) over the workers.
+test-slow: $(STAMP)
+	$(BIN)/python -m pytest -n auto --dist worksteal -m slow
+
+# Everything CI runs (.ci/run, with CI=true: derandomized hypothesis, a skip fails):
+# lint first (seconds), the reference lacam3 binary a test reads, the default set, the slow
+# set, then the wheel on its own.
+test-all: lint lacam3 test test-slow wheel
+
+# LaCAM3 (C++, ../shared/reference/lacam3) built into build/lacam3/main (cmake and g++).
+LACAM3_SRC ?= ../shared/reference/lacam3
+lacam3: build/lacam3/main
+
+build/lacam3/main:
+	cmake -S $(LACAM3_SRC) -B build/lacam3 -DCMAKE_BUILD_TYPE=Release > /dev/null
+	$(MAKE) -C build/lacam3 -j2 > /dev/null
 
 lint: $(STAMP)
 	$(BIN)/ruff check warerover_phys tests tools

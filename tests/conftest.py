@@ -15,14 +15,20 @@ count under both profiles: each says why where it departs from the profile's cou
 example that runs physics costs seconds; a parser check costs microseconds).
 
 **Skips.** The terminal summary names every skipped test with its reason (xdist folds
-``-rs`` lines by location, which hides which tests were left out).
+``-rs`` lines by location, which hides which tests were left out). Under ``CI`` a skip is a
+failure (CI runs everything: a missing browser, binary or extra must turn it red, not
+leave it green with fewer tests), except for the reasons in :data:`OPTIONAL_IN_CI`.
 """
 
 from __future__ import annotations
 
 import os
+import re
 
+import pytest
 from hypothesis import HealthCheck, settings
+
+pytest_plugins = ["pytester"]  # tests/test_ci_policy.py runs this file on small suites
 
 CI_MAX_EXAMPLES = 50
 DEV_MAX_EXAMPLES = 100
@@ -35,20 +41,58 @@ settings.register_profile(
     suppress_health_check=[HealthCheck.too_slow])
 
 
-def profile_name(env: os._Environ | dict = os.environ) -> str:
-    """``HYPOTHESIS_PROFILE`` if set, else ``ci`` where ``CI`` is set (and not false), else
-    ``dev``."""
-    chosen = env.get("HYPOTHESIS_PROFILE")
-    if chosen:
-        return chosen
-    return "ci" if env.get("CI", "").lower() not in ("", "0", "false", "no") else "dev"
+OPTIONAL_IN_CI = re.compile(r"\btorch\b")
+"""Skip reasons CI accepts: the PyTorch training tests need the ``[train]`` extra, which CI
+does not install (they are named in the summary)."""
+
+
+def in_ci(env=os.environ) -> bool:
+    """Whether ``CI`` is set to something other than a false word."""
+    return env.get("CI", "").strip().lower() not in ("", "0", "false", "no")
+
+
+def profile_name(env=os.environ) -> str:
+    """``HYPOTHESIS_PROFILE`` if set, else ``ci`` under :func:`in_ci`, else ``dev``."""
+    return env.get("HYPOTHESIS_PROFILE") or ("ci" if in_ci(env) else "dev")
 
 
 settings.load_profile(profile_name())
 
 
 def pytest_report_header(config) -> str:
-    return f"hypothesis profile: {profile_name()}"
+    return f"hypothesis profile: {profile_name()}; CI: {in_ci()} (skips fail)" if in_ci() \
+        else f"hypothesis profile: {profile_name()}"
+
+
+def _skip_reason(rep) -> str:
+    reason = rep.longrepr[2] if isinstance(rep.longrepr, tuple) else str(rep.longrepr)
+    return reason.removeprefix("Skipped: ")
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    outcome = yield
+    rep = outcome.get_result()
+    if rep.skipped and not hasattr(rep, "wasxfail") and in_ci():
+        reason = _skip_reason(rep)
+        if not OPTIONAL_IN_CI.search(reason):
+            rep.outcome = "failed"
+            rep.longrepr = (f"skipped under CI ({reason}): CI runs every test; install what "
+                            f"it needs (see .ci/run) or, for an optional extra, add its "
+                            f"reason to OPTIONAL_IN_CI in tests/conftest.py")
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_make_collect_report(collector):
+    """A whole module skipped at import (``pytest.importorskip`` at the top) fails its
+    collection under ``CI``, as a test's skip fails the test."""
+    outcome = yield
+    rep = outcome.get_result()
+    if rep.skipped and in_ci():
+        reason = _skip_reason(rep)
+        if not OPTIONAL_IN_CI.search(reason):
+            rep.outcome = "failed"
+            rep.longrepr = f"module skipped under CI ({reason}): CI runs every test"
 
 
 def pytest_terminal_summary(terminalreporter, exitstatus, config) -> None:
@@ -57,5 +101,4 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config) -> None:
         return
     terminalreporter.section(f"{len(skipped)} skipped tests")
     for rep in sorted(skipped, key=lambda r: r.nodeid):
-        reason = rep.longrepr[2] if isinstance(rep.longrepr, tuple) else str(rep.longrepr)
-        terminalreporter.line(f"SKIPPED {rep.nodeid}: {reason.removeprefix('Skipped: ')}")
+        terminalreporter.line(f"SKIPPED {rep.nodeid}: {_skip_reason(rep)}")

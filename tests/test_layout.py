@@ -66,9 +66,9 @@ def test_movingai_map_as_base():
 def test_generator_scales(blocks, shape):
     gen = GeneratorSpec(block_rows=blocks[0], block_cols=blocks[1], block_shape=shape,
                         stations=12, parking=40)
-    t = time.perf_counter()
+    t = time.process_time()  # CPU time: a loaded machine does not stretch it
     grid = generate_base(gen, fleet_size=40)
-    elapsed = time.perf_counter() - t
+    elapsed = time.process_time() - t
     shelves = int((grid == CellType.SHELF).sum())
     assert shelves == blocks[0] * blocks[1] * shape[0] * shape[1]
     assert int((grid == CellType.STATION).sum()) == 12
@@ -83,11 +83,11 @@ def test_generated_industrial_size_layout_passes_checks():
         "layout": {"generator": {"block_rows": 20, "block_cols": 44, "block_shape": [2, 10],
                                  "aisle_width": 1, "stations": 30}},
         "fleet": {"agvs": [{"count": 400}]}})
-    t = time.perf_counter()
+    t = time.process_time()  # CPU time: a loaded machine does not stretch it
     world = World.build(sc)
     assert world.layout.rows >= 60 and world.layout.cols >= 480
     assert len(world.agvs) == 400
-    assert time.perf_counter() - t < 30
+    assert time.process_time() - t < 30
 
 
 def test_reachability_is_checked_for_the_largest_footprint():

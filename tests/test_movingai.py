@@ -163,9 +163,9 @@ def test_map_parse_is_fast(tmp_path: Path) -> None:
     path = write(tmp_path, "big.map", map_text(rows))
     times = []
     for _ in range(5):
-        t0 = time.perf_counter()
+        t0 = time.process_time()  # CPU time: a loaded machine does not stretch it
         grid = read_map(path)
-        times.append(time.perf_counter() - t0)
+        times.append(time.process_time() - t0)
     assert grid.obstacles.shape == (500, 140)
     assert min(times) < 0.1
 
