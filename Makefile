@@ -36,8 +36,11 @@ LACAM3_SRC ?= ../shared/reference/lacam3
 lacam3: build/lacam3/main
 
 build/lacam3/main:
-	cmake -S $(LACAM3_SRC) -B build/lacam3 -DCMAKE_BUILD_TYPE=Release > /dev/null
-	$(MAKE) -C build/lacam3 -j2 > /dev/null
+	@mkdir -p build
+	@echo "building lacam3 from $(LACAM3_SRC) into build/lacam3 (log: build/lacam3.log)"
+	@(cmake -S $(LACAM3_SRC) -B build/lacam3 -DCMAKE_BUILD_TYPE=Release \
+		&& $(MAKE) -C build/lacam3 -j2) > build/lacam3.log 2>&1 \
+		|| { tail -20 build/lacam3.log; exit 1; }
 
 lint: $(STAMP)
 	$(BIN)/ruff check warerover_phys tests tools

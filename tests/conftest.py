@@ -33,11 +33,14 @@ pytest_plugins = ["pytester"]  # tests/test_ci_policy.py runs this file on small
 CI_MAX_EXAMPLES = 50
 DEV_MAX_EXAMPLES = 100
 
+# Both from hypothesis's "default" profile: hypothesis loads its own "ci" profile at import
+# where CI is set, and a profile registered then would inherit that one's settings.
+_BASE = settings.get_profile("default")
 settings.register_profile(
-    "ci", max_examples=CI_MAX_EXAMPLES, derandomize=True, database=None, deadline=None,
-    print_blob=True, suppress_health_check=[HealthCheck.too_slow])
+    "ci", _BASE, max_examples=CI_MAX_EXAMPLES, derandomize=True, database=None,
+    deadline=None, print_blob=True, suppress_health_check=[HealthCheck.too_slow])
 settings.register_profile(
-    "dev", max_examples=DEV_MAX_EXAMPLES, deadline=None,
+    "dev", _BASE, max_examples=DEV_MAX_EXAMPLES, derandomize=False, deadline=None,
     suppress_health_check=[HealthCheck.too_slow])
 
 
