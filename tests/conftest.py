@@ -11,8 +11,10 @@
 
 ``HYPOTHESIS_PROFILE=ci`` or ``=dev`` picks one explicitly (``make test`` locally, then, is
 ``dev``; ``.ci/run`` exports ``CI=true``). A test that states ``max_examples`` keeps that
-count under both profiles: each says why where it departs from the profile's count (an
-example that runs physics costs seconds; a parser check costs microseconds).
+count under both profiles (derandomized in CI all the same). Counts from 30 to 120 are
+ordinary budgets near the profile's; every count outside that range says why on the line
+above it: few where an example runs an episode or a planner on a floor, many where an
+example is one cheap call over a wide input space (a parser, a kernel, a distance).
 
 **Skips.** The terminal summary names every skipped test with its reason (xdist folds
 ``-rs`` lines by location, which hides which tests were left out). Under ``CI`` a skip is a

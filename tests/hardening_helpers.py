@@ -57,7 +57,11 @@ def episode_digest(scenario: str, planner: str, executor: str, seed: int,
 
     from warerover_phys import load_scenario, run_episode
 
-    over = [("planner.name", planner), ("executor.name", executor), *overrides]
+    # The planners' wall-clock safety stop (planner.time_budget_s, 10 s a call) out of the
+    # way: their work budgets decide, as on a quiet machine (at load ~20 on 2 cores two slow
+    # physics cases once gave different digests; suspected: that stop, hit in one process).
+    over = [("planner.name", planner), ("executor.name", executor),
+            ("planner.time_budget_s", 3600.0), *overrides]
     if max_ticks is not None:
         over.append(("max_ticks", max_ticks))
     result = run_episode(load_scenario(LAYOUTS / f"{scenario}.yaml", over), seed=seed)

@@ -418,6 +418,7 @@ def walks(draw):
     return Plan(paths=tuple(paths), rows=rows, cols=cols), rows, cols
 
 
+# 150 examples: random walks, cheap: conflicts are rare among them
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(walks())
 def test_agrees_with_the_discrete_validator_on_random_walks(case):
@@ -458,6 +459,7 @@ def instances(draw):
         draw(st.sampled_from(["lacam", "pibt"]))
 
 
+# 25 examples: each example solves a floor with a one-shot planner
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(instances())
 def test_agrees_with_the_discrete_validator_on_planner_plans(case):

@@ -87,6 +87,7 @@ finite = st.floats(-3, 3, allow_nan=False)
 size = st.floats(0.05, 1.5, allow_nan=False)
 
 
+# 150 examples: one distance per example against shapely, wide inputs
 @settings(max_examples=150, deadline=None)
 @given(finite, finite, finite, size, size, finite, finite, finite, size, size)
 def test_rect_distance_is_shapely_distance_or_minus_a_depth(x1, y1, a1, l1, w1, x2, y2, a2, l2,
