@@ -3,7 +3,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-slow test-all lint lacam3 bench wheel clean
+.PHONY: demo test test-slow test-all test-cov lint lacam3 bench wheel clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV) || python3 -m venv $(VENV)
@@ -18,18 +18,31 @@ demo: $(STAMP)
 		--video videos/demo.mp4
 
 # The default set (pyproject's addopts leave the slow tests out): the first signal, in minutes.
-test: $(STAMP)
-	$(BIN)/python -m pytest -n auto --dist loadfile
-
+PYTEST_DEFAULT = $(BIN)/python -m pytest -n auto --dist loadfile
 # The slow set alone (-m slow replaces the default "not slow"); worksteal spreads the many
 # slow cases of one file (the determinism matrix) over the workers.
+PYTEST_SLOW = $(BIN)/python -m pytest -n auto --dist worksteal -m slow
+
+test: $(STAMP)
+	$(PYTEST_DEFAULT)
+
 test-slow: $(STAMP)
-	$(BIN)/python -m pytest -n auto --dist worksteal -m slow
+	$(PYTEST_SLOW)
 
 # Everything CI runs (.ci/run, with CI=true: derandomized hypothesis, a skip fails):
-# lint first (seconds), the reference lacam3 binary a test reads, the default set, the slow
-# set, then the wheel on its own.
-test-all: lint lacam3 test test-slow wheel
+# lint first (seconds), the reference lacam3 binary a test reads, the default and the slow
+# set under line coverage (test-cov), then the wheel on its own.
+test-all: lint lacam3 test-cov wheel
+
+# Both sets with pytest-cov (coverage of the package's lines run in the pytest processes;
+# the CLI run as a subprocess and Ray's workers are not counted): build/coverage.txt.
+COV_ARGS = --cov=warerover_phys --cov-append --cov-report=
+test-cov: $(STAMP)
+	@rm -f .coverage .coverage.*
+	@mkdir -p build
+	rc=0; $(PYTEST_DEFAULT) $(COV_ARGS) || rc=$$?; $(PYTEST_SLOW) $(COV_ARGS) || rc=$$?; \
+	$(BIN)/python -m coverage report --precision=1 > build/coverage.txt; \
+	echo "line coverage (default + slow set): $$(tail -1 build/coverage.txt)"; exit $$rc
 
 # LaCAM3 (C++, ../shared/reference/lacam3) built into build/lacam3/main (cmake and g++).
 LACAM3_SRC ?= ../shared/reference/lacam3

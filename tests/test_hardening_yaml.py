@@ -17,6 +17,7 @@ LAUGHS = "\n".join(
     + ["layout: *i", "fleet: {agvs: [{count: 1}]}"]) + "\n"
 
 
+@pytest.mark.no_cover  # a CPU-time bound: measured without coverage's tracer
 def test_billion_laughs_is_refused_quickly(tmp_path):
     path = tmp_path / "laughs.yaml"
     path.write_text(LAUGHS)

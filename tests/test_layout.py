@@ -62,6 +62,7 @@ def test_movingai_map_as_base():
     assert err.value.field == "layout.stations[0]"  # (2, 26) is a shelf of the map
 
 
+@pytest.mark.no_cover  # a CPU-time bound: measured without coverage's tracer
 @pytest.mark.parametrize("blocks,shape", [((2, 2), (2, 3)), ((45, 56), (2, 8))])
 def test_generator_scales(blocks, shape):
     gen = GeneratorSpec(block_rows=blocks[0], block_cols=blocks[1], block_shape=shape,
@@ -78,6 +79,7 @@ def test_generator_scales(blocks, shape):
         assert elapsed < 2.0
 
 
+@pytest.mark.no_cover  # a CPU-time bound: measured without coverage's tracer
 def test_generated_industrial_size_layout_passes_checks():
     sc = scenario_from_dict({
         "layout": {"generator": {"block_rows": 20, "block_cols": 44, "block_shape": [2, 10],

@@ -157,6 +157,7 @@ def test_first_n_selection() -> None:
     assert read_scen(WAREHOUSE_SCEN, n=1)[0].start == (int(first[5]), int(first[4]))
 
 
+@pytest.mark.no_cover  # a CPU-time bound: measured without coverage's tracer
 def test_map_parse_is_fast(tmp_path: Path) -> None:
     rng = np.random.default_rng(0)
     rows = ["".join(rng.choice(list(".@T"), size=140)) for _ in range(500)]
