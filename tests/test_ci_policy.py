@@ -57,7 +57,8 @@ def test_under_ci_a_skip_fails_but_an_optional_extra_does_not(suite, monkeypatch
     assert "hypothesis profile: ci" in out
 
 
-@pytest.mark.parametrize("ci", [None, "false", "0"])
+@pytest.mark.parametrize("ci", [None] + [pytest.param(v, marks=pytest.mark.slow)  # make test-all
+                                 for v in ("false", "0")])
 def test_elsewhere_skips_stay_skips_and_are_named(suite, monkeypatch, ci):
     res = run(suite, monkeypatch, ci)
     res.assert_outcomes(passed=1, skipped=3)

@@ -10,8 +10,9 @@ from hardening_helpers import LAYOUTS, digest_in_subprocess
 SCENARIOS = sorted(p.stem for p in LAYOUTS.glob("*.yaml"))
 PLANNERS = ["astar", "cbs", "pibt", "lacam"]
 EXECUTORS = ["grid", "physics"]
-FAST = {("paper_homogeneous", "grid"), ("paper_heterogeneous", "grid"), ("paper_fault", "grid")}
-"""Cases of a few seconds; the rest are marked slow."""
+FAST = {("paper_heterogeneous", "grid")}
+"""Cases of a few seconds in the default set (the four planners on the mixed-footprint floor);
+the rest (the other paper floors on the grid included) are marked slow: ``make test-all``."""
 MAX_TICKS = {"industrial": 60}
 """The industrial floor (320 AGVs) is checked over its first ticks only."""
 
@@ -35,10 +36,11 @@ PHYSICS_SHORT = (("executor.delays.model", "bernoulli"), ("executor.delays.prob"
 """Random delays on: their draws, and who they stop, must not follow a hash order."""
 
 
-@pytest.mark.parametrize("scenario", ["paper_fault", "paper_heterogeneous"])
+@pytest.mark.parametrize("scenario", ["paper_fault",
+                                      pytest.param("paper_heterogeneous", marks=pytest.mark.slow)])
 def test_physics_same_seed_same_episode_across_hash_seeds(scenario):
     """The default set's physics check (the full matrix above is slow): a short episode
-    with failures or mixed footprints and random delays, in two interpreters with different
+    with failures (paper_fault; mixed footprints in ``make test-all``) and random delays, in two interpreters with different
     ``PYTHONHASHSEED``s, the same metrics, events, paths and poses bit for bit."""
     args = (scenario, "astar", "physics", 1, 40, PHYSICS_SHORT)
     assert digest_in_subprocess(*args, hashseed=1) == digest_in_subprocess(*args, hashseed=2)

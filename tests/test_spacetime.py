@@ -18,6 +18,7 @@ import shapely
 from hardening_helpers import LAYOUTS, assert_clean_error, run_cli
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from longcases import slow_after
 
 from warerover_phys.plans.model import Plan
 from warerover_phys.spacetime import (
@@ -141,7 +142,7 @@ def outlines_over(m: AgentMotion, times: np.ndarray, grow: float = 0.0) -> np.nd
     return out
 
 
-@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("seed", slow_after(2, range(6)))
 def test_agrees_with_dense_sampling(seed):
     """An independent check of the whole pipeline: bodies compared with shapely at 4,000
     instants. Every pair seen overlapping by more than the tolerance (bodies shrunk by a

@@ -194,6 +194,7 @@ def _check_peaks(res) -> None:
 
 # --------------------------------------------------------------------------- clearance
 
+@pytest.mark.slow  # whole physics episodes: make test-all
 def test_min_clearance_is_what_an_outside_check_finds_in_trajectories_npz(tmp_path):
     """On main ``min_separation_m`` said 0.51 m (centre to edge, once a tick) where the
     bodies came within 1 cm; now ``min_clearance_m`` is the edge-to-edge figure over every

@@ -64,6 +64,7 @@ def _instances(draw):
     return obstacles, rng, free, n
 
 
+@pytest.mark.slow  # 80 random floors through the Python reference: make test-all
 @settings(max_examples=80, deadline=None)
 @given(_instances())
 def test_compiled_steps_match_the_python_steps_on_random_grids(inst):
