@@ -20,8 +20,10 @@ demo: $(STAMP)
 # The default set (pyproject's addopts leave the slow tests out): the first signal, in minutes.
 PYTEST_DEFAULT = $(BIN)/python -m pytest -n auto --dist loadfile
 # The slow set alone (-m slow replaces the default "not slow"); worksteal spreads the many
-# slow cases of one file (the determinism matrix) over the workers.
-PYTEST_SLOW = $(BIN)/python -m pytest -n auto --dist worksteal -m slow
+# slow cases of one file (the determinism matrix) over the workers. Its cases are long
+# (whole episodes, sweeps, a wheel install): a 30-minute hang guard instead of pyproject's
+# 5 minutes, which five of them overran on a loaded two-core machine (load ~20).
+PYTEST_SLOW = $(BIN)/python -m pytest -n auto --dist worksteal -m slow --timeout=1800
 
 test: $(STAMP)
 	$(PYTEST_DEFAULT)
