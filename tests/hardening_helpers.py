@@ -8,6 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+
 REPO = Path(__file__).resolve().parent.parent
 LAYOUTS = REPO / "layouts"
 DATA = REPO / "tests" / "data"
@@ -76,23 +78,33 @@ TIMING = ("ct_", "wall_s", "real_time_factor")
 
 
 def episode_digest(scenario: str, planner: str, executor: str, seed: int,
-                   max_ticks: int | None = None) -> str:
+                   max_ticks: int | None = None, overrides: tuple = ()) -> str:
     """SHA-256 of everything an episode decides: metrics (timing left out), events, planned
-    and executed paths."""
+    and executed paths, and on physics the recorded poses (bit for bit). ``overrides``:
+    more ``(key, value)`` settings."""
     import hashlib
     import json
 
     from warerover_phys import load_scenario, run_episode
 
-    overrides = [("planner.name", planner), ("executor.name", executor)]
+    # The planners' wall-clock safety stop (planner.time_budget_s, 10 s a call) out of the
+    # way: their work budgets decide, as on a quiet machine (at load ~20 on 2 cores two slow
+    # physics cases once gave different digests; suspected: that stop, hit in one process).
+    over = [("planner.name", planner), ("executor.name", executor),
+            ("planner.time_budget_s", 3600.0), *overrides]
     if max_ticks is not None:
-        overrides.append(("max_ticks", max_ticks))
-    result = run_episode(load_scenario(LAYOUTS / f"{scenario}.yaml", overrides), seed=seed)
+        over.append(("max_ticks", max_ticks))
+    result = run_episode(load_scenario(LAYOUTS / f"{scenario}.yaml", over), seed=seed)
     metrics = {k: v for k, v in result.metrics.items() if not k.startswith(TIMING)}
     blob = json.dumps([metrics, result.events, result.planned,
                        {str(k): v for k, v in result.actual.items()}],
                       sort_keys=True, default=str)
-    return hashlib.sha256(blob.encode()).hexdigest()
+    digest = hashlib.sha256(blob.encode())
+    for key in ("t", "x", "y", "heading", "state", "loaded"):
+        if result.trajectory is not None and key in result.trajectory:
+            digest.update(key.encode())
+            digest.update(np.ascontiguousarray(result.trajectory[key]).tobytes())
+    return digest.hexdigest()
 
 
 def digest_in_subprocess(*args: object, hashseed: int) -> str:

@@ -136,6 +136,7 @@ def test_robot_runners_plan_with_turns(tmp_path):
     assert m["executed_makespan_ticks"] == m["planned_makespan_ticks"] == 5
 
 
+@pytest.mark.slow  # solve, execute, export and an H.264 video through the CLI: make test-all
 def test_solve_then_execute_cli_with_export_and_video(tmp_path):
     plan_file = tmp_path / "plan.txt"
     r = _invoke("solve", str(MAP), str(SCEN), "--agents", "10", "--out", str(plan_file))

@@ -45,17 +45,40 @@ def test_failed_episode_names_its_cause():
     assert m["failure_cause"] == "timeout" and "max_ticks 20" in m["failure_detail"]
 
 
+FAULT_60 = [("max_ticks", 60), ("faults.random.prob_per_tick", 0.0),
+            ("faults.orders_of_failed", "wait")]
+
+
+def _fail_agv0_at(tick: int | None):
+    extra = [] if tick is None else [("faults.scheduled",
+                                      [{"agv": 0, "tick": tick, "repair_ticks": 500}])]
+    return run_episode(load_scenario(LAYOUTS / "paper_fault.yaml", FAULT_60 + extra), seed=1)
+
+
 def test_fault_at_the_end_is_the_cause():
-    result = run_episode(load_scenario(LAYOUTS / "paper_fault.yaml", [
-        ("max_ticks", 60), ("faults.random.prob_per_tick", 0.0),
-        ("faults.orders_of_failed", "wait"),
-        ("faults.scheduled", [{"agv": 0, "tick": 5, "repair_ticks": 500}])]), seed=1)
+    """AGV 0 fails for good one tick after its first trip starts (found by a run without
+    the failure, so the case holds whatever the scheduler picks): it holds orders at the
+    end, and the fault is the cause, naming AGV 0."""
+    first = min(e["tick"] for e in _fail_agv0_at(None).events
+                if e["event"] == "trip_started" and e["agv"] == 0)
+    result = _fail_agv0_at(first + 1)
+    assert any(e["event"] == "agv_failed" and e["agv"] == 0 and e["tick"] == first + 1
+               for e in result.events)
     m = result.metrics
     assert m["success_rate"] < 1.0
-    assert m["failure_cause"] in ("fault", "timeout")
-    if any(e["event"] == "trip_started" and e["agv"] == 0 and e["tick"] < 5
-           for e in result.events):
-        assert m["failure_cause"] == "fault"
+    assert m["failure_cause"] == "fault"
+    assert m["failure_detail"].startswith("AGVs [0] down at the end; ")
+
+
+def test_a_fault_holding_no_orders_is_not_the_cause():
+    """AGV 0 fails at tick 0, before any order is assigned: it holds none at the end, so
+    the episode that runs out of ticks is a timeout, not a fault."""
+    result = _fail_agv0_at(0)
+    assert not any(e["event"] == "trip_started" and e["agv"] == 0 for e in result.events)
+    m = result.metrics
+    assert m["success_rate"] < 1.0
+    assert m["failure_cause"] == "timeout"
+    assert m["failure_detail"].startswith("max_ticks 60 reached; ")
 
 
 def test_freeze_s_is_validated():

@@ -94,6 +94,7 @@ def test_pictures_are_looked_at(seeds_dir, name, colours):
         assert ((r > 0.8) & (g < 0.6) & (b < 0.3)).sum() > 100
 
 
+@pytest.mark.slow  # closed-loop gap runs through the CLI: make test-all
 def test_closed_mode_is_labelled_everywhere(tmp_path):
     out = tmp_path / "closed.json"
     r = run_cli("gap", HOMO, "--mode", "closed", "--seed", "1", "--set", "max_ticks=40",

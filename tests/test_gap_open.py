@@ -155,6 +155,7 @@ def test_modes_are_labelled():
         gap_report(sc, 1, mode="sideways")
 
 
+# 6 examples: each example executes a plan on the physics executor
 @settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(prob=st.floats(0.0, 0.3), seed=st.integers(0, 10_000), dwell=st.integers(0, 4))
 def test_parts_add_up_under_injected_delays(prob, seed, dwell):

@@ -7,6 +7,7 @@ import json
 
 import av
 import numpy as np
+import pytest
 from hardening_helpers import REPO, assert_clean_error, run_cli
 
 from warerover_phys.render import PALETTE
@@ -27,6 +28,7 @@ def _files(tmp_path):
     return floor, plan
 
 
+@pytest.mark.slow  # a gap run and a ghost video through the CLI: make test-all
 def test_plan_with_rotation_gap_and_ghost_video(tmp_path):
     floor, plan = _files(tmp_path)
     video = tmp_path / "ghost.mp4"

@@ -95,6 +95,7 @@ def results(tmp_path_factory):
         return tmp, {k: f.result() for k, f in futs.items()}
 
 
+@pytest.mark.slow  # one fixture runs 40-odd CLI commands: make test-all
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_bad_option_is_a_clean_error(results, case):
     tmp, procs = results

@@ -34,6 +34,7 @@ TINY: dict[str, Any] = {
     "executor": {"name": "grid", "dt_s": 0.05},
     "faults": {"random": {"prob_per_tick": 0.0}, "scheduled": [{"agv": 0, "tick": 3}]},
 }
+# 150 examples: fuzzed inputs, one cheap parse each
 SETTINGS = settings(max_examples=150, deadline=None, derandomize=True,
                     suppress_health_check=[HealthCheck.too_slow])
 

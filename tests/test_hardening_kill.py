@@ -37,6 +37,7 @@ def timed(args: list, cwd: Path) -> float:
     return time.perf_counter() - t0
 
 
+@pytest.mark.slow  # seven physics runs through the CLI: make test-all
 def test_sigkill_during_run_leaves_a_whole_set(tmp_path):
     out = tmp_path / "run"
     # dt 0.05 s: the same outputs (trajectories included) at a third of the physics cost.

@@ -146,6 +146,7 @@ def procs(tmp_path_factory):
         return root, {k: f.result() for k, f in futs.items()}
 
 
+@pytest.mark.slow  # one fixture runs 16 CLI commands, sweeps among them: make test-all
 @pytest.mark.parametrize("case,needles", [
     ("sched", ["paper_homogeneous.yaml", "scheduler.name", "RuntimeError", "licence"]),
     ("plan", ["paper_homogeneous.yaml", "planner.name", "KeyError"]),
@@ -170,6 +171,7 @@ def test_clean_error(procs, case, needles):
     assert not (root / "runs").exists()
 
 
+@pytest.mark.slow  # the CLI batch of test_clean_error: make test-all
 def test_sweep_grid_with_mapping_values_runs(procs):
     root, results = procs
     proc = results["sweep-map"]

@@ -41,6 +41,7 @@ def alive(pid: int) -> bool:
     return stat.rsplit(")", 1)[1].split()[0] != "Z"
 
 
+@pytest.mark.slow  # two sweeps through the CLI: make test-all
 def test_second_sweep_is_refused_and_sigterm_cleans_up(tmp_path):
     sweep = tmp_path / "s.yaml"
     sweep.write_text(f"scenarios: {{Ho: {PAPER}}}\ngrid: {{executor.name: [physics]}}\n"

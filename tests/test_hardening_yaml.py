@@ -17,13 +17,14 @@ LAUGHS = "\n".join(
     + ["layout: *i", "fleet: {agvs: [{count: 1}]}"]) + "\n"
 
 
+@pytest.mark.no_cover  # a CPU-time bound: measured without coverage's tracer
 def test_billion_laughs_is_refused_quickly(tmp_path):
     path = tmp_path / "laughs.yaml"
     path.write_text(LAUGHS)
-    t0 = time.perf_counter()
+    t0 = time.process_time()  # CPU time: a loaded machine does not stretch it
     with pytest.raises(ScenarioError) as info:
         load_scenario(path)
-    assert time.perf_counter() - t0 < 10
+    assert time.process_time() - t0 < 10
     assert str(path) in str(info.value) and "YAML refused" in str(info.value)
 
 

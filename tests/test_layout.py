@@ -62,13 +62,14 @@ def test_movingai_map_as_base():
     assert err.value.field == "layout.stations[0]"  # (2, 26) is a shelf of the map
 
 
+@pytest.mark.no_cover  # a CPU-time bound: measured without coverage's tracer
 @pytest.mark.parametrize("blocks,shape", [((2, 2), (2, 3)), ((45, 56), (2, 8))])
 def test_generator_scales(blocks, shape):
     gen = GeneratorSpec(block_rows=blocks[0], block_cols=blocks[1], block_shape=shape,
                         stations=12, parking=40)
-    t = time.perf_counter()
+    t = time.process_time()  # CPU time: a loaded machine does not stretch it
     grid = generate_base(gen, fleet_size=40)
-    elapsed = time.perf_counter() - t
+    elapsed = time.process_time() - t
     shelves = int((grid == CellType.SHELF).sum())
     assert shelves == blocks[0] * blocks[1] * shape[0] * shape[1]
     assert int((grid == CellType.STATION).sum()) == 12
@@ -78,16 +79,17 @@ def test_generator_scales(blocks, shape):
         assert elapsed < 2.0
 
 
+@pytest.mark.no_cover  # a CPU-time bound: measured without coverage's tracer
 def test_generated_industrial_size_layout_passes_checks():
     sc = scenario_from_dict({
         "layout": {"generator": {"block_rows": 20, "block_cols": 44, "block_shape": [2, 10],
                                  "aisle_width": 1, "stations": 30}},
         "fleet": {"agvs": [{"count": 400}]}})
-    t = time.perf_counter()
+    t = time.process_time()  # CPU time: a loaded machine does not stretch it
     world = World.build(sc)
     assert world.layout.rows >= 60 and world.layout.cols >= 480
     assert len(world.agvs) == 400
-    assert time.perf_counter() - t < 30
+    assert time.process_time() - t < 30
 
 
 def test_reachability_is_checked_for_the_largest_footprint():

@@ -157,15 +157,16 @@ def test_first_n_selection() -> None:
     assert read_scen(WAREHOUSE_SCEN, n=1)[0].start == (int(first[5]), int(first[4]))
 
 
+@pytest.mark.no_cover  # a CPU-time bound: measured without coverage's tracer
 def test_map_parse_is_fast(tmp_path: Path) -> None:
     rng = np.random.default_rng(0)
     rows = ["".join(rng.choice(list(".@T"), size=140)) for _ in range(500)]
     path = write(tmp_path, "big.map", map_text(rows))
     times = []
     for _ in range(5):
-        t0 = time.perf_counter()
+        t0 = time.process_time()  # CPU time: a loaded machine does not stretch it
         grid = read_map(path)
-        times.append(time.perf_counter() - t0)
+        times.append(time.process_time() - t0)
     assert grid.obstacles.shape == (500, 140)
     assert min(times) < 0.1
 

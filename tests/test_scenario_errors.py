@@ -309,9 +309,18 @@ CASES = [
 CLI_CASES = [c for c in CASES if c.cli]
 
 
-def _params(cases: list[Case]) -> list[Any]:
-    return [pytest.param(c, id=c.id, marks=[pytest.mark.xfail(strict=True, reason=c.bug)]
-                         if c.bug else []) for c in cases]
+CLI_DEFAULT = 6
+"""The first CLI cases run as subprocesses in ``make test``; the others (each one more CLI
+start-up, seconds on a loaded machine) in ``make test-all``. Every case's message is also
+checked in process (``test_bad_scenario_error_in_process``) in the default set."""
+
+
+def _params(cases: list[Case], slow_after: int | None = None) -> list[Any]:
+    """Cases as ``pytest.param``: a known bug ``xfail``; past ``slow_after``, ``slow``."""
+    def marks(i: int, c: Case) -> list[Any]:
+        return ([pytest.mark.xfail(strict=True, reason=c.bug)] if c.bug else []) + \
+            ([pytest.mark.slow] if slow_after is not None and i >= slow_after else [])
+    return [pytest.param(c, id=c.id, marks=marks(i, c)) for i, c in enumerate(cases)]
 
 
 def _overrides(args: tuple[str, ...]) -> list[tuple[str, Any]]:
@@ -366,12 +375,20 @@ class Outcome:
     check: Future[subprocess.CompletedProcess[str]] | None
 
 
+def _selected_cases(request: pytest.FixtureRequest) -> set[str]:
+    """The ids of the CLI cases this session runs (``-m``, ``-k`` and node ids applied)."""
+    return {item.callspec.params["case"].id for item in request.session.items
+            if item.module is request.module and hasattr(item, "callspec")
+            and isinstance(item.callspec.params.get("case"), Case)}
+
+
 @pytest.fixture(scope="module")
-def outcomes(tmp_path_factory: pytest.TempPathFactory) -> Any:
-    """Build every CLI case and start its subprocesses, a few at a time."""
+def outcomes(tmp_path_factory: pytest.TempPathFactory, request: pytest.FixtureRequest) -> Any:
+    """Build the CLI cases this session runs and start their subprocesses, a few at a time."""
     pool = ThreadPoolExecutor(max_workers=max(2, min(4, os.cpu_count() or 2)))
     out: dict[str, Outcome] = {}
-    for case in CLI_CASES:
+    selected = _selected_cases(request)
+    for case in (c for c in CLI_CASES if c.id in selected):
         folder = tmp_path_factory.mktemp(case.id)
         path = case.build(folder, case.id)
         out_dir = folder / "out"
@@ -395,14 +412,14 @@ def assert_cli_error(proc: subprocess.CompletedProcess[str], case: Case, path: P
     assert_error_line(lines[0], case, path)
 
 
-@pytest.mark.parametrize("case", _params(CLI_CASES))
+@pytest.mark.parametrize("case", _params(CLI_CASES, CLI_DEFAULT))
 def test_run_bad_scenario_one_line_exit_2(case: Case, outcomes: dict[str, Outcome]) -> None:
     o = outcomes[case.id]
     assert_cli_error(o.run.result(), case, o.path)
     assert not (o.out_dir / "metrics.json").exists(), "a failed run wrote outputs"
 
 
-@pytest.mark.parametrize("case", _params([c for c in CLI_CASES if c.check_too]))
+@pytest.mark.parametrize("case", _params([c for c in CLI_CASES if c.check_too], CLI_DEFAULT))
 def test_check_bad_scenario_one_line_exit_2(case: Case, outcomes: dict[str, Outcome]) -> None:
     o = outcomes[case.id]
     assert o.check is not None
@@ -414,6 +431,7 @@ def test_case_ids_unique() -> None:
     assert len(ids) == len(set(ids))
 
 
+@pytest.mark.slow  # two CLI runs, a whole episode among them: make test-all
 def test_failed_run_keeps_earlier_outputs(tmp_path: Path) -> None:
     """A run that fails (schema or layout) into a folder holding a good run's outputs leaves
     every file as it was and leaves no temporary files behind."""

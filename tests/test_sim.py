@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from longcases import slow_after
 
 from warerover_phys import load_scenario, run_episode, scenario_from_dict, write_outputs
 from warerover_phys.metrics import TIMING_KEYS
@@ -96,8 +97,9 @@ def test_ta_beats_rd_on_throughput():
 
 
 @pytest.mark.parametrize("pattern", PATTERNS)
-@pytest.mark.parametrize("scenario", ["paper_homogeneous.yaml", "paper_heterogeneous.yaml",
-                                      "paper_fault.yaml"])
+@pytest.mark.parametrize("scenario", slow_after(1, ["paper_homogeneous.yaml",
+                                                    "paper_heterogeneous.yaml",
+                                                    "paper_fault.yaml"]))
 def test_every_pattern_runs_on_every_paper_scenario(scenario, pattern):
     sc = load(scenario, ("orders.pattern", pattern), ("orders.duration_ticks", 120),
               ("max_ticks", 400))
@@ -116,7 +118,7 @@ def test_every_pattern_runs_on_every_paper_scenario(scenario, pattern):
         assert result.world.orders[e["order"]].station == e["station"]
 
 
-@pytest.mark.parametrize("pattern", PATTERNS)
+@pytest.mark.parametrize("pattern", slow_after(1, PATTERNS))
 def test_every_pattern_runs_on_industrial(pattern):
     sc = load("industrial.yaml", ("orders.pattern", pattern), ("max_ticks", 12))
     sim = Simulation(sc, seed=1)
@@ -185,7 +187,7 @@ def test_slow_agv_takes_more_ticks_per_cell():
 
 
 @pytest.mark.parametrize("planner", ["pibt", "lacam"])
-@pytest.mark.parametrize("seed", range(10))
+@pytest.mark.parametrize("seed", slow_after(3, range(10)))
 def test_fleet_planners_in_the_loop(planner, seed):
     result = run_episode(load("paper_homogeneous.yaml", ("planner.name", planner)), seed=seed)
     m = result.metrics
@@ -197,7 +199,7 @@ def test_fleet_planners_in_the_loop(planner, seed):
 
 @pytest.mark.parametrize("planner", ["pibt", "lacam"])
 @pytest.mark.parametrize("scheduler", ["ta", "rd"])
-@pytest.mark.parametrize("seed", range(10))
+@pytest.mark.parametrize("seed", slow_after(2, range(10)))
 def test_fleet_planners_move_2x2_and_slow_agvs_in_the_loop(planner, scheduler, seed):
     result = run_episode(load("paper_heterogeneous.yaml", ("planner.name", planner),
                               ("scheduler.name", scheduler)), seed=seed)
@@ -213,7 +215,7 @@ def test_fleet_planners_move_2x2_and_slow_agvs_in_the_loop(planner, scheduler, s
 
 
 @pytest.mark.parametrize("scenario", ["paper_homogeneous.yaml", "paper_heterogeneous.yaml"])
-@pytest.mark.parametrize("seed", range(10))
+@pytest.mark.parametrize("seed", slow_after(3, range(10)))
 def test_cbs_in_the_loop(scenario, seed):
     result = run_episode(load(scenario, ("planner.name", "cbs")), seed=seed)
     m = result.metrics

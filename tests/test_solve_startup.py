@@ -143,6 +143,7 @@ def _typer_params(argv: list[str]) -> dict | None:
     return {k: (str(v) if isinstance(v, Path) else v) for k, v in ctx.params.items()}
 
 
+# 150 examples: one cheap parse per example, wide inputs
 @settings(max_examples=150, deadline=None)
 @given(st.lists(st.sampled_from(TOKENS), max_size=8))
 def test_fast_parser_reads_what_typer_reads(argv):

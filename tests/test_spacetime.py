@@ -18,6 +18,7 @@ import shapely
 from hardening_helpers import LAYOUTS, assert_clean_error, run_cli
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from longcases import slow_after
 
 from warerover_phys.plans.model import Plan
 from warerover_phys.spacetime import (
@@ -141,7 +142,7 @@ def outlines_over(m: AgentMotion, times: np.ndarray, grow: float = 0.0) -> np.nd
     return out
 
 
-@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("seed", slow_after(2, range(6)))
 def test_agrees_with_dense_sampling(seed):
     """An independent check of the whole pipeline: bodies compared with shapely at 4,000
     instants. Every pair seen overlapping by more than the tolerance (bodies shrunk by a
@@ -418,6 +419,7 @@ def walks(draw):
     return Plan(paths=tuple(paths), rows=rows, cols=cols), rows, cols
 
 
+# 150 examples: random walks, cheap: conflicts are rare among them
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(walks())
 def test_agrees_with_the_discrete_validator_on_random_walks(case):
@@ -458,6 +460,7 @@ def instances(draw):
         draw(st.sampled_from(["lacam", "pibt"]))
 
 
+# 25 examples: each example solves a floor with a one-shot planner
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(instances())
 def test_agrees_with_the_discrete_validator_on_planner_plans(case):

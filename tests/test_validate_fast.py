@@ -22,6 +22,7 @@ def plans(draw):
     return obstacles, trajectories
 
 
+# 300 examples: the fast path against the general one, cheap
 @settings(max_examples=300, deadline=None)
 @given(case=plans(), start=st.integers(0, 3))
 def test_fast_path_reports_what_the_general_one_does(case, start):
@@ -45,6 +46,7 @@ def plans_on_the_grid(draw):
     return np.zeros((rows, cols), dtype=bool), trajectories
 
 
+# 300 examples: the fast path against the general one, cheap
 @settings(max_examples=300, deadline=None)
 @given(case=plans_on_the_grid())
 def test_vertex_and_swap_precheck_answers_as_the_loop(case):
@@ -87,6 +89,7 @@ def cell_paths(draw):
     return obstacles, paths
 
 
+# 300 examples: the fast path against the general one, cheap
 @settings(max_examples=300, deadline=None)
 @given(case=cell_paths())
 def test_cell_paths_are_checked_as_their_states(case):

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from warerover_phys import load_scenario, run_episode
@@ -162,7 +162,6 @@ def test_ta_cost_trip_prefers_small_groups():
     assert pick("trip") == 0 and pick("per_order") == 31
 
 
-@settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1))
 def test_stations_by_size(seed):
     spec = OrdersSpec(pattern="oneshot", oneshot={"count": 60}, large_fraction=0.5,

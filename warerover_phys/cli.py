@@ -708,3 +708,8 @@ _register_lorr(app)
 from .spacetime.cli import register as _register_spacetime  # noqa: E402
 
 _register_spacetime(app)
+
+# `warerover study` (planners x instances x robot models) lives in warerover_phys/study/cli.py.
+from .study.cli import register as _register_study  # noqa: E402
+
+_register_study(app)

@@ -93,10 +93,12 @@ class OpenLoopRun:
 
 def execute_timed(plan: TimedPlan, executor_spec, *, seed: int = 0,
                   max_ticks: int | None = None,
-                  progress: Callable[[int, int], None] | None = None) -> OpenLoopRun:
+                  progress: Callable[[int, int], None] | None = None,
+                  before_tick: Callable[[int, Any], None] | None = None) -> OpenLoopRun:
     """Execute ``plan`` unchanged on the executor ``executor_spec`` (an ``ExecutorSpec``;
     its delays, dt and parameters apply). ``seed``: the episode seed whose ``delays``
-    stream the executor draws from, as in the closed loop."""
+    stream the executor draws from, as in the closed loop. ``before_tick(tick, executor)``
+    is called before each tick's step (a test injects a delay of its choosing there)."""
     from .registry import build
     from .world import make_rngs
 
@@ -127,6 +129,8 @@ def execute_timed(plan: TimedPlan, executor_spec, *, seed: int = 0,
             task = tuple(7 if i in failed else s for i, s in enumerate(task))  # FAILED
         view = TickView(tick=tick, plans=plans, behind=tuple(behind), failed=failed,
                         loaded=loaded, carried=carried, task_state=task, dwells=dwells)
+        if before_tick is not None:
+            before_tick(tick, ex)
         report = ex.step(view)
         record_report(report, tick, executed, behind, events)
         tick += 1

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from longcases import slow_after
 
 gym = pytest.importorskip("gymnasium")
 pytest.importorskip("pettingzoo")
@@ -162,7 +163,7 @@ def test_scenario_layout_and_movingai_instances():
         GridMAPF(inst, EnvConfig(num_agents=5))
 
 
-@pytest.mark.parametrize("agents,seed", [(30, 0), (60, 3)])
+@pytest.mark.parametrize("agents,seed", slow_after(1, [(30, 0), (60, 3)]))
 def test_env_episode_with_learned_policy_equals_learned_planner(agents, seed):
     """The same instance and seed: the environment driven by the learned policy and shield
     moves every agent exactly as ``learned_oneshot`` plans; both are valid."""

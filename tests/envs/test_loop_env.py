@@ -152,6 +152,7 @@ def test_simulation_halves_must_alternate():
         sim.finish_tick(None)
 
 
+# 200 examples: one cheap call per example over a wide input space
 @settings(max_examples=200, deadline=None)
 @given(st.integers(2, 8).flatmap(lambda n: st.tuples(
     st.lists(st.integers(0, 15), min_size=n, max_size=n, unique=True),

@@ -152,6 +152,7 @@ def _copy(f: FleetState) -> FleetState:
     return g
 
 
+# 200 examples: a kernel against its reference, cheap, wide inputs
 @settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(reference_rows(), st.data())
 def test_run_references_compiled_is_the_numpy_reference(rows, data):

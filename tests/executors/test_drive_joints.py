@@ -45,6 +45,7 @@ def small_world(grid=OPEN) -> World:
         "executor": {"name": "physics"}}))
 
 
+# 200 examples: one cheap geometric test per example, wide inputs
 @settings(max_examples=200, deadline=None)
 @given(x=st.floats(-0.5, 12.5), y=st.floats(-0.5, 5.5), hx=st.floats(0.01, 1.2),
        hy=st.floats(0.01, 1.2))

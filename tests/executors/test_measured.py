@@ -87,6 +87,7 @@ finite = st.floats(-3, 3, allow_nan=False)
 size = st.floats(0.05, 1.5, allow_nan=False)
 
 
+# 150 examples: one distance per example against shapely, wide inputs
 @settings(max_examples=150, deadline=None)
 @given(finite, finite, finite, size, size, finite, finite, finite, size, size)
 def test_rect_distance_is_shapely_distance_or_minus_a_depth(x1, y1, a1, l1, w1, x2, y2, a2, l2,
@@ -193,6 +194,7 @@ def _check_peaks(res) -> None:
 
 # --------------------------------------------------------------------------- clearance
 
+@pytest.mark.slow  # whole physics episodes: make test-all
 def test_min_clearance_is_what_an_outside_check_finds_in_trajectories_npz(tmp_path):
     """On main ``min_separation_m`` said 0.51 m (centre to edge, once a tick) where the
     bodies came within 1 cm; now ``min_clearance_m`` is the edge-to-edge figure over every

@@ -240,6 +240,7 @@ def small_scenarios(draw):
 
 
 @pytest.mark.slow  # 29 s (15 physics episodes)
+# 15 examples: each example is a whole physics episode
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(small_scenarios())
 def test_random_small_instances_finish_without_contacts(scenario):

@@ -202,6 +202,7 @@ def test_no_slip_steers_onto_the_path_without_moving_sideways():
     assert ns.trajectory()["peak_lateral_speed_mps"][0] == pytest.approx(lat_ns)
 
 
+# 6 examples: each example drives the physics executor through a whole run
 @settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.floats(-0.15, 0.15), st.floats(-0.095, 0.1))
 def test_no_slip_lateral_speed_is_nil_and_limits_hold_for_any_start_offset(dy, dx):

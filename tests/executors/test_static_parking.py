@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pymunk
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from warerover_phys.executors.bodies import BodyIO, PhysicalFleet, unsolved_agv_contacts
@@ -89,7 +89,6 @@ def test_unparking_restores_mass_and_the_command():
     assert fleet.n_parked == 0
 
 
-@settings(max_examples=25, deadline=None)
 @given(st.lists(st.tuples(st.integers(0, 7), st.booleans()), min_size=1, max_size=30))
 def test_batch_rows_follow_any_sequence_of_leaving_and_coming_back(moves):
     """Bodies leave the space (parked, static) and come back (unparked) in any order, with

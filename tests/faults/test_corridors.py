@@ -347,6 +347,8 @@ def near_margin_boundary(poses, half, cors, tol=1e-6) -> bool:
     return False
 
 
+# 150 examples: random scenes: the two checkers differ only in rare corner cases
+@pytest.mark.slow  # fcl against shapely on many poses: make test-all
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow,
                                                                    HealthCheck.filter_too_much])
 @given(scenes())

@@ -105,6 +105,8 @@ def fault_schedules(draw):
             "orders_of_failed": draw(st.sampled_from(["reassign", "wait"]))}
 
 
+# 20 examples: each example runs an episode of up to 1,500 ticks
+@pytest.mark.slow  # episodes with failures over several seeds: make test-all
 @settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(fault_schedules(), st.sampled_from(["ta", "rd"]), st.integers(0, 100))
 def test_orders_are_never_lost_through_failures(faults, scheduler, seed):

@@ -71,6 +71,7 @@ def deaths(all_args: list[list[str]], workers: int = 2) -> list[str]:
     return bad
 
 
+@pytest.mark.slow  # a sample of fuzzed physics episodes: make test-all
 def test_fuzz_small_sample_no_process_death():
     """Six short episodes (all four planners, high failure rates), < 30 s."""
     sample = cases(6, seed=13, max_ticks=50, orders=4)

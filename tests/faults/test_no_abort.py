@@ -126,6 +126,7 @@ def pairs(draw):
     return np.array(centre), a, np.array(half), np.array(rect)
 
 
+# 400 examples: degenerate geometry, cheap: rare cases need many draws
 @settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(pairs())
 def test_signed_distance_is_total_and_exact_on_degenerate_input(pair):
@@ -169,6 +170,7 @@ def _corridor(rect, margin=0.2) -> Corridor:
                     cells=frozenset())
 
 
+# 200 examples: degenerate geometry, cheap: rare cases need many draws
 @settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(pairs(), st.floats(0.0, 0.5))
 def test_checker_agrees_with_the_closed_form_on_degenerate_scenes(pair, margin):

@@ -8,6 +8,7 @@ import itertools
 import time
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
@@ -495,6 +496,7 @@ def test_unwindowed_cbs_is_optimal_on_tiny_instances(instance):
         assert result.budget_hits == 1  # one CBS call, one counted fallback
 
 
+@pytest.mark.slow  # CBS and a brute force on many instances: make test-all
 def test_cbs_proves_the_optimum_on_nearly_all_tiny_instances():
     """On 150 seeded random tiny instances, CBS within its budget finds the brute-force
     optimum on at least 97% (the rest are corridor-swap cases, reported as budget hits)."""

@@ -5,7 +5,7 @@ where the map allows, and its cache stays within its budget and counts what it d
 from __future__ import annotations
 
 import numpy as np
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from warerover_phys.planning.dist_store import DistStore
@@ -13,7 +13,6 @@ from warerover_phys.planning.graph import UNREACHABLE
 from warerover_phys.planning.oneshot import grid_graph
 
 
-@settings(max_examples=25, deadline=None)
 @given(st.integers(2, 12), st.integers(2, 12), st.floats(0.0, 0.4), st.integers(0, 2**31))
 def test_tables_match_dist_to(rows, cols, density, seed):
     rng = np.random.default_rng(seed)

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from longcases import slow_after
 
 from warerover_phys.config import PlannerSpec, load_scenario
 from warerover_phys.errors import PlanningError
@@ -124,7 +125,8 @@ def _oneshot(map_name: str, scen: str, agents: int, seed: int = 0):
 
 @pytest.mark.parametrize("map_name,scen,agents", [
     ("random-32-32-10", "random-32-32-10-random-1.scen", 50),
-    ("warehouse-10-20-10-2-1", "warehouse-10-20-10-2-1-random-1.scen", 50)])
+    pytest.param("warehouse-10-20-10-2-1", "warehouse-10-20-10-2-1-random-1.scen", 50,
+                 marks=pytest.mark.slow)])
 def test_oneshot_solves_and_validates(map_name, scen, agents):
     m, sc, paths, stats = _oneshot(map_name, scen, agents)
     assert paths is not None, stats
@@ -179,7 +181,7 @@ def test_rotations_are_refused():
 HETERO = ROOT / "layouts" / "paper_heterogeneous.yaml"
 
 
-@pytest.mark.parametrize("seed", [0, 2])
+@pytest.mark.parametrize("seed", slow_after(1, [0, 2]))
 def test_mixed_fleet_footprint_step_with_policy_rankings(seed):
     """2x2 and slow AGVs: one footprint-aware PIBT step, the 1x1 AGVs ranked by the policy:
     every order done, footprints never overlap, the same seed gives the same episode, and
@@ -202,7 +204,7 @@ def test_mixed_fleet_footprint_step_with_policy_rankings(seed):
     assert pibt.actual != result.actual
 
 
-@pytest.mark.parametrize("seed", [1, 2])
+@pytest.mark.parametrize("seed", slow_after(1, [1, 2]))
 def test_learned_in_the_loop_is_conflict_free(seed):
     sc = load_scenario(PAPER, [("planner.name", PLUGIN)])
     result = run_episode(sc, seed=seed)
@@ -384,6 +386,7 @@ def _train(tmp_path: Path, seed: int, name: str) -> dict[str, np.ndarray]:
         return {k: data[k] for k in data.files}
 
 
+@pytest.mark.slow  # two training runs of the script: make test-all
 def test_training_script_is_reproducible_from_its_seed(tmp_path):
     """A tiny run of tools/train_learned.py (3 instances, one epoch, one DAgger round of
     one instance), twice with seed 0: identical weights; seed 1: other weights. The

@@ -64,6 +64,7 @@ def _instances(draw):
     return obstacles, rng, free, n
 
 
+@pytest.mark.slow  # 80 random floors through the Python reference: make test-all
 @settings(max_examples=80, deadline=None)
 @given(_instances())
 def test_compiled_steps_match_the_python_steps_on_random_grids(inst):
@@ -211,12 +212,14 @@ def test_lifelong_runs_give_the_same_output_with_400_robots(rotations, rule):
 
 
 def test_steps_compiled_once_are_loaded_from_the_cache():
-    """``cache=True``: numba keeps the compiled steps beside the module (no recompiling in
-    the next process)."""
+    """``cache=True``: numba keeps the compiled steps in its cache (no recompiling in the
+    next process): beside the module, or under ``NUMBA_CACHE_DIR`` where that is set."""
+    import numba
+
     pn.warm_up()
-    cache = Path(pn.__file__).parent / "__pycache__"
-    assert any(p.name.startswith("pibt_numba._heading_kernel") and p.suffix == ".nbi"
-               for p in cache.iterdir())
+    root = Path(numba.config.CACHE_DIR) if numba.config.CACHE_DIR else \
+        Path(pn.__file__).parent / "__pycache__"
+    assert any(root.rglob("pibt_numba._heading_kernel*.nbi")), root
 
 
 def test_step_tables_and_priority_order():

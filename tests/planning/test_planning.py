@@ -288,6 +288,7 @@ def random_walks(draw):
     return np.zeros((rows, cols), dtype=bool), walks
 
 
+# 200 examples: tiny plans against brute force, cheap
 @settings(max_examples=200, deadline=None)
 @given(random_walks())
 def test_validator_agrees_with_brute_force(case):

@@ -205,6 +205,7 @@ def _plan_floor(name: str, grid, starts, goals, heads, rate, ticks: int = 40):
 
 
 @pytest.mark.parametrize("name", sorted(PLANNERS))
+# 15 examples: each example plans a whole floor (per planner)
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow,
                                                          HealthCheck.data_too_large])
 @given(floor=floors())

@@ -68,6 +68,7 @@ def _valid(obstacles, starts, goals, paths):
         assert path[0] == s and path[-1] == g
 
 
+@pytest.mark.slow  # the Python reference on many instances: make test-all
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(instances(max_side=12, max_agents=24), st.integers(0, 6), st.integers(1, 3))
 def test_compiled_guide_paths_are_the_reference_paths(inst, margin, rounds):

@@ -132,7 +132,6 @@ def test_a_single_agv_takes_its_motion_model_time(steps, spec):
     assert sched.makespan_unit_s == 2 * len(steps) - 1  # the unit plan, waits included
 
 
-@settings(max_examples=25, deadline=None)
 @given(st.lists(st.lists(st.sampled_from([(0, 1), (1, 0), (0, -1), (-1, 0)]), min_size=1,
                          max_size=4), min_size=2, max_size=4))
 def test_agvs_that_never_meet_are_timed_alone(walks):

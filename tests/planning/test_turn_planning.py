@@ -214,6 +214,7 @@ def test_no_turn_at_the_wall_and_no_dead_end(name):
     assert all(s[1] != w.node((3, 0)) for s in states[0])
 
 
+# 25 examples: each example plans with every planner, then validates
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.data())
 def test_random_instances_pass_the_sweep_validator(data):

@@ -573,6 +573,7 @@ def mutated(draw):
     return text
 
 
+# 400 examples: fuzzed file mutations, one cheap parse each
 @settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(text=mutated(), fmt=st.sampled_from([None, *FORMATS]), xy=st.booleans(),
        which=st.sampled_from(["actual", "planner"]))
@@ -585,6 +586,7 @@ def test_mutations_raise_only_plan_format_error(text, fmt, xy, which, monkeypatc
     assert isinstance(plan, Plan)
 
 
+# 200 examples: random bytes, one cheap parse each
 @settings(max_examples=200, deadline=None)
 @given(data=st.binary(max_size=200))
 def test_random_bytes_raise_only_plan_format_error(data, tmp_path_factory, monkeypatch_session):

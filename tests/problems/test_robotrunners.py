@@ -98,7 +98,15 @@ def recount(doc: dict, cells: list[list[tuple[int, int]]]) -> int:
     return finished
 
 
-@pytest.mark.parametrize("name", sorted(p.name.split(".")[0] for p in GOLDEN.glob("*.json.gz")))
+def _golden_cases() -> list:
+    """The 50-robot goldens in the default set; the 200- and 400-robot ones (longer runs)
+    in ``make test-all``."""
+    names = sorted(p.name.split(".")[0] for p in GOLDEN.glob("*.json.gz"))
+    return [n if n.startswith("small50") else pytest.param(n, marks=pytest.mark.slow)
+            for n in names]
+
+
+@pytest.mark.parametrize("name", _golden_cases())
 def test_the_loop_gives_the_retired_runners_actions(name):
     gold = json.load(gzip.open(GOLDEN / f"{name}.json.gz", "rt"))
     case = gold["case"]

@@ -2,11 +2,7 @@
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from warerover_phys import scenario_from_dict
 from warerover_phys.orders import Order
@@ -76,45 +72,3 @@ def test_schedulers_do_not_change_the_world():
         before = (dict(w.status), dict(w.shelf_busy), [a.state for a in w.agvs])
         cls(w.scenario.scheduler).assign(w, np.random.default_rng(0))
         assert before == (dict(w.status), dict(w.shelf_busy), [a.state for a in w.agvs])
-
-
-@settings(max_examples=25, deadline=None)
-@given(st.lists(st.tuples(st.integers(0, 5), st.integers(0, 2)), min_size=1, max_size=6),
-       st.integers(0, 1000))
-def test_ta_matching_is_optimal(orders, seed):
-    """Compare TA's AGV x SKU-group matching cost with brute force over all matchings."""
-    w = World.build(scenario_from_dict({
-        "layout": {"size": [8, 14], "shelf_blocks": [{"origin": [2, 3], "rows": 1, "cols": 6},
-                                                    {"origin": [5, 3], "rows": 1, "cols": 6}],
-                   "stations": [[0, 0], [7, 0], [0, 13]],
-                   "parking": [{"origin": [7, 9], "cols": 3}],
-                   "inventory": {"num_skus": 6, "skus_per_shelf": 1, "seed": seed}},
-        "fleet": {"agvs": [{"count": 3}]}, "scheduler": {"max_orders_per_trip": 1}}))
-    add(w, orders)
-    ta = TaskAssignment(w.scenario.scheduler)
-    out = ta.assign(w, np.random.default_rng(0))
-    idle = w.idle_agvs()
-    skus = sorted({o[0] for o in orders})
-    first = {sku: [o for o in w.pending_orders() if o.sku == sku][:1] for sku in skus}
-
-    def cost(agv, sku):  # the nearest candidate shelves by Manhattan distance, true trips
-        r, c = w.cell(agv.node)
-        near = sorted(w.free_shelves_for(sku, agv), key=lambda s: (
-            abs(w.layout.shelves[s].anchor[0] - r) + abs(w.layout.shelves[s].anchor[1] - c), s))
-        trips = [w.trip_distance(agv, s, [first[sku][0].station])
-                 for s in near[:w.scenario.scheduler.candidate_shelves]]
-        return min(trips, default=None)
-
-    table = {(a.id, s): cost(a, s) for a in idle for s in skus}
-    got = sum(table[(a.agv, w.orders[a.orders[0]].sku)] for a in out)
-    best = None
-    n = min(len(idle), len(skus))
-    for agvs in itertools.permutations([a.id for a in idle], n):
-        for groups in itertools.permutations(skus, n):
-            pairs = list(zip(agvs, groups, strict=True))
-            if any(table[p] is None for p in pairs):
-                continue
-            total = sum(table[p] for p in pairs)
-            best = total if best is None else min(best, total)
-    assert len(out) == n
-    assert got == best

@@ -1,6 +1,7 @@
 """Fixtures for the ``warerover serve`` tests: a server on an ephemeral port (uvicorn in a
 thread) and headless Chromium driven by Playwright (Debian's ``chromium``; the browser
-tests skip, saying why, where it is not installed)."""
+tests skip, saying why, where it is not installed, and fail under ``CI``: see
+``tests/conftest.py``)."""
 
 from __future__ import annotations
 

@@ -1,6 +1,7 @@
 """The page in a real browser: headless Chromium (Debian's package) driven by Playwright.
 
-Skipped, with the reason, where chromium or playwright is missing.
+Skipped, with the reason, where chromium or playwright is missing; under ``CI`` that skip
+is a failure (``tests/conftest.py``).
 """
 
 from __future__ import annotations

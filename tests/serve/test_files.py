@@ -114,8 +114,15 @@ def test_glb_export_with_animation(tmp_path):
     assert len(anim["channels"]) == 2 * 9
     times = doc["accessors"][anim["samplers"][0]["input"]]
     assert times["count"] == 13 and times["max"] == [12.0]
-    assert doc["buffers"][0]["byteLength"] == len(binary.rstrip(b"\0")) or \
-        doc["buffers"][0]["byteLength"] <= len(binary)
+    # The buffer ends where its last view ends; the BIN chunk is that, padded to 4 bytes
+    # with zeros (glTF 2.0, 4.4.3.3).
+    length = doc["buffers"][0]["byteLength"]
+    assert length == max(v["byteOffset"] + v["byteLength"] for v in doc["bufferViews"])
+    assert len(binary) == length + (-length) % 4 and not binary[length:].strip(b"\0")
+    # 13 key times + per AGV 13 translations (3 floats) and 13 rotations (4 floats)
+    anim_bytes = 4 * 13 * (1 + 9 * (3 + 4))
+    assert sum(doc["bufferViews"][doc["accessors"][s["output"]]["bufferView"]]["byteLength"]
+               for s in anim["samplers"]) + 4 * 13 == anim_bytes
     import trimesh
 
     scene = trimesh.load(tmp_path / "e.glb")

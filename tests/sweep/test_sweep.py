@@ -221,6 +221,7 @@ def test_bad_yaml_and_missing_file_through_console_script(tmp_path):
 # ------------------------------------------------------------------------------- running
 
 
+@pytest.mark.slow  # a sweep on a pool and on a Ray cluster: make test-all
 def test_pool_and_ray_give_identical_metrics(tmp_path):
     """The same sweep (with a plugin planner from the sweep's folder) on the process pool
     and on a real local Ray cluster: the same rows, the same metrics, CT aside."""
@@ -266,6 +267,7 @@ def _children(pid: int) -> set[int]:
     return out
 
 
+@pytest.mark.slow  # a sweep killed and resumed: make test-all
 def test_sigkill_mid_sweep_then_resume_runs_each_episode_once(tmp_path):
     path = write_sweep(tmp_path, set={**SMALL_SET, "orders.oneshot.count": 10},
                        grid={"scheduler.name": ["ta", "rd"], "planner.name": ["astar", "pibt"]},
@@ -313,6 +315,7 @@ def test_sigkill_mid_sweep_then_resume_runs_each_episode_once(tmp_path):
     assert again.ran == 0 and len(result_lines(out)) == total
 
 
+@pytest.mark.slow  # sweeps on a pool and on Ray: make test-all
 def test_failing_and_crashing_episodes_are_recorded(tmp_path):
     mod = plugin_module(tmp_path, "sweep_test_failing")
     path = write_sweep(tmp_path, grid={"planner.name": ["astar", f"{mod}:Boom",
@@ -382,8 +385,8 @@ def test_plugin_names_in_scenarios(tmp_path, monkeypatch):
 
 
 def test_readme_plugin_example_runs_in_a_sweep(tmp_path):
-    """The README's plugin example, copied as it is, runs in a sweep."""
-    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    """The plug-in guide's example (docs/plugins.md), copied as it is, runs in a sweep."""
+    readme = (REPO / "docs" / "plugins.md").read_text(encoding="utf-8")
     blocks = re.findall(r"<!-- plugin-example: (\S+) -->\s*```\w*\n(.*?)```", readme, re.S)
     assert [name for name, _ in blocks] == ["my_schedulers.py", "plugin_sweep.yaml"]
     for name, text in blocks:

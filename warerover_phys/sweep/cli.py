@@ -15,9 +15,11 @@ __all__ = ["register", "sweep", "report"]
 class _Progress:
     """A rich progress bar with ETA on a terminal; a line every 5% otherwise."""
 
-    def __init__(self, console: Any, quiet: bool) -> None:
+    def __init__(self, console: Any, quiet: bool, name: str = "sweep",
+                 noun: str = "episodes") -> None:
         self.console = console
         self.quiet = quiet
+        self.name, self.noun = name, noun
         self.bar: Any = None
         self.task: Any = None
         self.failed = 0
@@ -29,7 +31,7 @@ class _Progress:
     def start(self, summary: Any, to_run: int, where: str) -> None:
         self.total = to_run
         self.every = max(1, to_run // 20)
-        self.console.print(f"sweep: {summary.total} episodes, {summary.done_before} already in "
+        self.console.print(f"{self.name}: {summary.total} {self.noun}, {summary.done_before} already in "
                            f"{summary.results}, {to_run} to run on {where}", markup=False, highlight=False, soft_wrap=True)
         if self.quiet or not to_run:
             return
@@ -44,7 +46,7 @@ class _Progress:
                 TimeRemainingColumn,
             )
 
-            self.bar = Progress(TextColumn("episodes"), BarColumn(), MofNCompleteColumn(),
+            self.bar = Progress(TextColumn(self.noun), BarColumn(), MofNCompleteColumn(),
                                 TaskProgressColumn(), TimeElapsedColumn(), TextColumn("ETA"),
                                 TimeRemainingColumn(), TextColumn("failed {task.fields[failed]}"),
                                 console=self.console, transient=False)

@@ -39,7 +39,7 @@ from .results import RESULTS_NAME, ResultsFile
 from .spec import Episode, SweepSpec, compile_scenarios, expand
 
 __all__ = ["Task", "SweepSummary", "run_task", "run_sweep", "plan_sweep", "pool_map",
-           "SPEC_NAME"]
+           "run_pool", "run_ray", "SPEC_NAME"]
 
 log = logging.getLogger(__name__)
 
@@ -223,9 +223,9 @@ def _run_locked(spec: SweepSpec, out_dir: str | Path, *, workers: int | None,
     try:
         if tasks:
             if ray_address is not None:
-                _run_ray(tasks, ray_address, workers, sink)
+                run_ray(tasks, ray_address, workers, sink)
             else:
-                _run_pool(tasks, workers, sink)
+                run_pool(tasks, workers, sink)
     finally:
         results.close()
         summary.wall_s = time.perf_counter() - t0
@@ -264,10 +264,14 @@ def _kill_pool(pool: ProcessPoolExecutor) -> None:
         proc.join(timeout=5)
 
 
-def _run_pool(tasks: Iterable[Task], workers: int,
-              sink: Callable[[dict[str, Any]], None]) -> None:
-    """Keep ``2 x workers`` tasks in flight. When a worker dies, the pool is rebuilt and the
-    tasks it held run again one at a time; one that kills its worker alone is failed."""
+def run_pool(tasks: Iterable[Any], workers: int, sink: Callable[[Any], None], *,
+             fn: Callable[[Any], Any] = run_task,
+             fail: Callable[[Any, str], Any] = failed_row) -> None:
+    """Keep ``2 x workers`` tasks in flight, ``sink(fn(task))`` as each ends. When a worker
+    dies, the pool is rebuilt and the tasks it held run again one at a time; one that kills
+    its worker alone, or raises outside ``fn``'s own handling, is ``sink(fail(task,
+    error))``. ``fn`` and ``fail`` default to a sweep's episodes (``warerover study`` passes
+    its own: module-level functions, pickled by name)."""
     pending = deque(tasks)
     suspects: deque[Task] = deque()
     inflight: dict[Future, tuple[Task, bool]] = {}
@@ -285,7 +289,7 @@ def _run_pool(tasks: Iterable[Task], workers: int,
                 else:
                     break
                 try:
-                    inflight[pool.submit(run_task, task)] = (task, alone)
+                    inflight[pool.submit(fn, task)] = (task, alone)
                 except BrokenProcessPool:
                     (suspects if alone else pending).appendleft(task)
                     broken = True
@@ -300,17 +304,17 @@ def _run_pool(tasks: Iterable[Task], workers: int,
                         sink(fut.result())
                     elif isinstance(err, BrokenProcessPool):
                         broken = True
-                        _dead_worker(task, alone, suspects, sink)
+                        _dead_worker(task, alone, suspects, sink, fail)
                     elif isinstance(err, KeyboardInterrupt):
                         raise KeyboardInterrupt
                     else:
-                        sink(failed_row(task, f"{type(err).__name__}: {err}"))
+                        sink(fail(task, f"{type(err).__name__}: {err}"))
             if broken:
                 for fut, (task, alone) in list(inflight.items()):
                     if fut.done() and fut.exception() is None:
                         sink(fut.result())
                     else:
-                        _dead_worker(task, alone, suspects, sink)
+                        _dead_worker(task, alone, suspects, sink, fail)
                 inflight.clear()
                 _kill_pool(pool)
                 log.warning("a worker process died; restarting the pool")
@@ -365,10 +369,10 @@ def pool_map(fn: Callable[[Any], Any], items: Iterable[Any], workers: int,
         _kill_pool(pool)
 
 
-def _dead_worker(task: Task, alone: bool, suspects: deque[Task],
-                 sink: Callable[[dict[str, Any]], None]) -> None:
+def _dead_worker(task: Any, alone: bool, suspects: deque[Any], sink: Callable[[Any], None],
+                 fail: Callable[[Any, str], Any] = failed_row) -> None:
     if alone:
-        sink(failed_row(task, "worker process died while running this episode (alone)"))
+        sink(fail(task, "worker process died while running this episode (alone)"))
     else:
         suspects.append(task)
 
@@ -432,9 +436,11 @@ def _import_ray() -> Any:
     return ray
 
 
-def _run_ray(tasks: Iterable[Task], address: str, workers: int,
-             sink: Callable[[dict[str, Any]], None]) -> None:
-    """Run the tasks as Ray tasks (1 CPU each), ``2 x cluster CPUs`` in flight."""
+def run_ray(tasks: Iterable[Any], address: str, workers: int, sink: Callable[[Any], None], *,
+            fn: Callable[[Any], Any] = run_task,
+            fail: Callable[[Any, str], Any] = failed_row) -> None:
+    """Run the tasks as Ray tasks (1 CPU each), ``2 x cluster CPUs`` in flight (``fn`` and
+    ``fail`` as in :func:`run_pool`)."""
     ray = _import_ray()
     started = False
     reaper = None
@@ -457,7 +463,7 @@ def _run_ray(tasks: Iterable[Task], address: str, workers: int,
         started = True
         if threading.current_thread() is threading.main_thread():
             signal.signal(signal.SIGTERM, _interrupt)    # ray.init installed its own
-    remote = ray.remote(num_cpus=1, max_retries=1)(run_task)
+    remote = ray.remote(num_cpus=1, max_retries=1)(fn)
     capacity = max(2, 2 * int(ray.cluster_resources().get("CPU", workers)))
     pending = deque(tasks)
     inflight: dict[Any, Task] = {}
@@ -473,7 +479,7 @@ def _run_ray(tasks: Iterable[Task], address: str, workers: int,
                     row = ray.get(ref)
                 except ray.exceptions.RayError as err:
                     first = str(err).strip().splitlines()[0] if str(err).strip() else ""
-                    row = failed_row(task, f"ray: {type(err).__name__}: {first}")
+                    row = fail(task, f"ray: {type(err).__name__}: {first}")
                 sink(row)
     finally:
         for ref in inflight:
