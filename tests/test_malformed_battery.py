@@ -1,5 +1,5 @@
 """``tools/malformed_battery.py`` runs (one class, the quickest) and reports every case
-clean; the whole battery is run by hand (``docs/results/malformed_battery.md``)."""
+clean; the whole battery is run by hand (``docs/results/robustness.md``)."""
 
 from __future__ import annotations
 
