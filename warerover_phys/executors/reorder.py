@@ -1,0 +1,275 @@
+"""Reordering the dependency graph while executing (``executor.reorder``).
+
+A plan executed through a fixed action dependency graph keeps the plan's passing order at
+every shared cell: when the AGV that should pass first is late, everyone behind it waits.
+:class:`Reorderer` lets the waiting AGV go first where that wins time, by switching edges
+of the graph (:mod:`.switch`, which keeps it acyclic). Every ``reorder_every_s`` simulated
+seconds (at a decision step of the follower, before the standing AGVs are decided) it
+looks at the AGVs found waiting on the graph:
+
+1. **Candidates.** For a waiting AGV ``j`` whose next action's cell is reserved for one
+   AGV ``i`` that has not entered it yet: the :class:`~.switch.Group` of the cells they
+   share from there (:meth:`~.switch.SwitchableGraph.candidate`).
+2. **Estimates** from the motion model (:class:`~warerover_phys.planning.motion.MotionModel`
+   of each AGV: straight runs from rest to rest, turns in place, planned dwells) and the
+   AGVs' states now (an injected delay's end, a dwell's end, the running action's rest):
+   when ``i`` would enter and leave each shared cell and ``j`` would leave it, as if
+   nothing else held them up. Without the switch ``j`` waits until ``i`` has left the
+   cells of ``j``'s next action (``wait``); with it ``i`` waits at each shared cell until
+   ``j`` has left it (``cost``).
+3. **Choice.** ``greedy``: switch when ``wait - cost > reorder_margin_s`` (the AGV that
+   should go first is late, and the other passes and clears the cells sooner).
+   ``milp``: :func:`.reorder_milp.choose` (the receding-horizon program over the
+   candidates and the AGVs they touch; greedy where it finds no optimum in its budget).
+4. **Switch** (checked acyclic) and account: the switched AGV's current interval is
+   credited ``wait`` (``reorder_gain`` in the lost-time causes, :mod:`warerover_phys.gap_open`),
+   and a ``reorder`` event names the AGVs and cells.
+
+Deterministic: candidates are taken in AGV id order, the estimates are arithmetic on the
+simulation's state, and the program stops at a node limit (a wall-clock limit is optional,
+``reorder_time_limit_s``, and then results may depend on the machine's speed).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from itertools import islice
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..planning.motion import MotionModel, quarter_turns
+from .control import wrap
+from .fleet_state import DRIVE, TURN
+from .switch import SEGMENT_LIMIT, Group, SwitchableGraph
+
+if TYPE_CHECKING:
+    from ..config import ExecutorSpec
+    from .accounting import Accounting
+    from .adg import ActionGraph
+    from .fleet_state import FleetState
+
+__all__ = ["Estimate", "Reorderer", "FAILED_S"]
+
+FAILED_S = 40.0
+"""Seconds a failed AGV is taken to stay down (its repair time is not known here)."""
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A candidate switch with its estimated effect (seconds)."""
+
+    group: Group
+    wait_s: float
+    """How long the waiting AGV would wait without the switch."""
+    cost_s: float
+    """How long the other AGV would wait for it with the switch."""
+    ready_s: dict[int, float]
+    """Per AGV of the group: when it could start its next action."""
+    times: dict[int, tuple[list[float], list[float]]]
+    """Per AGV of the group: estimated start and finish times of its next actions."""
+
+    @property
+    def gain_s(self) -> float:
+        return self.wait_s - self.cost_s
+
+
+class Reorderer:
+    """Switches edges of the follower's dependency graph (see the module doc)."""
+
+    def __init__(self, st: FleetState, adg: ActionGraph, spec: ExecutorSpec,
+                 holds: dict[int, dict[int, int]], acc: Accounting, *,
+                 check: bool = False) -> None:
+        self.st, self.adg, self.acc, self.holds = st, adg, acc, holds
+        self.mode = spec.reorder
+        self.every_s = float(spec.reorder_every_s)
+        self.margin_s = float(spec.reorder_margin_s)
+        self.horizon = int(spec.reorder_horizon)
+        self.node_limit = int(spec.reorder_node_limit)
+        self.time_limit_s = spec.reorder_time_limit_s
+        self.graph = SwitchableGraph(adg, check=check)
+        self._next_s = 0.0
+        self._models: dict[int, tuple[tuple[float, float, float], MotionModel]] = {}
+        self.decisions = 0
+        self.candidates = 0
+        self.gain_s = 0.0
+        self.wall_s = 0.0
+        self.milp_solves = 0
+        self.milp_fallbacks = 0
+
+    # ----------------------------------------------------------------- decisions
+
+    def decide(self, t: float, delayed: np.ndarray) -> int:
+        """Look at the waiting AGVs if a decision is due at ``t``; returns the switches
+        made."""
+        if t + 1e-9 < self._next_s:
+            return 0
+        self._next_s = t + self.every_s
+        wall0 = time.perf_counter()
+        self.decisions += 1
+        st = self.st
+        cands = np.flatnonzero(st.waiting & ~delayed & ~st.failed).tolist()
+        ests: list[Estimate] = []
+        used: set[int] = set()
+        for j in cands:
+            g = self.graph.candidate(j, SEGMENT_LIMIT)
+            if g is None:
+                continue
+            ids = {id(v) for pair in g.pairs for v in pair}
+            if ids & used:
+                continue
+            used |= ids
+            ests.append(self.estimate(g, t))
+        self.candidates += len(ests)
+        if self.mode == "milp" and ests:
+            from .reorder_milp import choose
+
+            chosen = choose(self, ests, t)
+        else:
+            chosen = [e for e in ests if self.worth(e)]
+        made = 0
+        for e in chosen:
+            if self.graph.switch(e.group):
+                made += 1
+                self._record(e, t)
+        self.wall_s += time.perf_counter() - wall0
+        return made
+
+    def worth(self, e: Estimate) -> bool:
+        """The greedy rule: the switch wins more than the margin."""
+        return e.gain_s > self.margin_s
+
+    def _record(self, e: Estimate, t: float) -> None:
+        g, st = e.group, self.st
+        wait = max(0.0, e.wait_s)
+        self.gain_s += wait
+        self.acc.causes.reorder_gain(g.second, int(round(wait / st.dt)))
+        cols = st.cols
+        self.acc.events.append(("reorder", {
+            "t_s": round(t, 3), "first": g.second, "then": g.first,
+            "cells": [list(divmod(c, cols)) for c in g.cells],
+            "wait_s": round(e.wait_s, 3), "cost_s": round(e.cost_s, 3)}))
+
+    # ----------------------------------------------------------------- estimates
+
+    def estimate(self, g: Group, t: float) -> Estimate:
+        """The effect of switching ``g`` (see the module doc, step 2)."""
+        sg = self.graph
+        i, j = g.first, g.second
+        ki_in = [sg.pending_index(sg.step_of(u.enter)) for u, _ in g.pairs]
+        ki_out = [sg.pending_index(sg.step_of(u.leave)) for u, _ in g.pairs]
+        kj_in = [sg.pending_index(sg.step_of(w.enter)) for _, w in g.pairs]
+        kj_out = [sg.pending_index(sg.step_of(w.leave)) for _, w in g.pairs]
+        si, ei = self.times(i, max(ki_out), t)
+        sj, ej = self.times(j, max(kj_out), t)
+        wait = max(ei[ko] for ko, kin in zip(ki_out, kj_in, strict=True) if kin == 0) - sj[0]
+        cost = max(0.0, max(ej[ko] - si[kin] for ko, kin in zip(kj_out, ki_in, strict=True)))
+        return Estimate(g, wait, cost, {i: si[0], j: sj[0]}, {i: (si, ei), j: (sj, ej)})
+
+    def model(self, a: int) -> MotionModel:
+        """The motion model of AGV ``a`` with its limits in force."""
+        st = self.st
+        key = (float(st.vmax[a]), float(st.amax[a]), float(st.wmax[a]))
+        got = self._models.get(a)
+        if got is None or got[0] != key:
+            got = (key, MotionModel(max_speed_mps=key[0], max_accel_mps2=key[1],
+                                    max_turn_rate_radps=key[2], omni=bool(st.omni[a]),
+                                    cell_m=st.cell_m))
+            self._models[a] = got
+        return got[1]
+
+    def ready_s(self, a: int, t: float) -> tuple[float, tuple[int, int] | None, bool]:
+        """When AGV ``a`` could start its next action (after its delay, failure, dwell
+        and running action), the direction it then faces and whether it is still
+        driving a run it may go on with."""
+        st = self.st
+        rec = self.adg._agents[a]
+        m = self.model(a)
+        t0 = max(t, float(st.delayed_until[a]))
+        if st.failed[a]:
+            t0 += FAILED_S
+        heading = rec.heading
+        rolling = False
+        if rec.running is not None:
+            act = rec.running.action
+            mode = st.mode[a]
+            if mode == DRIVE:
+                left = max(0.0, float(st.cur_end[a] - st.s_ref[a]))
+                rolling = st.stop_s[a] > st.cur_end[a] + 1e-9
+                t0 += left / max(float(st.speed[a]), 0.5 * m.max_speed_mps)
+            elif mode == TURN:
+                t0 += abs(float(wrap(st.heading[a] - st.ang_ref[a]))) / m.max_turn_rate_radps
+                t0 += m.run_s(1)
+            else:
+                t0 += m.run_s(1)
+            heading = act.direction
+        else:
+            t0 = max(t0, float(st.hold_until[a]))
+        return t0, heading, rolling
+
+    def times(self, a: int, upto: int, t: float) -> tuple[list[float], list[float]]:
+        """Estimated start and finish times of AGV ``a``'s next ``upto + 1`` actions (a
+        running one not included), driving without waiting on anyone: collinear moves as
+        one run from rest to rest, a turn in place before a change of direction, planned
+        dwells."""
+        st = self.st
+        m = self.model(a)
+        t0, heading, rolling = self.ready_s(a, t)
+        steps = [s.action for s in islice(self.adg._agents[a].pending, upto + 1)]
+        holds = self.holds.get(a, {})
+        starts: list[float] = []
+        ends: list[float] = []
+        k = 0
+        now = t0
+        while k < len(steps):
+            d = steps[k].direction
+            n = 1
+            while k + n < len(steps) and steps[k + n].direction == d \
+                    and steps[k + n].seq not in holds:
+                n += 1
+            hold = holds.get(steps[k].seq, 0) * st.tick_s
+            if k == 0 and rolling and d == heading and not hold:
+                for q in range(n):  # going on at cruise speed, braking at the end
+                    starts.append(now + q * m.pass_s(1))
+                    ends.append(now + (q + 1) * m.pass_s(1))
+                ends[-1] += m.max_speed_mps / (2 * m.max_accel_mps2)
+                now = ends[-1]
+            else:
+                now += hold + m.turn_s(quarter_turns(heading, d))
+                total = m.run_s(n)
+                for q in range(n):
+                    starts.append(now + m.reach_s(q, n))
+                    ends.append(now + m.reach_s(q + 1, n))
+                now += total
+            heading = d
+            k += n
+        return starts, ends
+
+    # ----------------------------------------------------------------- results
+
+    def summary(self) -> dict:
+        """Figures for ``metrics.json``."""
+        sw = self.graph
+        ticks = max(1.0, self.st.sim_s / self.st.tick_s)
+        out = {
+            "reorder": self.mode,
+            "reorder_switches": sw.switches,
+            "reorder_refused": sw.refused,
+            "reorder_candidates": self.candidates,
+            "reorder_decisions": self.decisions,
+            "reorder_gain_s": self.gain_s,
+            "reorder_order_rebuilds": sw.rebuilds,
+            "reorder_wall_s": self.wall_s,
+            "reorder_wall_ms_per_tick": 1000.0 * self.wall_s / ticks,
+        }
+        if self.mode == "milp":
+            out["reorder_milp_solves"] = self.milp_solves
+            out["reorder_milp_fallbacks"] = self.milp_fallbacks
+        return out
+
+
+def finite(x: float) -> float:
+    """``x``, or a large finite number for infinities (the program's constants)."""
+    return x if math.isfinite(x) else 1e9

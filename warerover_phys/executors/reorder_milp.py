@@ -1,0 +1,225 @@
+"""The receding-horizon program of ``executor.reorder: milp`` (Berndt et al. 2020).
+
+At a decision the candidate switches (:class:`~.reorder.Estimate`) are split into
+independent problems: candidates that share an AGV go together. For each problem:
+
+- **AGVs**: those of its candidates, and the AGVs whose visits come right behind theirs
+  at the cells they enter in the window (the first to feel a switch);
+- **window**: each AGV's next ``reorder_horizon`` actions, and at least those of the
+  switchable cells;
+- **variables**: a start time per action of the window (seconds), a binary ``b`` per
+  candidate (1: switch);
+- **constraints**: an AGV's actions in order, each after the previous one's motion-model
+  duration and the turn or dwell before it, the first after the AGV is ready
+  (:meth:`~.reorder.Reorderer.times`); an action that enters a cell starts after the
+  visit ahead of it in the queue has left (its leaving action finished): for an AGV
+  outside the problem that time is a constant (its own estimate), for one inside whose
+  leaving action is beyond its window it is after the window's end; at a switchable cell
+  the order of the two visits is ``b``'s (big-M), and the visits before and after the
+  pair wait for / come before both;
+- **objective**: the sum over the AGVs of the start of their window's last action, plus
+  ``reorder_margin_s`` per switch (a switch must pay for itself, as in greedy).
+
+Solved with :func:`scipy.optimize.milp` (HiGHS) within ``reorder_node_limit``
+branch-and-bound nodes (and ``reorder_time_limit_s`` if set); a problem without a proved
+optimum falls back to the greedy rule. A feasible schedule has no cycle within the window;
+each chosen switch is still checked on the whole graph when it is made.
+"""
+
+from __future__ import annotations
+
+from itertools import islice
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from .adg import _Visit
+    from .reorder import Estimate, Reorderer
+
+__all__ = ["choose", "components"]
+
+
+def components(ests: list[Estimate]) -> list[list[Estimate]]:
+    """The candidates split into groups that share no AGV (in order of their first)."""
+    parent: dict[int, int] = {}
+
+    def root(a: int) -> int:
+        while parent.setdefault(a, a) != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    for e in ests:
+        parent[root(e.group.first)] = root(e.group.second)
+    out: dict[int, list[Estimate]] = {}
+    for e in ests:
+        out.setdefault(root(e.group.second), []).append(e)
+    return list(out.values())
+
+
+def choose(r: Reorderer, ests: list[Estimate], t: float) -> list[Estimate]:
+    """The candidates to switch (see the module doc)."""
+    chosen: list[Estimate] = []
+    for comp in components(ests):
+        picked = _Program(r, comp, t).solve()
+        if picked is None:
+            r.milp_fallbacks += 1
+            picked = [e for e in comp if r.worth(e)]
+        chosen += picked
+    return sorted(chosen, key=lambda e: e.group.second)
+
+
+class _Program:
+    """One problem's program (module doc)."""
+
+    def __init__(self, r: Reorderer, comp: list[Estimate], t: float) -> None:
+        self.r, self.comp, self.t = r, comp, t
+        sg = r.graph
+        self.idx = lambda action: sg.pending_index(sg.step_of(action))
+        self.role: dict[int, tuple[int, str, _Visit]] = {}
+        """id(visit) -> (candidate, 'u' or 'w', partner)."""
+        need: dict[int, int] = {}
+        for c, e in enumerate(comp):
+            for u, w in e.group.pairs:
+                self.role[id(u)] = (c, "u", w)
+                self.role[id(w)] = (c, "w", u)
+                for a, act in ((u.agv, u.leave), (w.agv, w.leave)):
+                    need[a] = max(need.get(a, 0), self.idx(act) + 1)
+        adg = r.adg
+        self.win: dict[int, int] = {}
+        for a, n in sorted(need.items()):
+            self.win[a] = min(max(n, r.horizon), len(adg._agents[a].pending))
+        for a in sorted(need):  # followers: right behind the group AGVs' visits
+            for step in islice(adg._agents[a].pending, self.win[a]):
+                for v in step.enter_visits:
+                    q = adg._queues[v.cell]
+                    i = q.index(v)
+                    if i + 1 < len(q) and q[i + 1].agv not in self.win:
+                        f = q[i + 1]
+                        k = self.idx(f.enter) if f.enter is not None else -1
+                        if 0 <= k < 2 * r.horizon:
+                            self.win[f.agv] = min(max(k + 1, 1), len(
+                                adg._agents[f.agv].pending))
+        self.agvs = sorted(self.win)
+        self.col: dict[tuple[int, int], int] = {}
+        self.times: dict[int, tuple[list[float], list[float]]] = {}
+        for a in self.agvs:
+            self.times[a] = r.times(a, self.win[a] - 1, t)
+            for k in range(self.win[a]):
+                self.col[(a, k)] = len(self.col)
+        self.nb = len(comp)
+        self.rows: list[tuple[dict[int, float], float]] = []
+        self.lower = np.zeros(len(self.col) + self.nb)
+        for a in self.agvs:
+            self.lower[self.col[(a, 0)]] = self.times[a][0][0]
+
+    # ----------------------------------------------------------------- building
+
+    def dur(self, a: int, k: int) -> float:
+        s, e = self.times[a]
+        return e[k] - s[k]
+
+    def _ge(self, coef: dict[int, float], rhs: float) -> None:
+        """``sum coef x >= rhs``."""
+        self.rows.append((coef, rhs))
+
+    def _after(self, a: int, k: int, p: _Visit) -> None:
+        """Action ``k`` of ``a`` starts after visit ``p`` has left its cell."""
+        if p.leave is None or p.agv == a:
+            return
+        kp = self.idx(p.leave)
+        me = self.col[(a, k)]
+        if p.agv in self.win:
+            kp = min(kp, self.win[p.agv] - 1)
+            if kp < 0:
+                return
+            self._ge({me: 1.0, self.col[(p.agv, kp)]: -1.0}, self.dur(p.agv, kp))
+            return
+        if kp < 0:
+            done = self.r.ready_s(p.agv, self.t)[0]
+        elif kp < 2 * self.r.horizon:
+            done = self.r.times(p.agv, kp, self.t)[1][kp]
+        else:
+            return
+        self.lower[me] = max(self.lower[me], done)
+
+    def _switchable(self, a: int, k: int, v: _Visit, c: int, role: str,
+                    partner: _Visit) -> None:
+        """The order of ``v`` and its partner, as candidate ``c``'s binary says."""
+        big = self.big
+        me, b = self.col[(a, k)], len(self.col) + c
+        kp = self.idx(partner.leave)
+        other = self.col[(partner.agv, kp)]
+        d = self.dur(partner.agv, kp)
+        if role == "w":  # b = 0: after the partner (u) has left
+            self._ge({me: 1.0, other: -1.0, b: big}, d)
+        else:  # b = 1: after the partner (w) has left
+            self._ge({me: 1.0, other: -1.0, b: -big}, d - big)
+
+    def build(self) -> None:
+        adg = self.r.adg
+        span = max((e[-1] for _, e in self.times.values() if e), default=self.t)
+        self.big = 4.0 * (span - self.t) + 1000.0
+        for a in self.agvs:
+            s = self.times[a][0]
+            for k in range(1, self.win[a]):
+                self._ge({self.col[(a, k)]: 1.0, self.col[(a, k - 1)]: -1.0}, s[k] - s[k - 1])
+            for k, step in enumerate(islice(adg._agents[a].pending, self.win[a])):
+                for v in step.enter_visits:
+                    q = adg._queues[v.cell]
+                    i = q.index(v)
+                    got = self.role.get(id(v))
+                    if got is not None:
+                        c, role, partner = got
+                        self._switchable(a, k, v, c, role, partner)
+                        j = i - 2 if role == "w" else i - 1
+                        if j >= 0:
+                            self._after(a, k, q[j])
+                        continue
+                    if i == 0:
+                        continue
+                    self._after(a, k, q[i - 1])
+                    prev = self.role.get(id(q[i - 1]))
+                    if prev is not None and prev[1] == "w" and i >= 2:
+                        self._after(a, k, q[i - 2])  # behind a pair: after both
+
+    # ----------------------------------------------------------------- solving
+
+    def solve(self) -> list[Estimate] | None:
+        """The candidates the optimum switches; None without a proved optimum."""
+        from scipy.optimize import Bounds, LinearConstraint, milp
+        from scipy.sparse import csr_matrix
+
+        r = self.r
+        self.build()
+        n = len(self.col) + self.nb
+        c = np.zeros(n)
+        for a in self.agvs:
+            c[self.col[(a, self.win[a] - 1)]] = 1.0
+        c[len(self.col):] = r.margin_s
+        data, ri, ci, lb = [], [], [], []
+        for row, (coef, rhs) in enumerate(self.rows):
+            for j, v in sorted(coef.items()):
+                data.append(v)
+                ri.append(row)
+                ci.append(j)
+            lb.append(rhs)
+        upper = np.full(n, np.inf)
+        upper[len(self.col):] = 1.0
+        integrality = np.zeros(n)
+        integrality[len(self.col):] = 1
+        cons = []
+        if self.rows:
+            a = csr_matrix((data, (ri, ci)), shape=(len(self.rows), n))
+            cons.append(LinearConstraint(a, np.array(lb), np.full(len(lb), np.inf)))
+        options = {"node_limit": r.node_limit, "disp": False}
+        if r.time_limit_s is not None:
+            options["time_limit"] = float(r.time_limit_s)
+        r.milp_solves += 1
+        res = milp(c, integrality=integrality, bounds=Bounds(self.lower, upper),
+                   constraints=cons, options=options)
+        if res.status != 0 or res.x is None:
+            return None
+        b = res.x[len(self.col):]
+        return [e for e, x in zip(self.comp, b, strict=True) if x > 0.5]
