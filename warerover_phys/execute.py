@@ -880,8 +880,14 @@ def parse_delays(text: str | None) -> DelaySpec:
     if len(parts) not in (2, 4) or parts[0] not in ("none", "bernoulli", "poisson"):
         raise ScenarioError("expected MODEL:PROB[:MIN_TICKS:MAX_TICKS] with MODEL bernoulli "
                             "or poisson", field="--delays", value=text)
+    values: dict[str, Any] = dict(zip(keys, parts, strict=False))
+    for key, number in (("prob", float), ("min_ticks", int), ("max_ticks", int)):
+        try:  # the schema takes numbers only: "0.1" is text until read as one
+            values[key] = number(values[key])
+        except (KeyError, ValueError):
+            pass
     try:
-        return DelaySpec.model_validate(dict(zip(keys, parts, strict=False)))
+        return DelaySpec.model_validate(values)
     except ValidationError as err:
         e = err.errors()[0]
         raise ScenarioError(e["msg"], field=f"--delays {e['loc'][0]}",

@@ -90,6 +90,8 @@ class Reorderer:
         self.node_limit = int(spec.reorder_node_limit)
         self.time_limit_s = spec.reorder_time_limit_s
         self.graph = SwitchableGraph(adg, check=check)
+        self._refused: set[tuple] = set()
+        self._refused_version = -1
         self._next_s = 0.0
         self._models: dict[int, tuple[tuple[float, float, float], MotionModel]] = {}
         self.decisions = 0
@@ -115,7 +117,7 @@ class Reorderer:
         used: set[int] = set()
         for j in cands:
             g = self.graph.candidate(j, SEGMENT_LIMIT)
-            if g is None:
+            if g is None or self._key(g) in self._refused:
                 continue
             ids = {id(v) for pair in g.pairs for v in pair}
             if ids & used:
@@ -134,8 +136,25 @@ class Reorderer:
             if self.graph.switch(e.group):
                 made += 1
                 self._record(e, t)
+            else:
+                self._refused.add(self._key(e.group))
         self.wall_s += time.perf_counter() - wall0
         return made
+
+    def _key(self, g: Group) -> tuple:
+        """A refused group is not tried again while its two AGVs' next actions (and the
+        plans) stay the same: nothing it depends on has moved."""
+        agents = self.adg._agents
+        heads = []
+        for a in (g.first, g.second):
+            rec = agents[a]
+            head = rec.running if rec.running is not None else (
+                rec.pending[0] if rec.pending else None)
+            heads.append(id(head.action) if head is not None else None)
+        if self._refused_version != self.adg.plan_version or len(self._refused) > 100_000:
+            self._refused.clear()
+            self._refused_version = self.adg.plan_version
+        return (g.first, g.second, *heads)
 
     def worth(self, e: Estimate) -> bool:
         """The greedy rule: the switch wins more than the margin."""

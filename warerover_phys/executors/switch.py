@@ -49,8 +49,8 @@ __all__ = ["Group", "SwitchableGraph", "SEARCH_LIMIT", "SEGMENT_LIMIT"]
 
 SEARCH_LIMIT = 20_000
 """Most actions one edge insertion may search before the switch is refused."""
-SEGMENT_LIMIT = 64
-"""Most actions of the waiting AGV a group's run of shared cells may span."""
+SEGMENT_LIMIT = 256
+"""Most actions of the waiting AGV a group's cells may span."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,12 +71,17 @@ class Group:
         return tuple(u.cell for u, _ in self.pairs)
 
 
-def _movable(u: _Visit, w: _Visit) -> bool:
-    """``w`` may go before ``u`` (see the module doc)."""
-    return (not u.entered and not u.claimed and not u.sweep and not u.shelf
+def _movable(u: _Visit, w: _Visit, q: list[_Visit]) -> bool:
+    """``w`` may go before ``u`` in queue ``q`` (``u`` ahead of it), and before the visits
+    between them (see the module doc)."""
+    if not (not u.entered and not u.claimed and not u.sweep and not u.shelf
             and u.enter is not None and u.leave is not None
             and not w.entered and not w.sweep and not w.shelf
-            and w.enter is not None and w.leave is not None)
+            and w.enter is not None and w.leave is not None):
+        return False
+    i, n = q.index(u), q.index(w)
+    return i < n and all(not x.claimed and not x.entered and not x.sweep and not x.shelf
+                         for x in q[i + 1:n])
 
 
 class SwitchableGraph:
@@ -100,17 +105,19 @@ class SwitchableGraph:
         self._where: dict[_Step, tuple[int, int]] = {}
         self._chain: dict[int, list[_Step]] = {}
         self._step_of: dict[int, _Step] = {}
-        self._pending: dict[int, _Visit] = {}
-        """Pairs of the group being switched whose old edge is out and new one not yet in:
-        ``id(visit) -> partner``."""
+        self._pend_u: dict[int, list[_Visit]] = {}
+        self._pend_w: dict[int, _Visit] = {}
+        """Pairs ``(u, w)`` of the group being switched whose old edges are out and new one
+        not yet in: ``id(u) -> [w, ...]`` and ``id(w) -> u``."""
 
     # ----------------------------------------------------------------- candidates
 
     def candidate(self, j: int, limit: int = SEGMENT_LIMIT) -> Group | None:
         """The group that would let standing AGV ``j`` start its next action now: each
-        cell it enters is free for it but for one visit of one AGV ``i`` that may move;
-        then each next action of ``j`` whose cells have ``i``'s movable visit right ahead
-        of ``j``'s, up to ``limit`` actions. None if there is none."""
+        cell it enters is free for it but for one movable visit of one AGV ``i``; then,
+        over ``j``'s next ``limit`` actions, every cell where a movable visit of ``i`` is
+        ahead of ``j``'s with only movable visits between (``j`` goes before all of
+        them there). None if there is none."""
         adg = self.adg
         rec = adg._agents.get(j)
         if rec is None or rec.running is not None or not rec.pending:
@@ -119,7 +126,6 @@ class SwitchableGraph:
         first: int | None = None
         pairs: list[tuple[_Visit, _Visit]] = []
         for k, step in enumerate(islice(rec.pending, limit)):
-            got = False
             for w in step.enter_visits:
                 q = queues[w.cell]
                 idx = q.index(w)
@@ -131,22 +137,17 @@ class SwitchableGraph:
                     ahead = [x for x in q[:idx] if x.agv != j]
                     if not ahead:
                         continue
-                    if len(ahead) > 1 or ahead[0] is not q[idx - 1]:
+                    if len(ahead) > 1 or (first is not None and ahead[0].agv != first) \
+                            or not _movable(ahead[0], w, q):
                         return None
-                elif idx == 0 or q[idx - 1].agv == j:
+                    first = ahead[0].agv
+                    pairs.append((ahead[0], w))
                     continue
-                u = q[idx - 1]
-                if (first is not None and u.agv != first) or not _movable(u, w):
-                    if k == 0:
-                        return None
-                    continue
-                first = u.agv
-                pairs.append((u, w))
-                got = True
-            if not got:
-                if k == 0:
-                    return None
-                break
+                if first is None:
+                    return None  # step 0 is free: nothing to switch
+                u = next((x for x in reversed(q[:idx]) if x.agv == first), None)
+                if u is not None and _movable(u, w, q):
+                    pairs.append((u, w))
         return Group(first, j, tuple(pairs)) if first is not None else None
 
     def pending_index(self, step: _Step) -> int:
@@ -173,31 +174,31 @@ class SwitchableGraph:
         queues = self.adg._queues
         for u, w in group.pairs:  # still as found (nothing moved since)?
             q = queues.get(u.cell)
-            if q is None or u not in q:
+            if q is None or u not in q or w not in q or not _movable(u, w, q):
                 return False
-            i = q.index(u)
-            if i + 1 >= len(q) or q[i + 1] is not w or not _movable(u, w):
-                return False
-        pend = self._pending
-        for u, w in group.pairs:
-            pend[id(u)], pend[id(w)] = w, u
+        pend_u, pend_w = self._pend_u, self._pend_w
+        for u, w in group.pairs:  # (j may pass a cell twice: then two w for one u)
+            pend_u.setdefault(id(u), []).append(w)
+            pend_w[id(w)] = u
         journal: list[tuple[_Step, int]] = []
-        done: list[tuple[list[_Visit], int]] = []
+        done: list[tuple[list[_Visit], int, int]] = []
         ok = True
         for u, w in group.pairs:
             q = queues[u.cell]
-            i = q.index(u)
-            q[i], q[i + 1] = w, u
-            done.append((q, i))
-            del pend[id(u)], pend[id(w)]
+            iw, iu = q.index(w), q.index(u)
+            q.insert(iu, q.pop(iw))  # w right before u
+            done.append((q, iu, iw))
+            pend_u[id(u)].remove(w)
+            del pend_w[id(w)]
             if not self._insert(self._step_of[id(w.leave)], self._step_of[id(u.enter)],
                                 journal):
                 ok = False
                 break
-        pend.clear()
+        pend_u.clear()
+        pend_w.clear()
         if not ok:
-            for q, i in reversed(done):
-                q[i], q[i + 1] = q[i + 1], q[i]
+            for q, iu, iw in reversed(done):
+                q.insert(iw, q.pop(iu))
             for node, old in reversed(journal):
                 self._ord[node] = old
             self.refused += 1
@@ -267,29 +268,30 @@ class SwitchableGraph:
         return s
 
     def _after(self, q: list[_Visit], idx: int) -> list[_Visit]:
-        """The visits right behind ``q[idx]`` (two for a pair being switched)."""
-        n = idx + 1
-        if n >= len(q):
+        """The visits right behind ``q[idx]``. A visit ``w`` of the group being switched
+        whose old edges are out and new one not yet in hangs between the visit before
+        its ``u`` and the visit after its own place."""
+        k = idx + 1
+        while k < len(q) and id(q[k]) in self._pend_w:
+            k += 1
+        if k >= len(q):
             return []
-        pend = self._pending
-        w = q[n]
-        if pend and pend.get(id(q[idx])) is w:
-            return [q[n + 1]] if n + 1 < len(q) else []
-        if pend and n + 1 < len(q) and pend.get(id(w)) is q[n + 1]:
-            return [w, q[n + 1]]
-        return [w]
+        return [q[k], *self._pend_u.get(id(q[k]), ())]
 
     def _before(self, q: list[_Visit], idx: int) -> list[_Visit]:
-        """The visits right ahead of ``q[idx]`` (two for a pair being switched)."""
-        if idx == 0:
-            return []
-        pend = self._pending
-        u = q[idx - 1]
-        if pend and pend.get(id(q[idx])) is u:
-            return [q[idx - 2]] if idx >= 2 else []
-        if pend and idx >= 2 and pend.get(id(u)) is q[idx - 2]:
-            return [u, q[idx - 2]]
-        return [u]
+        """The visits right ahead of ``q[idx]`` (see :meth:`_after`)."""
+        u = self._pend_w.get(id(q[idx]))
+        if u is not None:
+            iu = q.index(u)
+            return [q[iu - 1]] if iu > 0 else []
+        k = idx - 1
+        out = []
+        while k >= 0 and id(q[k]) in self._pend_w:
+            out.append(q[k])
+            k -= 1
+        if k >= 0:
+            out.append(q[k])
+        return out
 
     def _succ(self, s: _Step) -> list[_Step]:
         agv, k = self._where[s]
