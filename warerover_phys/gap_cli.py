@@ -266,6 +266,7 @@ PART_LABELS = {
     "injected": "injected delays", "failures": "failures / corridors",
     "rotation_repair": "rotation repair (planned ticks added)",
     "freeze_recovery": "recovery from freezes", "dwell_overrun": "dwell overrun",
+    "reorder_gain": "switched edges (reorder gain)",
     "faster_than_plan": "faster than the plan (gain)",
     "plan_waits_skipped": "plan waits skipped (gain)"}
 

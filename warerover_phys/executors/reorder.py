@@ -34,27 +34,34 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from itertools import islice
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..planning.base import footprint_nodes
 from ..planning.motion import MotionModel, quarter_turns
 from .control import wrap
 from .fleet_state import DRIVE, TURN
 from .switch import SEGMENT_LIMIT, Group, SwitchableGraph
 
 if TYPE_CHECKING:
-    from ..config import ExecutorSpec
+    from ..config import DelaySpec, ExecutorSpec
     from .accounting import Accounting
     from .adg import ActionGraph
     from .fleet_state import FleetState
 
-__all__ = ["Estimate", "Reorderer", "FAILED_S"]
+__all__ = ["Estimate", "Reorderer", "FAILED_S", "check_executed"]
 
 FAILED_S = 40.0
 """Seconds a failed AGV is taken to stay down (its repair time is not known here)."""
+WAIT_DEPTH = 2
+"""How far down a chain of waiting AGVs an estimate looks (an AGV that waits starts
+after the one it waits for has left the cell, estimated in turn)."""
+WAIT_LOOKAHEAD = 32
+"""Actions of the AGV waited for that an estimate looks at (beyond: not counted)."""
 
 
 @dataclass(frozen=True)
@@ -66,14 +73,17 @@ class Estimate:
     """How long the waiting AGV would wait without the switch."""
     cost_s: float
     """How long the other AGV would wait for it with the switch."""
-    ready_s: dict[int, float]
-    """Per AGV of the group: when it could start its next action."""
     times: dict[int, tuple[list[float], list[float]]]
     """Per AGV of the group: estimated start and finish times of its next actions."""
+    behind: tuple[int, int] = (0, 0)
+    """AGVs waiting (directly or down a chain) on the waiting AGV, and on the other: they
+    win or lose as it does."""
 
     @property
     def gain_s(self) -> float:
-        return self.wait_s - self.cost_s
+        """The estimated seconds won by the fleet: the waiting AGV's wait and the cost to
+        the other, each times itself and the AGVs waiting on it."""
+        return self.wait_s * (1 + self.behind[0]) - self.cost_s * (1 + self.behind[1])
 
 
 class Reorderer:
@@ -90,8 +100,12 @@ class Reorderer:
         self.node_limit = int(spec.reorder_node_limit)
         self.time_limit_s = spec.reorder_time_limit_s
         self.graph = SwitchableGraph(adg, check=check)
+        self.slow = slowdown(spec.delays)
+        """Driving times are stretched by this factor: the share of time random delays
+        are expected to hold an AGV (``executor.delays``)."""
         self._refused: set[tuple] = set()
         self._refused_version = -1
+        self._behind: dict[int, int] = {}
         self._next_s = 0.0
         self._models: dict[int, tuple[tuple[float, float, float], MotionModel]] = {}
         self.decisions = 0
@@ -112,7 +126,9 @@ class Reorderer:
         wall0 = time.perf_counter()
         self.decisions += 1
         st = self.st
+        waiting = np.flatnonzero(st.waiting).tolist()
         cands = np.flatnonzero(st.waiting & ~delayed & ~st.failed).tolist()
+        self._behind = self._chains(waiting)
         ests: list[Estimate] = []
         used: set[int] = set()
         for j in cands:
@@ -182,10 +198,26 @@ class Reorderer:
         kj_in = [sg.pending_index(sg.step_of(w.enter)) for _, w in g.pairs]
         kj_out = [sg.pending_index(sg.step_of(w.leave)) for _, w in g.pairs]
         si, ei = self.times(i, max(ki_out), t)
-        sj, ej = self.times(j, max(kj_out), t)
+        # (j as if its next action were free: the switch makes it so)
+        sj, ej = self.times(j, max(kj_out), t, WAIT_DEPTH)
         wait = max(ei[ko] for ko, kin in zip(ki_out, kj_in, strict=True) if kin == 0) - sj[0]
         cost = max(0.0, max(ej[ko] - si[kin] for ko, kin in zip(kj_out, ki_in, strict=True)))
-        return Estimate(g, wait, cost, {i: si[0], j: sj[0]}, {i: (si, ei), j: (sj, ej)})
+        return Estimate(g, wait, cost, {i: (si, ei), j: (sj, ej)},
+                        (self._behind.get(j, 0), self._behind.get(i, 0)))
+
+    def _chains(self, waiting: list[int]) -> dict[int, int]:
+        """Per AGV: how many waiting AGVs wait on it, directly or down a chain (each
+        waiting AGV's blocker: :meth:`~.adg.ActionGraph.blockers`)."""
+        on = dict(zip(waiting, self.adg.blockers(waiting), strict=True))
+        count: dict[int, int] = {}
+        for a in waiting:
+            seen = {a}
+            b = on.get(a, -1)
+            while b >= 0 and b not in seen:
+                count[b] = count.get(b, 0) + 1
+                seen.add(b)
+                b = on.get(b, -1)
+        return count
 
     def model(self, a: int) -> MotionModel:
         """The motion model of AGV ``a`` with its limits in force."""
@@ -199,10 +231,12 @@ class Reorderer:
             self._models[a] = got
         return got[1]
 
-    def ready_s(self, a: int, t: float) -> tuple[float, tuple[int, int] | None, bool]:
+    def ready_s(self, a: int, t: float, depth: int = 0
+                ) -> tuple[float, tuple[int, int] | None, bool]:
         """When AGV ``a`` could start its next action (after its delay, failure, dwell
-        and running action), the direction it then faces and whether it is still
-        driving a run it may go on with."""
+        and running action, and, ``depth`` levels down, after the AGV it waits for has
+        left the cell), the direction it then faces and whether it is still driving a
+        run it may go on with."""
         st = self.st
         rec = self.adg._agents[a]
         m = self.model(a)
@@ -226,16 +260,37 @@ class Reorderer:
             heading = act.direction
         else:
             t0 = max(t0, float(st.hold_until[a]))
+            if depth < WAIT_DEPTH and st.waiting[a] and rec.pending:
+                t0 = max(t0, self._free_s(rec.pending[0], a, t, depth))
         return t0, heading, rolling
 
-    def times(self, a: int, upto: int, t: float) -> tuple[list[float], list[float]]:
+    def _free_s(self, step, a: int, t: float, depth: int) -> float:
+        """When the cells ``step`` of AGV ``a`` enters are free of the visits ahead of
+        its own (their AGVs' estimates, one level further down)."""
+        sg, queues = self.graph, self.adg._queues
+        out = t
+        for v in step.enter_visits:
+            q = queues[v.cell]
+            h = q[0]
+            if h is v or h.agv == a or h.leave is None:
+                continue
+            k = sg.pending_index(sg.step_of(h.leave))
+            if k < 0:
+                out = max(out, self.ready_s(h.agv, t, depth + 1)[0])
+            elif k < WAIT_LOOKAHEAD:
+                out = max(out, self.times(h.agv, k, t, depth + 1)[1][k])
+        return out
+
+    def times(self, a: int, upto: int, t: float, depth: int = 0
+              ) -> tuple[list[float], list[float]]:
         """Estimated start and finish times of AGV ``a``'s next ``upto + 1`` actions (a
         running one not included), driving without waiting on anyone: collinear moves as
         one run from rest to rest, a turn in place before a change of direction, planned
         dwells."""
         st = self.st
         m = self.model(a)
-        t0, heading, rolling = self.ready_s(a, t)
+        slow = self.slow
+        t0, heading, rolling = self.ready_s(a, t, depth)
         steps = [s.action for s in islice(self.adg._agents[a].pending, upto + 1)]
         holds = self.holds.get(a, {})
         starts: list[float] = []
@@ -251,17 +306,16 @@ class Reorderer:
             hold = holds.get(steps[k].seq, 0) * st.tick_s
             if k == 0 and rolling and d == heading and not hold:
                 for q in range(n):  # going on at cruise speed, braking at the end
-                    starts.append(now + q * m.pass_s(1))
-                    ends.append(now + (q + 1) * m.pass_s(1))
-                ends[-1] += m.max_speed_mps / (2 * m.max_accel_mps2)
+                    starts.append(now + q * m.pass_s(1) * slow)
+                    ends.append(now + (q + 1) * m.pass_s(1) * slow)
+                ends[-1] += m.max_speed_mps / (2 * m.max_accel_mps2) * slow
                 now = ends[-1]
             else:
-                now += hold + m.turn_s(quarter_turns(heading, d))
-                total = m.run_s(n)
+                now += hold + m.turn_s(quarter_turns(heading, d)) * slow
                 for q in range(n):
-                    starts.append(now + m.reach_s(q, n))
-                    ends.append(now + m.reach_s(q + 1, n))
-                now += total
+                    starts.append(now + m.reach_s(q, n) * slow)
+                    ends.append(now + m.reach_s(q + 1, n) * slow)
+                now += m.run_s(n) * slow
             heading = d
             k += n
         return starts, ends
@@ -289,6 +343,48 @@ class Reorderer:
         return out
 
 
-def finite(x: float) -> float:
-    """``x``, or a large finite number for infinities (the program's constants)."""
-    return x if math.isfinite(x) else 1e9
+def slowdown(d: DelaySpec) -> float:
+    """``1 / (1 - share)`` of the share of time random delays ``d`` hold an AGV: a delay
+    starts with probability ``p`` per tick while none runs and lasts ``D`` ticks on
+    average, so the share is ``D / (D + 1 / p)``."""
+    if d.model == "none" or d.prob <= 0:
+        return 1.0
+    p = d.prob if d.model == "bernoulli" else 1.0 - math.exp(-d.prob)
+    mean = (d.min_ticks + d.max_ticks) / 2 if d.duration == "uniform" else min(
+        max(d.mean_ticks, d.min_ticks), d.max_ticks)
+    return 1.0 + mean * p
+
+
+def _cells_visited(states) -> list[int]:
+    """The anchors a sequence of states ``(a, b)`` passes through, in order."""
+    out = [states[0][0]] if len(states) else []
+    for _, b in states:
+        if b != out[-1]:
+            out.append(b)
+    return out
+
+
+def check_executed(planned: Mapping[int, Sequence[tuple[int, int]]],
+                   executed: Mapping[int, Sequence[tuple[int, int]]], cols: int,
+                   sizes: Mapping[int, int] | None = None) -> list[str]:
+    """An independent check of an execution (reordered or not) against its plan: every
+    AGV passes exactly its plan's cells in their order, and at no tick do two AGVs hold
+    one cell (a moving AGV holds both ends of its move; ``sizes``: footprints, default
+    1). Returns the problems found (empty: none)."""
+    problems = []
+    for i, states in sorted(planned.items()):
+        if _cells_visited(states) != _cells_visited(executed.get(i, ())):
+            problems.append(f"AGV {i} did not pass its plan's cells in order")
+    sizes = sizes or {}
+    ticks = max((len(s) for s in executed.values()), default=0)
+    for t in range(ticks):
+        owner: dict[int, int] = {}
+        for i, states in executed.items():
+            a, b = states[min(t, len(states) - 1)]
+            k = sizes.get(i, 1)
+            for c in {*footprint_nodes(a, k, cols), *footprint_nodes(b, k, cols)}:
+                j = owner.setdefault(c, i)
+                if j != i:
+                    problems.append(f"tick {t}: AGVs {j} and {i} both hold cell "
+                                    f"{divmod(c, cols)}")
+    return problems

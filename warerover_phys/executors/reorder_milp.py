@@ -33,6 +33,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .reorder import WAIT_DEPTH
+
 if TYPE_CHECKING:
     from .adg import _Visit
     from .reorder import Estimate, Reorderer
@@ -105,7 +107,8 @@ class _Program:
         self.col: dict[tuple[int, int], int] = {}
         self.times: dict[int, tuple[list[float], list[float]]] = {}
         for a in self.agvs:
-            self.times[a] = r.times(a, self.win[a] - 1, t)
+            # (waits on the graph are the program's constraints, not the estimate's)
+            self.times[a] = r.times(a, self.win[a] - 1, t, WAIT_DEPTH)
             for k in range(self.win[a]):
                 self.col[(a, k)] = len(self.col)
         self.nb = len(comp)
