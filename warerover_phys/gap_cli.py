@@ -47,9 +47,13 @@ def run_gap(*, scenario: Path, mode: str, seed: int | None, seeds: str | None,
             fmt: str | None, yx: bool, fleet: Path | None, delays: str | None,
             tick_s: float, dt_s: float, agvs: str | None, pictures: bool, quiet: bool,
             overrides: Callable[[], Any], timing: str | None = None,
-            video: Path | None = None) -> None:
+            video: Path | None = None, reorder: str | None = None) -> None:
     """See ``warerover gap --help``."""
     try:
+        if reorder is not None:
+            from .execute import check_reorder
+
+            check_reorder(reorder)
         if mode not in MODE_LABEL:
             raise WareroverError(f"--mode must be open or closed (got {mode!r})")
         if timing is not None and timing not in TIMINGS:
@@ -65,7 +69,8 @@ def run_gap(*, scenario: Path, mode: str, seed: int | None, seeds: str | None,
                 raise WareroverError("--plan runs one open-loop execution: it takes neither "
                                      "--mode closed nor --seeds")
             return _plan_gap(scenario, plan, fmt, yx, fleet, delays, tick_s, dt_s, seed or 0,
-                             out, json_out, picked, pictures, quiet, timing or "unit", video)
+                             out, json_out, picked, pictures, quiet, timing or "unit", video,
+                             reorder or "none")
         sc = _with_timing(overrides(), timing, mode)
         if seeds is not None:
             from .gap_stats import parse_seeds
@@ -172,8 +177,10 @@ def _video(g, video: Path, title: str, show: bool) -> None:
     ghost = ghost_poses({i: list(p.states) for i, p in plan.paths.items()},
                         [t.footprint for t in plan.types], plan.layout.cols,
                         float(plan.layout.cell_m), plan.tick_s)
-    rec = recording_with_ghosts(dict(run.trajectory), ghost)
-    style = Style(size=(1280, 720), show_paths=False, ghosts=True, title=title)
+    switches = tuple(e for e in run.events if e.get("event") == "reorder")
+    rec = recording_with_ghosts(dict(run.trajectory), ghost, switches=switches)
+    style = Style(size=(1280, 720), show_paths=False, ghosts=True, title=title,
+                  switches=bool(switches))
     bar, update = _bar(show)
     with bar:
         info = render_video(rec, video, style=style, progress=None if update is None else
@@ -437,7 +444,7 @@ def _many(sc, seeds: list[int], mode: str, workers: int | None, out: Path | None
 def _plan_gap(floor: Path, plan: Path, fmt: str | None, yx: bool, fleet: Path | None,
               delays: str | None, tick_s: float, dt_s: float, seed: int, out: Path | None,
               json_out: bool, agvs: list[int] | None, pictures: bool, quiet: bool,
-              timing: str = "unit", video: Path | None = None) -> None:
+              timing: str = "unit", video: Path | None = None, reorder: str = "none") -> None:
     from .gap import plan_gap
 
     if not (math.isfinite(tick_s) and tick_s > 0):
@@ -448,7 +455,8 @@ def _plan_gap(floor: Path, plan: Path, fmt: str | None, yx: bool, fleet: Path | 
     bar, update = _bar(show)
     with bar:
         g = plan_gap(floor, plan, fleet=fleet, fmt=fmt, xy=not yx, delays=delays,
-                     tick_s=tick_s, dt_s=dt_s, seed=seed, timing=timing, progress=update)
+                     tick_s=tick_s, dt_s=dt_s, seed=seed, timing=timing, progress=update,
+                     reorder=reorder)
     _print_repairs(g.report)
     if video is not None:
         _video(g, video, f"plan {plan.name}: ghost = plan", show)

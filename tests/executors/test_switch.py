@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from test_adg import Execution, bound_for, build_or_skip, instances, planned_moves
 
 from warerover_phys.executors.adg import build
-from warerover_phys.executors.switch import SEARCH_LIMIT, SwitchableGraph
+from warerover_phys.executors.switch import SEARCH_LIMIT, Group, SwitchableGraph
 from warerover_phys.planning.base import TimedPath
 
 # A corridor (row 0) with a side cell below (1, 2) and an exit below (1, 3):
@@ -58,8 +58,9 @@ def test_a_switch_that_would_close_a_cycle_is_refused_and_undone():
     g.start(1)
     g.finish(1)
     before = {c: g.visits(c) for c in (2, 3, 4)}
-    grp = sg.candidate(1)
-    assert grp is not None and grp.cells == (2, 3)
+    assert sg.candidate(1) is None  # (4) would have to switch too, and cannot
+    q = g._queues
+    grp = Group(0, 1, tuple((q[c][0], q[c][1]) for c in (2, 3)))
     assert not sg.switch(grp)
     assert {c: g.visits(c) for c in (2, 3, 4)} == before and sg.refused == 1
     assert not g.ready(1) and g.ready(0)

@@ -103,8 +103,9 @@ class Reorderer:
         self.slow = slowdown(spec.delays)
         """Driving times are stretched by this factor: the share of time random delays
         are expected to hold an AGV (``executor.delays``)."""
-        self._refused: set[tuple] = set()
-        self._refused_version = -1
+        self._declined: set[tuple] = set()
+        self._declined_version = -1
+        self._switched_now: set[int] = set()
         self._behind: dict[int, int] = {}
         self._next_s = 0.0
         self._models: dict[int, tuple[tuple[float, float, float], MotionModel]] = {}
@@ -112,6 +113,9 @@ class Reorderer:
         self.candidates = 0
         self.gain_s = 0.0
         self.wall_s = 0.0
+        self.cpu_s = 0.0
+        """Wall and CPU seconds spent deciding (CPU: this process's, which a loaded
+        machine does not inflate)."""
         self.milp_solves = 0
         self.milp_fallbacks = 0
 
@@ -123,7 +127,7 @@ class Reorderer:
         if t + 1e-9 < self._next_s:
             return 0
         self._next_s = t + self.every_s
-        wall0 = time.perf_counter()
+        wall0, cpu0 = time.perf_counter(), time.process_time()
         self.decisions += 1
         st = self.st
         waiting = np.flatnonzero(st.waiting).tolist()
@@ -131,14 +135,19 @@ class Reorderer:
         self._behind = self._chains(waiting)
         ests: list[Estimate] = []
         used: set[int] = set()
+        keys: dict[int, tuple] = {}
         for j in cands:
             g = self.graph.candidate(j, SEGMENT_LIMIT)
-            if g is None or self._key(g) in self._refused:
+            if g is None:
+                continue
+            key = self._key(g)
+            if key in self._declined:
                 continue
             ids = {id(v) for pair in g.pairs for v in pair}
             if ids & used:
                 continue
             used |= ids
+            keys[j] = key
             ests.append(self.estimate(g, t))
         self.candidates += len(ests)
         if self.mode == "milp" and ests:
@@ -152,14 +161,18 @@ class Reorderer:
             if self.graph.switch(e.group):
                 made += 1
                 self._record(e, t)
-            else:
-                self._refused.add(self._key(e.group))
+        for e in ests:  # declined or refused: not again until something it depends on moves
+            if e.group.second not in self._switched_now:
+                self._declined.add(keys[e.group.second])
+        self._switched_now.clear()
         self.wall_s += time.perf_counter() - wall0
+        self.cpu_s += time.process_time() - cpu0
         return made
 
     def _key(self, g: Group) -> tuple:
-        """A refused group is not tried again while its two AGVs' next actions (and the
-        plans) stay the same: nothing it depends on has moved."""
+        """A group declined (not worth it, or refused: a cycle) is not looked at again
+        while the plans, its two AGVs' next actions, the other's delay and whether it
+        waits stay the same."""
         agents = self.adg._agents
         heads = []
         for a in (g.first, g.second):
@@ -167,10 +180,12 @@ class Reorderer:
             head = rec.running if rec.running is not None else (
                 rec.pending[0] if rec.pending else None)
             heads.append(id(head.action) if head is not None else None)
-        if self._refused_version != self.adg.plan_version or len(self._refused) > 100_000:
-            self._refused.clear()
-            self._refused_version = self.adg.plan_version
-        return (g.first, g.second, *heads)
+        if self._declined_version != self.adg.plan_version or len(self._declined) > 100_000:
+            self._declined.clear()
+            self._declined_version = self.adg.plan_version
+        st = self.st
+        return (g.first, g.second, *heads, float(st.delayed_until[g.first]),
+                bool(st.waiting[g.first]), bool(st.failed[g.first]))
 
     def worth(self, e: Estimate) -> bool:
         """The greedy rule: the switch wins more than the margin."""
@@ -178,6 +193,7 @@ class Reorderer:
 
     def _record(self, e: Estimate, t: float) -> None:
         g, st = e.group, self.st
+        self._switched_now.add(g.second)
         wait = max(0.0, e.wait_s)
         self.gain_s += wait
         self.acc.causes.reorder_gain(g.second, int(round(wait / st.dt)))
@@ -336,6 +352,8 @@ class Reorderer:
             "reorder_order_rebuilds": sw.rebuilds,
             "reorder_wall_s": self.wall_s,
             "reorder_wall_ms_per_tick": 1000.0 * self.wall_s / ticks,
+            "reorder_cpu_s": self.cpu_s,
+            "reorder_cpu_ms_per_tick": 1000.0 * self.cpu_s / ticks,
         }
         if self.mode == "milp":
             out["reorder_milp_solves"] = self.milp_solves

@@ -61,13 +61,32 @@ def components(ests: list[Estimate]) -> list[list[Estimate]]:
 
 
 def choose(r: Reorderer, ests: list[Estimate], t: float) -> list[Estimate]:
-    """The candidates to switch (see the module doc)."""
+    """The candidates to switch (see the module doc). A candidate whose waiting AGV's
+    first cell lies beyond the window of the AGV it would pass (``2 x reorder_horizon``
+    actions) is left to the greedy rule; of the others' cells those within the window are
+    modelled (the rest are switched with them)."""
     chosen: list[Estimate] = []
+    cap = 2 * r.horizon
+    sg = r.graph
+
+    def idx(action) -> int:
+        return sg.pending_index(sg.step_of(action))
+
     for comp in components(ests):
-        picked = _Program(r, comp, t).solve()
+        inside: list[tuple[Estimate, list]] = []
+        for e in comp:
+            pairs = [(u, w) for u, w in e.group.pairs
+                     if idx(u.leave) < cap and idx(w.leave) < cap]
+            if any(idx(w.enter) == 0 and (u, w) not in pairs for u, w in e.group.pairs):
+                chosen += [e] if r.worth(e) else []
+            else:
+                inside.append((e, pairs))
+        if not inside:
+            continue
+        picked = _Program(r, inside, t).solve()
         if picked is None:
             r.milp_fallbacks += 1
-            picked = [e for e in comp if r.worth(e)]
+            picked = [e for e, _ in inside if r.worth(e)]
         chosen += picked
     return sorted(chosen, key=lambda e: e.group.second)
 
@@ -75,15 +94,16 @@ def choose(r: Reorderer, ests: list[Estimate], t: float) -> list[Estimate]:
 class _Program:
     """One problem's program (module doc)."""
 
-    def __init__(self, r: Reorderer, comp: list[Estimate], t: float) -> None:
-        self.r, self.comp, self.t = r, comp, t
+    def __init__(self, r: Reorderer, inside: list[tuple[Estimate, list]], t: float) -> None:
+        self.r, self.t = r, t
+        self.comp = [e for e, _ in inside]
         sg = r.graph
         self.idx = lambda action: sg.pending_index(sg.step_of(action))
         self.role: dict[int, tuple[int, str, _Visit]] = {}
         """id(visit) -> (candidate, 'u' or 'w', partner)."""
         need: dict[int, int] = {}
-        for c, e in enumerate(comp):
-            for u, w in e.group.pairs:
+        for c, (_, pairs) in enumerate(inside):
+            for u, w in pairs:
                 self.role[id(u)] = (c, "u", w)
                 self.role[id(w)] = (c, "w", u)
                 for a, act in ((u.agv, u.leave), (w.agv, w.leave)):
@@ -111,7 +131,7 @@ class _Program:
             self.times[a] = r.times(a, self.win[a] - 1, t, WAIT_DEPTH)
             for k in range(self.win[a]):
                 self.col[(a, k)] = len(self.col)
-        self.nb = len(comp)
+        self.nb = len(self.comp)
         self.rows: list[tuple[dict[int, float], float]] = []
         self.lower = np.zeros(len(self.col) + self.nb)
         for a in self.agvs:

@@ -65,6 +65,7 @@ PALETTE: dict[str, tuple[int, int, int]] = {
     "failed": OKABE_ITO["vermillion"],
     "corridor": OKABE_ITO["purple"],
     "ghost": OKABE_ITO["green"],
+    "switch": OKABE_ITO["black"],
     "outline": (30, 30, 30),
     "hud_bg": (38, 38, 38),
     "hud_text": (245, 245, 245),
@@ -131,6 +132,10 @@ class Snapshot:
     ghosts: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
     """Per AGV, the planned pose ``(x, y, heading)`` at this time (metres, radians; NaN:
     none), drawn as an outlined ghost when ``Style.ghosts`` is on."""
+    switches: tuple[dict, ...] = ()
+    """Edges of the dependency graph switched a moment ago (``executor.reorder``):
+    ``{"first": AGV now passing first, "then": AGV passing after it, "cells": [[row, col],
+    ...]}``, drawn when ``Style.switches`` is on."""
 
 
 @dataclass(frozen=True)
@@ -158,6 +163,9 @@ class Style:
     ghosts: bool = False
     """Draw each AGV's planned pose (``Snapshot.ghosts``) as an outlined ghost, with a line
     to the real body when they are apart (and a legend entry)."""
+    switches: bool = False
+    """Draw switched edges (``Snapshot.switches``): their cells outlined and an arrow from
+    the AGV that now passes first to the one that passes after it (and a legend entry)."""
 
     def __post_init__(self) -> None:
         w, h = self.size
@@ -278,6 +286,8 @@ def _legend(img: np.ndarray, geo: Geometry, style: Style) -> None:
         items.append(("path", "planned path"))
     if style.ghosts:
         items.append(("ghost", "planned pose (ghost)"))
+    if style.switches:
+        items.append(("switch", "switched edge (first -> then)"))
     w = style.size[0]
     font = geo.font * 0.9
     for _ in range(6):
@@ -294,6 +304,9 @@ def _legend(img: np.ndarray, geo: Geometry, style: Style) -> None:
             cv2.line(img, (x, yc), (x + box, yc), PALETTE["moving"], 2, _AA)
         elif key == "ghost":
             cv2.rectangle(img, (x + 1, y0 + 1), (x + box - 1, y0 + box - 1), PALETTE["ghost"], 2)
+        elif key == "switch":
+            cv2.arrowedLine(img, (x, y0 + box - 1), (x + box, y0 + 1), PALETTE["switch"], 2,
+                            _AA, 0, 0.4)
         elif key == "corridor":
             cv2.rectangle(img, (x, y0), (x + box, y0 + box),
                           _blend(PALETTE["floor"], PALETTE["corridor"], style.corridor_alpha), -1)
@@ -492,6 +505,27 @@ def _ghosts(band: np.ndarray, geo: Geometry, snap: Snapshot, style: Style) -> No
                  max(1, thick // 2), _AA, SHIFT)
 
 
+def _switches(band: np.ndarray, geo: Geometry, snap: Snapshot) -> None:
+    """Switched edges: each cell outlined, an arrow from the AGV passing first to the AGV
+    passing after it."""
+    s = geo.scale
+    cell_px = snap.scene.cell_m * s
+    color = PALETTE["switch"]
+    thick = max(1, int(round(cell_px * 0.06)))
+    n = len(snap.x)
+    for sw in snap.switches:
+        for r, c in sw["cells"]:
+            x0 = geo.ox + (c * snap.scene.cell_m - geo.x0_m) * s
+            y0 = geo.oy + (r * snap.scene.cell_m - geo.y0_m) * s
+            cv2.rectangle(band, (int(x0), int(y0)), (int(x0 + cell_px), int(y0 + cell_px)),
+                          color, thick, _AA)
+        a, b = int(sw["first"]), int(sw["then"])
+        if 0 <= a < n and 0 <= b < n:
+            p = (int(geo.ox + (snap.x[a] - geo.x0_m) * s), int(geo.oy + (snap.y[a] - geo.y0_m) * s))
+            q = (int(geo.ox + (snap.x[b] - geo.x0_m) * s), int(geo.oy + (snap.y[b] - geo.y0_m) * s))
+            cv2.arrowedLine(band, p, q, color, thick, _AA, 0, 0.15)
+
+
 def _hud(img: np.ndarray, geo: Geometry, snap: Snapshot, style: Style, failures: int) -> None:
     tick = snap.time_s / snap.tick_s if snap.tick_s > 0 else 0.0
     parts = [f"t {snap.time_s:.1f} s", f"tick {int(math.floor(tick + 1e-9))}"]
@@ -524,6 +558,8 @@ def draw_frame(snapshot: Snapshot, style: Style | None = None) -> np.ndarray:
     if style.ghosts and snapshot.ghosts is not None:
         _ghosts(band, geo, snapshot, style)
     _agvs(band, geo, snapshot, style, status)
+    if style.switches and snapshot.switches:
+        _switches(band, geo, snapshot)
     if style.show_hud:
         _hud(img, geo, snapshot, style, int((status == 3).sum()))
     return img

@@ -41,6 +41,8 @@ TO_SHELF = 1
 TO_STATION = 3
 REQUIRED = ("t", "x", "y", "heading", "state", "loaded", "footprint", "body_m", "cell_m",
             "tick_s", "grid")
+SWITCH_SHOW_S = 3.0
+"""Seconds a switched edge stays drawn after it was switched."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,6 +71,9 @@ class Recording:
     ghost: dict[str, np.ndarray] | None = None
     """Planned poses drawn as ghosts: ``t`` (G,) seconds, ``x``, ``y``, ``heading`` (G, N)
     (:func:`ghost_poses`); None: none."""
+    switches: tuple[dict, ...] = ()
+    """Switched edges of the dependency graph (``reorder`` events: ``t_s``, ``first``,
+    ``then``, ``cells``), each shown for :data:`SWITCH_SHOW_S` seconds after it."""
     _scene: list = field(default_factory=list, repr=False)
     _plan_index: list = field(default_factory=list, repr=False)
 
@@ -126,9 +131,11 @@ class Recording:
             done = int(np.searchsorted(self.order_done, tick, side="right"))
         paths = self._paths_ahead(tick, x, y, path_ticks) if path_ticks > 0 else None
         ghosts = _sample(self.ghost, q) if self.ghost is not None else None
+        switches = tuple(s for s in self.switches if s["t_s"] <= q < s["t_s"] + SWITCH_SHOW_S)
         return Snapshot(scene=self.scene(), time_s=q, tick_s=self.tick_s, x=x, y=y,
                         heading=heading, state=state, loaded=loaded, corridors=corridors,
-                        orders_done=done, orders_total=total, paths=paths, ghosts=ghosts)
+                        orders_done=done, orders_total=total, paths=paths, ghosts=ghosts,
+                        switches=switches)
 
     def _paths_ahead(self, tick: float, x: np.ndarray, y: np.ndarray,
                      horizon: int) -> list[np.ndarray | None]:
@@ -197,9 +204,11 @@ def _facing(pos: np.ndarray, heading: np.ndarray) -> np.ndarray:
 
 
 def recording_with_ghosts(trajectory: dict, ghost: dict[str, np.ndarray],
-                          source: str = "open loop") -> Recording:
+                          source: str = "open loop", switches: tuple[dict, ...] = ()
+                          ) -> Recording:
     """A :class:`Recording` of an executor's ``trajectory`` dict with ``ghost`` poses
-    (:func:`ghost_poses`) to draw beside the bodies (``Style(ghosts=True)``)."""
+    (:func:`ghost_poses`) to draw beside the bodies (``Style(ghosts=True)``), and the
+    ``reorder`` events' switched edges (``Style(switches=True)``)."""
     import dataclasses
 
     rec = _from_dict(trajectory, None, None, source)
@@ -209,7 +218,8 @@ def recording_with_ghosts(trajectory: dict, ghost: dict[str, np.ndarray],
             raise WareroverError(f"{source}: ghost {key}: expected shape "
                                  f"({len(ghost['t'])}, {n})")
     return dataclasses.replace(rec, ghost={k: np.asarray(v, dtype=np.float64)
-                                           for k, v in ghost.items()})
+                                           for k, v in ghost.items()},
+                               switches=tuple(switches))
 
 
 # ------------------------------------------------------------------------------ building
