@@ -71,19 +71,25 @@ class Estimate:
     group: Group
     wait_s: float
     """How long the waiting AGV would wait without the switch."""
-    cost_s: float
-    """How long the other AGV would wait for it with the switch."""
+    costs_s: dict[int, float]
+    """Per AGV it passes: how long that AGV would wait for it with the switch."""
     times: dict[int, tuple[list[float], list[float]]]
     """Per AGV of the group: estimated start and finish times of its next actions."""
-    behind: tuple[int, int] = (0, 0)
-    """AGVs waiting (directly or down a chain) on the waiting AGV, and on the other: they
-    win or lose as it does."""
+    behind: dict[int, int]
+    """Per AGV of the group: the AGVs waiting on it (directly or down a chain): they win
+    or lose as it does."""
+
+    @property
+    def cost_s(self) -> float:
+        return sum(self.costs_s.values())
 
     @property
     def gain_s(self) -> float:
-        """The estimated seconds won by the fleet: the waiting AGV's wait and the cost to
-        the other, each times itself and the AGVs waiting on it."""
-        return self.wait_s * (1 + self.behind[0]) - self.cost_s * (1 + self.behind[1])
+        """The estimated seconds won by the fleet: the waiting AGV's wait less the costs
+        to the AGVs it passes, each times itself and the AGVs waiting on it."""
+        b = self.behind
+        return self.wait_s * (1 + b.get(self.group.second, 0)) - sum(
+            c * (1 + b.get(a, 0)) for a, c in self.costs_s.items())
 
 
 class Reorderer:
@@ -184,8 +190,9 @@ class Reorderer:
             self._declined.clear()
             self._declined_version = self.adg.plan_version
         st = self.st
-        return (g.first, g.second, *heads, float(st.delayed_until[g.first]),
-                bool(st.waiting[g.first]), bool(st.failed[g.first]))
+        passed = sorted({u.agv for u, _ in g.pairs})
+        return (g.second, *heads, *passed, *(float(st.delayed_until[a]) for a in passed),
+                *(bool(st.waiting[a]) for a in passed))
 
     def worth(self, e: Estimate) -> bool:
         """The greedy rule: the switch wins more than the margin."""
@@ -200,6 +207,7 @@ class Reorderer:
         cols = st.cols
         self.acc.events.append(("reorder", {
             "t_s": round(t, 3), "first": g.second, "then": g.first,
+            "passed": sorted({u.agv for u, _ in g.pairs}),
             "cells": [list(divmod(c, cols)) for c in g.cells],
             "wait_s": round(e.wait_s, 3), "cost_s": round(e.cost_s, 3)}))
 
@@ -208,18 +216,24 @@ class Reorderer:
     def estimate(self, g: Group, t: float) -> Estimate:
         """The effect of switching ``g`` (see the module doc, step 2)."""
         sg = self.graph
-        i, j = g.first, g.second
-        ki_in = [sg.pending_index(sg.step_of(u.enter)) for u, _ in g.pairs]
-        ki_out = [sg.pending_index(sg.step_of(u.leave)) for u, _ in g.pairs]
-        kj_in = [sg.pending_index(sg.step_of(w.enter)) for _, w in g.pairs]
-        kj_out = [sg.pending_index(sg.step_of(w.leave)) for _, w in g.pairs]
-        si, ei = self.times(i, max(ki_out), t)
+        j = g.second
+
+        def k(action) -> int:
+            return sg.pending_index(sg.step_of(action))
+
+        rows = [(u.agv, k(u.enter), k(u.leave), k(w.enter), k(w.leave)) for u, w in g.pairs]
+        need: dict[int, int] = {}
+        for a, _, ko, _, _ in rows:
+            need[a] = max(need.get(a, 0), ko)
+        times = {a: self.times(a, n, t) for a, n in sorted(need.items())}
         # (j as if its next action were free: the switch makes it so)
-        sj, ej = self.times(j, max(kj_out), t, WAIT_DEPTH)
-        wait = max(ei[ko] for ko, kin in zip(ki_out, kj_in, strict=True) if kin == 0) - sj[0]
-        cost = max(0.0, max(ej[ko] - si[kin] for ko, kin in zip(kj_out, ki_in, strict=True)))
-        return Estimate(g, wait, cost, {i: (si, ei), j: (sj, ej)},
-                        (self._behind.get(j, 0), self._behind.get(i, 0)))
+        times[j] = sj, ej = self.times(j, max(r[4] for r in rows), t, WAIT_DEPTH)
+        wait = max(times[a][1][ko] for a, _, ko, kin, _ in rows if kin == 0) - sj[0]
+        costs: dict[int, float] = {}
+        for a, ki, _, _, kjo in rows:
+            costs[a] = max(costs.get(a, 0.0), ej[kjo] - times[a][0][ki])
+        behind = {a: self._behind.get(a, 0) for a in times}
+        return Estimate(g, wait, costs, times, behind)
 
     def _chains(self, waiting: list[int]) -> dict[int, int]:
         """Per AGV: how many waiting AGVs wait on it, directly or down a chain (each

@@ -53,7 +53,8 @@ def components(ests: list[Estimate]) -> list[list[Estimate]]:
         return a
 
     for e in ests:
-        parent[root(e.group.first)] = root(e.group.second)
+        for u, _ in e.group.pairs:
+            parent[root(u.agv)] = root(e.group.second)
     out: dict[int, list[Estimate]] = {}
     for e in ests:
         out.setdefault(root(e.group.second), []).append(e)

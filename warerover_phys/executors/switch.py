@@ -114,88 +114,43 @@ class SwitchableGraph:
 
     def candidate(self, j: int, limit: int = SEGMENT_LIMIT) -> Group | None:
         """The group that would let standing AGV ``j`` start its next action now, or
-        None. Each cell its next action enters must be free for it but for one movable
-        visit of one AGV ``i``. Of the other cells of ``j``'s next ``limit`` actions where
-        a visit of ``i`` is ahead of ``j``'s, the group takes those without which a cycle
-        of the two would remain (:meth:`_closure`: the rest of a corridor they share, in
-        either direction, but not a crossing far ahead); if one of them may not move,
-        there is no group."""
+        None. Each cell its next action enters must be free for it but for movable
+        visits of other AGVs that have not entered it; ``j`` goes before them. Then, on
+        each cell ``j`` enters before it has left every cell of the group, it goes before
+        the visits ahead of its own there too (they may wait for those it passed: a
+        cycle), unless such a cell is held (its AGV is on it: ``j`` waits there). None if
+        a visit it must pass may not move, or ``j``'s plan ends on a cell of the group."""
+        self._sync()
         adg = self.adg
         rec = adg._agents.get(j)
         if rec is None or rec.running is not None or not rec.pending:
             return None
         queues = adg._queues
-        first: int | None = None
-        seed: list[tuple[_Visit, _Visit]] = []
-        more: list[tuple[_Visit, _Visit]] = []
-        for k, step in enumerate(islice(rec.pending, limit)):
-            for w in step.enter_visits:
+        steps = list(islice(rec.pending, limit))
+        pairs: list[tuple[_Visit, _Visit]] = []
+        last = 0  # j's step that leaves the group's last cell
+        k = 0
+        while k <= last and k < len(steps):
+            for w in steps[k].enter_visits:
                 q = queues[w.cell]
                 idx = q.index(w)
+                ahead = [x for x in q[:idx] if x.agv != j]
                 if w.sweep or w.shelf:
-                    if k == 0 and not adg._first(w):
+                    if k == 0 and ahead and not adg._first(w):
                         return None  # a turn that waits for its swept cells
                     continue
-                if k == 0:
-                    ahead = [x for x in q[:idx] if x.agv != j]
-                    if not ahead:
-                        continue
-                    if len(ahead) > 1 or (first is not None and ahead[0].agv != first) \
-                            or not _movable(ahead[0], w, q):
-                        return None
-                    first = ahead[0].agv
-                    seed.append((ahead[0], w))
+                if not ahead or (k > 0 and any(x.entered for x in ahead)):
                     continue
-                if first is None:
-                    return None  # step 0 is free: nothing to switch
-                u = next((x for x in reversed(q[:idx]) if x.agv == first), None)
-                if u is not None:
-                    more.append((u, w))
-        if first is None:
+                if w.leave is None or not _movable(ahead[0], w, q):
+                    return None
+                pairs.append((ahead[0], w))
+                last = max(last, self.pending_index(self._step_of[id(w.leave)]))
+            if k == 0 and not pairs:
+                return None  # its next action's cells are free: nothing to switch
+            k += 1
+        if not pairs or last >= len(steps):
             return None
-        pairs = self._closure(seed, more)
-        if pairs is None:
-            return None
-        return Group(first, j, tuple(pairs))
-
-    def _closure(self, seed: list[tuple[_Visit, _Visit]], more: list[tuple[_Visit, _Visit]]
-                 ) -> list[tuple[_Visit, _Visit]] | None:
-        """``seed`` and the pairs of ``more`` that must switch with it: a pair ``b`` of a
-        cell where ``i`` stays ahead closes a cycle with a switched pair ``a`` when
-        ``i`` leaves ``b`` at or after entering ``a``'s cell and ``j`` enters ``b`` at or
-        before leaving ``a``'s cell; such pairs join, until none is left. None if one of
-        them may not move."""
-        self._sync()
-        where, step_of = self._where, self._step_of
-        inf = float("inf")
-
-        def k(action, default: float) -> float:
-            s = step_of.get(id(action)) if action is not None else None
-            return where[s][1] if s is not None else default
-
-        def ranks(p: tuple[_Visit, _Visit]) -> tuple[float, float, float, float]:
-            u, w = p
-            return k(u.enter, -1), k(u.leave, inf), k(w.enter, -1), k(w.leave, inf)
-
-        inside = [(p, ranks(p)) for p in seed]
-        rest = [(p, ranks(p)) for p in more]
-        grown = True
-        while grown and rest:
-            grown = False
-            keep = []
-            for p, r in rest:
-                if any(ie <= r[1] and r[2] <= jl for _, (ie, _, _, jl) in inside):
-                    inside.append((p, r))
-                    grown = True
-                else:
-                    keep.append((p, r))
-            rest = keep
-        pairs = [p for p, _ in inside]
-        queues = self.adg._queues
-        if not all(_movable(u, w, queues[u.cell]) for u, w in pairs):
-            return None
-        order = {id(w): n for n, (_, w) in enumerate(seed + more)}
-        return sorted(pairs, key=lambda p: order[id(p[1])])
+        return Group(pairs[0][0].agv, j, tuple(pairs))
 
     def pending_index(self, step: _Step) -> int:
         """The position of ``step`` among its AGV's not-started actions (-1: running)."""
