@@ -7,17 +7,19 @@ of the graph (:mod:`.switch`, which keeps it acyclic). Every ``reorder_every_s``
 seconds (at a decision step of the follower, before the standing AGVs are decided) it
 looks at the AGVs found waiting on the graph:
 
-1. **Candidates.** For a waiting AGV ``j`` whose next action's cell is reserved for one
-   AGV ``i`` that has not entered it yet: the :class:`~.switch.Group` of the cells they
-   share from there (:meth:`~.switch.SwitchableGraph.candidate`).
+1. **Candidates.** For a waiting AGV ``j`` whose next action's cells are reserved for
+   AGVs that have not entered them yet (``i``): the :class:`~.switch.Group` of the visits
+   it would pass (:meth:`~.switch.SwitchableGraph.candidate`).
 2. **Estimates** from the motion model (:class:`~warerover_phys.planning.motion.MotionModel`
-   of each AGV: straight runs from rest to rest, turns in place, planned dwells) and the
-   AGVs' states now (an injected delay's end, a dwell's end, the running action's rest):
-   when ``i`` would enter and leave each shared cell and ``j`` would leave it, as if
-   nothing else held them up. Without the switch ``j`` waits until ``i`` has left the
-   cells of ``j``'s next action (``wait``); with it ``i`` waits at each shared cell until
-   ``j`` has left it (``cost``).
-3. **Choice.** ``greedy``: switch when ``wait - cost > reorder_margin_s`` (the AGV that
+   of each AGV: straight runs from rest to rest, turns in place, planned dwells; stretched
+   by the share of time the configured random delays are expected to hold an AGV,
+   :func:`slowdown`) and the AGVs' states now (an injected delay's end, a dwell's end, the
+   running action's rest, and, two levels down, the AGV an AGV waits for): when each
+   passed AGV would enter and leave each cell and ``j`` would leave it. Without the switch
+   ``j`` waits until ``i`` has left the cells of ``j``'s next action (``wait``); with it
+   each passed AGV waits at each cell until ``j`` has left it (its ``cost``). Each counts
+   once for the AGV and once for every AGV waiting on it, directly or down a chain.
+3. **Choice.** ``greedy``: switch when ``wait - costs > reorder_margin_s`` (the AGV that
    should go first is late, and the other passes and clears the cells sooner).
    ``milp``: :func:`.reorder_milp.choose` (the receding-horizon program over the
    candidates and the AGVs they touch; greedy where it finds no optimum in its budget).

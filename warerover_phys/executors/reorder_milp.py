@@ -15,7 +15,8 @@ independent problems: candidates that share an AGV go together. For each problem
   visit ahead of it in the queue has left (its leaving action finished): for an AGV
   outside the problem that time is a constant (its own estimate), for one inside whose
   leaving action is beyond its window it is after the window's end; at a switchable cell
-  the order of the two visits is ``b``'s (big-M), and the visits before and after the
+  the order of the two visits (and of those between them) is ``b``'s (big-M), and the visits
+  before and after the
   pair wait for / come before both;
 - **objective**: the sum over the AGVs of the start of their window's last action, plus
   ``reorder_margin_s`` per switch (a switch must pay for itself, as in greedy).
@@ -148,38 +149,51 @@ class _Program:
         """``sum coef x >= rhs``."""
         self.rows.append((coef, rhs))
 
-    def _after(self, a: int, k: int, p: _Visit) -> None:
-        """Action ``k`` of ``a`` starts after visit ``p`` has left its cell."""
+    def _after(self, a: int, k: int, p: _Visit,
+               cond: tuple[int, int] | None = None) -> None:
+        """Action ``k`` of ``a`` starts after visit ``p`` has left its cell; with
+        ``cond = (column, value)`` only when that binary takes that value (big-M)."""
         if p.leave is None or p.agv == a:
             return
         kp = self.idx(p.leave)
-        me = self.col[(a, k)]
+        coef = {self.col[(a, k)]: 1.0}
         if p.agv in self.win:
             kp = min(kp, self.win[p.agv] - 1)
             if kp < 0:
                 return
-            self._ge({me: 1.0, self.col[(p.agv, kp)]: -1.0}, self.dur(p.agv, kp))
-            return
-        if kp < 0:
-            done = self.r.ready_s(p.agv, self.t)[0]
+            coef[self.col[(p.agv, kp)]] = -1.0
+            rhs = self.dur(p.agv, kp)
+        elif kp < 0:
+            rhs = self.r.ready_s(p.agv, self.t)[0]
         elif kp < 2 * self.r.horizon:
-            done = self.r.times(p.agv, kp, self.t)[1][kp]
+            rhs = self.r.times(p.agv, kp, self.t)[1][kp]
         else:
             return
-        self.lower[me] = max(self.lower[me], done)
+        if cond is not None:
+            col, value = cond
+            coef[col] = self.big if value == 0 else -self.big
+            rhs -= 0.0 if value == 0 else self.big
+        elif len(coef) == 1:
+            me = self.col[(a, k)]
+            self.lower[me] = max(self.lower[me], rhs)
+            return
+        self._ge(coef, rhs)
 
-    def _switchable(self, a: int, k: int, v: _Visit, c: int, role: str,
-                    partner: _Visit) -> None:
-        """The order of ``v`` and its partner, as candidate ``c``'s binary says."""
-        big = self.big
-        me, b = self.col[(a, k)], len(self.col) + c
-        kp = self.idx(partner.leave)
-        other = self.col[(partner.agv, kp)]
-        d = self.dur(partner.agv, kp)
-        if role == "w":  # b = 0: after the partner (u) has left
-            self._ge({me: 1.0, other: -1.0, b: big}, d)
-        else:  # b = 1: after the partner (w) has left
-            self._ge({me: 1.0, other: -1.0, b: -big}, d - big)
+    def _pair(self, a: int, k: int, w: _Visit, c: int, u: _Visit) -> None:
+        """Candidate ``c``'s cell: ``w`` (action ``k`` of ``a``) after ``u`` and the
+        visits between them unless switched, they after ``w`` if switched; the visit
+        before ``u`` before all of them."""
+        q = self.r.adg._queues[w.cell]
+        iu, iw = q.index(u), q.index(w)
+        b = len(self.col) + c
+        for x in q[iu:iw]:
+            self._after(a, k, x, (b, 0))
+            if x.agv in self.win and x.enter is not None:
+                kx = self.idx(x.enter)
+                if 0 <= kx < self.win[x.agv]:
+                    self._after(x.agv, kx, w, (b, 1))
+        if iu >= 1:
+            self._after(a, k, q[iu - 1])
 
     def build(self) -> None:
         adg = self.r.adg
@@ -196,10 +210,10 @@ class _Program:
                     got = self.role.get(id(v))
                     if got is not None:
                         c, role, partner = got
-                        self._switchable(a, k, v, c, role, partner)
-                        j = i - 2 if role == "w" else i - 1
-                        if j >= 0:
-                            self._after(a, k, q[j])
+                        if role == "w":
+                            self._pair(a, k, v, c, partner)
+                        elif i >= 1:  # u: (its order with w comes with w's)
+                            self._after(a, k, q[i - 1])
                         continue
                     if i == 0:
                         continue

@@ -1,18 +1,21 @@
 """Switchable action dependency graph (Berndt, van Duijkeren, Palmieri, Keviczky 2020):
-change the order of two AGVs at the cells they share, keeping the graph acyclic.
+change the order of AGVs at the cells they share, keeping the graph acyclic.
 
 The :class:`~.adg.ActionGraph` keeps per cell a queue of visits; the order of two
 neighbouring visits ``u`` (AGV ``i``) and ``w`` (AGV ``j``) is the type-2 edge
-``leave(u) -> enter(w)``. *Switching* it puts ``w`` before ``u``: the edge becomes
-``leave(w) -> enter(i)``. Every AGV still drives its own actions in their order; only who
-passes a shared cell first changes.
+``leave(u) -> enter(w)``. *Switching* puts ``w`` right before ``u``: the edge becomes
+``leave(w) -> enter(u)``, and ``j`` also goes before any (movable) visits that were
+between the two. Every AGV still drives its own actions in their order; only who passes a
+shared cell first changes.
 
-A switch is made for a :class:`Group`: the AGV ``j`` that waits (its next action's cell
-is reserved for ``i``, who has not entered it yet) and the run of cells it then shares with
-``i`` in the order of its plan (a corridor both drive through, or a single crossing cell).
-Switching only the first cell of a corridor would close a cycle (``j`` would wait for
-``i`` on the second cell, ``i`` for ``j`` on the first), so the whole run is switched at
-once, or nothing.
+A switch is made for a :class:`Group` (:meth:`SwitchableGraph.candidate`): the AGV ``j``
+that waits, its next action's cells reserved for AGVs that have not entered them yet, and
+``j``'s visits that then go first. On each cell ``j`` enters before it has left all the
+group's cells it passes the visits ahead of its own too: those AGVs may wait for the ones
+it passed, and ``j`` would wait for them there, a cycle. (Switching only the first cell of
+a corridor that ``i`` and ``j`` both drive through is the plainest such cycle: ``j`` would
+wait for ``i`` on the second cell, ``i`` for ``j`` on the first.) So a whole corridor, or a
+single crossing cell, is switched at once, or nothing.
 
 **Acyclic, checked.** :class:`SwitchableGraph` keeps a topological order of the remaining
 actions (a number per action: Kahn's algorithm once per plan change,
@@ -55,15 +58,16 @@ SEGMENT_LIMIT = 256
 
 @dataclass(frozen=True, eq=False)
 class Group:
-    """A switch: ``second`` goes before ``first`` at each pair's cell."""
+    """A switch: at each pair's cell ``second``'s visit goes before the other's."""
 
     first: int
-    """The AGV planned first (``i``); it will wait for ``second``."""
+    """The AGV whose visit holds ``second``'s next action back (``i``; with others of
+    :attr:`pairs` it will wait for ``second``)."""
     second: int
     """The waiting AGV (``j``)."""
     pairs: tuple[tuple[_Visit, _Visit], ...]
-    """``(u, w)``: ``first``'s visit and ``second``'s visit right behind it, per cell, in
-    ``second``'s order."""
+    """``(u, w)``: the first visit ahead of ``second``'s visit ``w`` that ``w`` passes,
+    per cell, in ``second``'s order."""
 
     @property
     def cells(self) -> tuple[int, ...]:
