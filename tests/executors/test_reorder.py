@@ -11,7 +11,10 @@ from types import MappingProxyType
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, assume, event, given, settings
+from hypothesis import strategies as st
 from pydantic import ValidationError
+from test_adg import instances
 
 from warerover_phys.config import AgvTypeSpec, ExecutorSpec, LayoutSpec
 from warerover_phys.executors.base import AgvBody, ExecutorSetup, TickView
@@ -153,6 +156,10 @@ def test_reordered_runs_are_deterministic_safe_and_in_plan_order(plan40, mode):
     plan = a.run.plan
     assert check_executed({i: p.states for i, p in plan.paths.items()}, a.run.executed,
                           plan.layout.cols) == []
+    # the space-time check of the recorded bodies: no two met, between samples too
+    from warerover_phys.spacetime import from_trajectory, validate_spacetime
+
+    assert validate_spacetime(from_trajectory(a.run.trajectory)).colliding_pairs == 0
     # the lost-time parts still add up for every AGV, the gain is <= 0 and counted
     for row in a.agents:
         assert math.isclose(sum(row[f"lost_{p}_s"] for p in PARTS), row["lost_s"],
@@ -175,3 +182,69 @@ def test_check_executed_finds_a_wrong_order_and_a_shared_cell(plan40):
     clash = dict(g.run.executed)
     clash[j] = [g.run.executed[i][0]] * len(clash[j])  # j stands where i starts
     assert any("both hold cell" in p for p in check_executed(planned, clash, cols))
+
+
+# --------------------------------------------------------------------------- property
+
+
+def execute_with_delays(layout, paths, sizes, mode: str, p: float, seed: int):
+    """Execute ``paths`` on physics with random delays; executed states per tick."""
+    from warerover_phys.config import DelaySpec
+
+    n = len(paths)
+    ids = sorted(paths)
+    assert ids == list(range(n))
+    spec = ExecutorSpec(name="physics", reorder=mode,
+                        delays=DelaySpec(model="bernoulli", prob=p, max_ticks=6))
+    ex = PhysicsExecutor(spec)
+    ex.bind(ExecutorSetup(layout=layout, tick_s=1.0, rng=np.random.default_rng(seed),
+                          agvs=tuple(AgvBody(i, sizes[i], AgvTypeSpec(footprint=sizes[i]),
+                                             paths[i].states[0]) for i in ids)))
+    plans = MappingProxyType(dict(paths))
+    executed = {i: [paths[i].states[0]] for i in ids}
+    for tick in range(400):
+        rep = ex.step(TickView(tick=tick, plans=plans, behind=(0,) * n, failed=frozenset(),
+                               loaded=(False,) * n, carried=(None,) * n,
+                               task_state=(0,) * n))
+        for i, s in rep.states.items():
+            executed[i].append(s)
+        if all(ex.adg.done(i) for i in ids) and (ex.mode == 0).all():
+            return ex, executed
+    raise AssertionError("not finished in 400 ticks")
+
+
+@settings(max_examples=12, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@given(instances(), st.integers(0, 2**32 - 1), st.floats(0.1, 0.4),
+       st.sampled_from(["greedy", "milp"]))
+def test_reordered_physics_runs_keep_every_plan_and_never_collide(instance, seed, p, mode):
+    from test_adg import rotation_agvs
+
+    layout, paths, sizes, _, trajs = instance
+    assume(rotation_agvs(trajs, sizes, layout.cols) is None)  # (no order exists)
+    ex, executed = execute_with_delays(layout, paths, sizes, mode, p, seed)
+    s = ex.summary()
+    event(f"{mode}: {'switched' if s['reorder_switches'] else 'no switch'}")
+    assert s["agv_contacts"] == 0 and s["deadlocks"] == 0
+    assert check_executed({i: q.states for i, q in paths.items()}, executed, layout.cols,
+                          sizes) == []
+    ex.adg.check_acyclic()
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.integers(15, 40), st.integers(0, 2**32 - 1), st.floats(0.1, 0.3),
+       st.sampled_from(["greedy", "milp"]))
+def test_reordered_fleets_keep_every_plan_and_never_collide(plan40, n, seed, p, mode):
+    from warerover_phys.execute import load_floor, plan_to_paths
+    from warerover_phys.plans import read_plan
+
+    layout, _, _ = load_floor(REPO / "tests" / "data" / "random-32-32-10.map")
+    full = plan_to_paths(read_plan(plan40), layout.cols)
+    paths = {i: TimedPath(i, full[i].start_tick, full[i].states) for i in range(n)}
+    ex, executed = execute_with_delays(layout, paths, dict.fromkeys(range(n), 1), mode, p,
+                                       seed)
+    s = ex.summary()
+    event(f"{mode}: {'switched' if s['reorder_switches'] else 'no switch'}")
+    assert s["agv_contacts"] == 0 and s["deadlocks"] == 0
+    assert check_executed({i: q.states for i, q in paths.items()}, executed,
+                          layout.cols) == []

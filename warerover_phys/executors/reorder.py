@@ -390,10 +390,16 @@ def slowdown(d: DelaySpec) -> float:
 
 
 def _cells_visited(states) -> list[int]:
-    """The anchors a sequence of states ``(a, b)`` passes through, in order."""
+    """The anchors a sequence of states ``(a, b)`` passes through, in order (states
+    sampled once a tick: a move's both ends, so none is missed while an AGV covers at
+    most two cells a tick)."""
     out = [states[0][0]] if len(states) else []
-    for _, b in states:
-        if b != out[-1]:
+    for a, b in states:
+        if b == out[-1]:
+            continue
+        if a != out[-1]:
+            out.append(a)
+        if b != a:
             out.append(b)
     return out
 
