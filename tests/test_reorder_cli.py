@@ -42,3 +42,27 @@ def test_gap_with_reorder_reports_the_gain(plan40, tmp_path):
     assert r.returncode == 0, r.stderr[-2000:]
     m = json.loads(r.stdout)
     assert m["reorder"] == "milp" and m["reorder_switches"] >= 1 and m["agv_contacts"] == 0
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1200)
+def test_gap_video_outlines_the_switched_edges(plan40, tmp_path):
+    import av
+    import numpy as np
+
+    from warerover_phys.render import PALETTE
+
+    video = tmp_path / "greedy.mp4"
+    r = run_cli("gap", MAP, "--plan", plan40, "--delays", "bernoulli:0.2", "--seed", "1",
+                "--reorder", "greedy", "--no-pictures", "-q", "--out", tmp_path / "gap",
+                "--video", video, cwd=REPO, timeout=900)
+    assert r.returncode == 0, r.stderr[-2000:]
+    colour = np.array(PALETTE["switch"], dtype=np.int16)
+    with av.open(str(video)) as c:
+        counts = [int((np.abs(f.to_ndarray(format="bgr24").astype(np.int16) - colour)
+                       .max(axis=2) < 40).sum())
+                  for k, f in enumerate(c.decode(video=0)) if k % 15 == 0]
+    # the legend entry (~80 pixels) in every frame; for a while after each switch also
+    # the outlined cells and the arrow
+    assert min(counts) > 20
+    assert max(counts) > min(counts) + 100
