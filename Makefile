@@ -3,7 +3,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench wheel clean
+.PHONY: demo test lint bench wheel clean docs
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV) || python3 -m venv $(VENV)
@@ -26,8 +26,17 @@ lint: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python tools/bench_loop.py
 
+# The documentation site (mkdocs.yml): broken links, anchors and pages fail the build.
+DOCS_STAMP := $(VENV)/.docs-installed
+$(DOCS_STAMP): $(STAMP) pyproject.toml
+	$(BIN)/python -m pip install --quiet -e '.[test,render,docs]'
+	touch $(DOCS_STAMP)
+
+docs: $(DOCS_STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
+
 wheel: $(STAMP)
 	bash tools/check_wheel.sh $(BIN)/python
 
 clean:
-	rm -rf $(VENV) runs .pytest_cache dist build
+	rm -rf $(VENV) runs .pytest_cache dist build site
