@@ -97,6 +97,9 @@ class Estimate:
 class Reorderer:
     """Switches edges of the follower's dependency graph (see the module doc)."""
 
+    wait_depth = WAIT_DEPTH
+    """:data:`WAIT_DEPTH`, read by :mod:`.reorder_milp` (which does not import this module)."""
+
     def __init__(self, st: FleetState, adg: ActionGraph, spec: ExecutorSpec,
                  holds: dict[int, dict[int, int]], acc: Accounting, *,
                  check: bool = False) -> None:

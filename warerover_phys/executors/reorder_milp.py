@@ -34,8 +34,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .reorder import WAIT_DEPTH
-
 if TYPE_CHECKING:
     from .adg import _Visit
     from .reorder import Estimate, Reorderer
@@ -130,7 +128,7 @@ class _Program:
         self.times: dict[int, tuple[list[float], list[float]]] = {}
         for a in self.agvs:
             # (waits on the graph are the program's constraints, not the estimate's)
-            self.times[a] = r.times(a, self.win[a] - 1, t, WAIT_DEPTH)
+            self.times[a] = r.times(a, self.win[a] - 1, t, r.wait_depth)
             for k in range(self.win[a]):
                 self.col[(a, k)] = len(self.col)
         self.nb = len(self.comp)
