@@ -32,7 +32,8 @@ def _assert_parts_add_up(g) -> None:
                             abs_tol=1e-9)
         assert a["lost_dwell_overrun_s"] == 0.0  # a dwell lasts exactly its planned time
         assert a["lost_faster_than_plan_s"] <= 0 and a["lost_plan_waits_skipped_s"] <= 0
-        for p in PARTS[:-2]:
+        assert a["lost_reorder_gain_s"] <= 0
+        for p in PARTS[:-3]:
             assert a[f"lost_{p}_s"] >= 0, (p, a)
     for act in g.actions:
         parts = sum(act[f"lost_{p}_s"] for p in PARTS)

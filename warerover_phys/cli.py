@@ -36,6 +36,9 @@ app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_
 SetOpt = Annotated[list[str] | None, typer.Option(
     "--set", help="Override any scenario field: --set orders.pattern=burst (repeatable).")]
 SeedOpt = Annotated[int | None, typer.Option(help="Episode seed (overrides the file's).")]
+ReorderOpt = Annotated[str | None, typer.Option(
+    help="Physics: reorder the dependency graph under delays: none | greedy | milp "
+         "(executor.reorder).")]
 SchedOpt = Annotated[str | None, typer.Option(help="Scheduler: ta | rd.")]
 PlanOpt = Annotated[str | None, typer.Option(help="Planner: astar | cbs | pibt | lacam | learned | plug-in.")]
 ExecOpt = Annotated[str | None, typer.Option(help="Executor: grid | physics | plug-in.")]
@@ -439,6 +442,7 @@ def gap(scenario: Annotated[Path, typer.Argument(
         ghost: Annotated[bool, typer.Option(
             "--ghost/--no-ghost", help="--video: also draw each AGV's planned pose (the "
                                        "plan's timing) as a ghost.")] = False,
+        reorder: ReorderOpt = None,
         set_: SetOpt = None, scheduler: SchedOpt = None, planner: PlanOpt = None,
         orders: OrdersOpt = None) -> None:
     """The sim-to-real gap. Open loop (default): the plan of the ideal grid run (or --plan
@@ -450,8 +454,10 @@ def gap(scenario: Annotated[Path, typer.Argument(
     run_gap(scenario=scenario, mode=mode, seed=seed, seeds=seeds, workers=workers, out=out,
             json_out=json_out, plan=plan, fmt=fmt, yx=yx, fleet=fleet, delays=delays,
             tick_s=tick_s, dt_s=dt_s, agvs=agvs, pictures=pictures, quiet=quiet, video=video,
-            ghost=ghost, timing=timing, overrides=lambda: _scenario(scenario, set_, seed, scheduler, planner, None,
-                                        orders))
+            ghost=ghost, timing=timing, reorder=reorder,
+            overrides=lambda: _scenario(scenario, [*(set_ or []), *(
+                [f"executor.reorder={reorder}"] if reorder else [])], seed, scheduler,
+                planner, None, orders))
 
 
 @app.command()
@@ -580,12 +586,14 @@ def execute(floor: Annotated[Path, typer.Argument(
                               "values), as in a scenario's executor section: "
                               "no_slip=true, payload=true, comm_latency_s=0.2, "
                               "shelf_contacts=true, park=false, adg=false ...")] = None,
+            reorder: ReorderOpt = None,
             ) -> None:
     """Execute a plan made elsewhere exactly as written (no scheduler, no replanning) on
     the physics or grid executor; write metrics, events, paths and trajectories."""
     import math
 
     from .execute import (
+        check_reorder,
         execute_plan,
         executed_plan,
         executor_options,
@@ -614,6 +622,8 @@ def execute(floor: Annotated[Path, typer.Argument(
             check_format(export_format, "--export-format")
         delay_spec = parse_delays(delays)
         options = executor_options(sets)
+        if reorder is not None:
+            options["reorder"] = check_reorder(reorder)
         executor_spec(executor, dt_s=dt_s, delays=delay_spec, options=options)  # check early
         layout, types_by_name, kinds = load_floor(floor)
         the_plan = read_plan(plan, fmt, xy=not yx)

@@ -645,6 +645,31 @@ class ExecutorSpec(_Model):
     can move a parked body: AGV-AGV contacts are not solved. ``false``: every joint always
     in the world (for comparison; figures agree to within the 1 mm)."""
 
+    reorder: Literal["none", "greedy", "milp"] = "none"
+    """Physics with ``adg: true``: reorder the dependency graph while executing (switchable
+    action dependency graph, Berndt et al. 2020; ``executors/reorder.py``). ``none``: the
+    plan's passing order at every shared cell (the plain graph). ``greedy``: an AGV that
+    waits at a cell reserved for another AGV that has not reached it yet passes first
+    when the motion model says it clears the cells they share sooner than the other's
+    delay lasts. ``milp``: the order at the switchable cells of a receding window chosen
+    by a mixed-integer program (scipy ``milp``, HiGHS), greedy where it finds no optimum
+    within its node limit. Every switch keeps the graph acyclic (checked)."""
+    reorder_every_s: PosFloat = 0.5
+    """Simulated seconds between reorder decisions (rounded up to the follower's
+    decisions, every 0.1 s)."""
+    reorder_margin_s: NonNegFloat = 0.5
+    """A switch must win at least this many estimated seconds."""
+    reorder_horizon: PosInt = 8
+    """``milp``: actions per AGV in the program's window (at least those of the cells
+    it may switch)."""
+    reorder_node_limit: PosInt = 500
+    """``milp``: branch-and-bound nodes per program; without a proved optimum within them
+    the decision falls back to greedy. A node limit, not a clock: the same seed gives
+    the same result on any machine."""
+    reorder_time_limit_s: PosFloat | None = None
+    """``milp``: wall-clock seconds per program as well (None: none). Set, results may
+    depend on the machine's speed."""
+
     @model_validator(mode="after")
     def _physics_fields(self) -> ExecutorSpec:
         lo, hi = self.speed_scale

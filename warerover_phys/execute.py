@@ -876,6 +876,17 @@ def executor_options(texts: list[str] | None) -> dict[str, Any]:
     return out
 
 
+REORDER_MODES = ("none", "greedy", "milp")
+
+
+def check_reorder(mode: str) -> str:
+    """``--reorder`` (``executor.reorder``): one of :data:`REORDER_MODES`, else a
+    :class:`~warerover_phys.errors.WareroverError` naming the option and the value."""
+    if mode not in REORDER_MODES:
+        raise WareroverError(f"--reorder must be none, greedy or milp (got {mode!r})")
+    return mode
+
+
 def parse_delays(text: str | None) -> DelaySpec:
     """``MODEL:PROB[:MIN_TICKS:MAX_TICKS]`` (``bernoulli:0.05:1:10``) as a DelaySpec."""
     if not text:

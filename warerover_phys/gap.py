@@ -154,12 +154,14 @@ def plan_gap(floor, plan_file, *, fleet=None, fmt: str | None = None, xy: bool =
              delays: str | None = None, tick_s: float = 1.0, dt_s: float = 0.02,
              seed: int = 0, strict: bool = False, trajectory_hz: float = 10.0,
              timing: str = "unit", agvs: Sequence[int] = (),
-             progress: Callable[[str, int, int], None] | None = None) -> OpenLoopGap:
+             progress: Callable[[str, int, int], None] | None = None,
+             reorder: str = "none") -> OpenLoopGap:
     """The open-loop gap of an imported MAPF plan (any format ``warerover execute`` reads,
     validated and cycle-repaired alike) on ``floor``: the plan's timesteps are the planned
     side (``timing`` ``motion``: its motion-timed schedule), its execution on physics the
     executed side (no dwells). ``agvs``: ids the caller will draw, each checked to be one of
-    the plan's agents before anything runs."""
+    the plan's agents before anything runs. ``reorder``: ``executor.reorder`` of the
+    execution."""
     from .config import ExecutorSpec
     from .execute import parse_delays
     from .gap_open import execute_timed, open_loop_report
@@ -170,7 +172,7 @@ def plan_gap(floor, plan_file, *, fleet=None, fmt: str | None = None, xy: bool =
                                    tick_s=tick_s)
     check_agv_ids(agvs, plan.num_agents, str(plan_file))
     spec = ExecutorSpec(name="physics", dt_s=dt_s, delays=parse_delays(delays),
-                        trajectory_hz=trajectory_hz)
+                        trajectory_hz=trajectory_hz, reorder=reorder)
     run = execute_timed(plan, spec, seed=seed, progress=None if progress is None else
                         lambda t, h: progress("physics", t, h))
     report, agents, actions = open_loop_report(run)

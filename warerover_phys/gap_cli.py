@@ -49,9 +49,14 @@ def run_gap(*, scenario: Path, mode: str, seed: int | None, seeds: str | None,
             fmt: str | None, yx: bool, fleet: Path | None, delays: str | None,
             tick_s: float, dt_s: float, agvs: str | None, pictures: bool, quiet: bool,
             overrides: Callable[[], Any], timing: str | None = None,
-            video: Path | None = None, ghost: bool = False) -> None:
+            video: Path | None = None, ghost: bool = False,
+            reorder: str | None = None) -> None:
     """See ``warerover gap --help``."""
     try:
+        if reorder is not None:
+            from .execute import check_reorder
+
+            check_reorder(reorder)
         if mode not in MODE_LABEL:
             raise WareroverError(f"--mode must be open or closed (got {mode!r})")
         if timing is not None and timing not in TIMINGS:
@@ -72,7 +77,7 @@ def run_gap(*, scenario: Path, mode: str, seed: int | None, seeds: str | None,
                                      "--mode closed nor --seeds")
             return _plan_gap(scenario, plan, fmt, yx, fleet, delays, tick_s, dt_s, seed or 0,
                              out, json_out, picked, pictures, quiet, timing or "unit", video,
-                             ghost)
+                             ghost, reorder or "none")
         sc = _with_timing(overrides(), timing, mode)
         if seeds is not None:
             from .gap_stats import parse_seeds
@@ -195,8 +200,10 @@ def _video(g, video: Path, title: str, show: bool, ghost_on: bool = False) -> No
                         float(plan.layout.cell_m), plan.tick_s)
     planned = [{"agv": i, "tick": p.start_tick, "states": [list(s) for s in p.states]}
                for i, p in plan.paths.items()]
-    rec = recording_with_ghosts(dict(run.trajectory), ghost, planned=planned)
-    style = Style(size=(1280, 720), ghosts=ghost_on,
+    switches = tuple(e for e in run.events if e.get("event") == "reorder")
+    rec = recording_with_ghosts(dict(run.trajectory), ghost, planned=planned,
+                                switches=switches)
+    style = Style(size=(1280, 720), ghosts=ghost_on, switches=bool(switches),
                   title=title + (": ghost = plan" if ghost_on else ""))
     bar, update = _bar(show)
     with bar:
@@ -290,6 +297,7 @@ PART_LABELS = {
     "injected": "injected delays", "failures": "failures / corridors",
     "rotation_repair": "rotation repair (planned ticks added)",
     "freeze_recovery": "recovery from freezes", "dwell_overrun": "dwell overrun",
+    "reorder_gain": "switched edges (reorder gain)",
     "faster_than_plan": "faster than the plan (gain)",
     "plan_waits_skipped": "plan waits skipped (gain)"}
 
@@ -463,7 +471,8 @@ def _many(sc, seeds: list[int], mode: str, workers: int | None, out: Path | None
 def _plan_gap(floor: Path, plan: Path, fmt: str | None, yx: bool, fleet: Path | None,
               delays: str | None, tick_s: float, dt_s: float, seed: int, out: Path | None,
               json_out: bool, agvs: list[int] | None, pictures: bool, quiet: bool,
-              timing: str = "unit", video: Path | None = None, ghost: bool = False) -> None:
+              timing: str = "unit", video: Path | None = None, ghost: bool = False,
+              reorder: str = "none") -> None:
     from .gap import plan_gap
 
     if not (math.isfinite(tick_s) and tick_s > 0):
@@ -476,7 +485,7 @@ def _plan_gap(floor: Path, plan: Path, fmt: str | None, yx: bool, fleet: Path | 
     with bar:
         g = plan_gap(floor, plan, fleet=fleet, fmt=fmt, xy=not yx, delays=delays,
                      tick_s=tick_s, dt_s=dt_s, seed=seed, timing=timing, agvs=agvs or (),
-                     progress=update)
+                     progress=update, reorder=reorder)
     _print_repairs(g.report)
     if video is not None:
         _video(g, video, f"plan {plan.name}", show, ghost)

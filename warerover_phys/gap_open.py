@@ -27,6 +27,12 @@ by crediting the planned durations against the labelled time:
   dependency graph skips waits the plan did not need);
 - ``freeze_recovery``: 0 (a fixed plan on the dependency graph cannot freeze; kept so the
   columns are the same as the closed loop's);
+- ``reorder_gain`` (<= 0; ``executor.reorder``, :mod:`.executors.reorder`): minus the
+  dependency wait that switched edges saved the AGV, as estimated when each was switched.
+  ``dependency`` is then the wait under the plan's passing order: the measured wait plus
+  the saved wait, credited against planned waits as above; the two together are the
+  measured wait. (The wait a switch adds to the AGV that now passes second is measured,
+  in its ``dependency``.) 0 without reordering;
 - ``rotation_repair`` (per AGV, not per action): ticks the rotation repair
   (:func:`.gap_plan.repair_rotations`) added to the AGV's planned finish. Executed are the
   repaired plan's actions, compared with the repaired plan; the planned side of the figures
@@ -67,9 +73,9 @@ from .gap_plan import PlannedAction, TimedPlan
 __all__ = ["PARTS", "OpenLoopRun", "execute_timed", "compare", "open_loop_report"]
 
 PARTS = ("dependency", "accel_decel", "turning", "control", "injected", "failures",
-         "rotation_repair", "freeze_recovery", "dwell_overrun", "faster_than_plan",
-         "plan_waits_skipped")
-"""The parts of lost time (seconds), in report order; the last two are <= 0."""
+         "rotation_repair", "freeze_recovery", "dwell_overrun", "reorder_gain",
+         "faster_than_plan", "plan_waits_skipped")
+"""The parts of lost time (seconds), in report order; the last three are <= 0."""
 _CREDIT = ((DEPENDENCY, "dependency"), (TURN_L, "turning"), (CONTROL, "control"),
            (INJECTED, "injected"), (FAILED, "failures"))
 
@@ -238,6 +244,10 @@ def compare(run: OpenLoopRun) -> tuple[list[dict], list[dict], dict[int, list[tu
         prev_exec = 0
         for a, r in zip(acts, rows, strict=False):
             c = log.counts[r]
+            gain = int(log.reorder_gain[r]) if log.reorder_gain is not None else 0
+            if gain:  # the wait the plain order would have had (module doc)
+                c = c.copy()
+                c[DEPENDENCY] += gain
             fin = int(log.finish_step[r])
             p, d, w = a.ticks * spt, a.dwell * spt, a.wait * spt
             drive = int(c[DRIVE_L])
@@ -251,6 +261,7 @@ def compare(run: OpenLoopRun) -> tuple[list[dict], list[dict], dict[int, list[tu
                 ap[name] = int(c[lab]) - used
                 credit -= used
             ap["plan_waits_skipped"] = -credit
+            ap["reorder_gain"] = -gain
             interval_lost = (fin - prev_exec) - (a.ticks + a.wait + a.dwell) * spt
             assert sum(ap.values()) == interval_lost, (i, a.seq, ap, interval_lost)
             for k, v in ap.items():
@@ -264,7 +275,7 @@ def compare(run: OpenLoopRun) -> tuple[list[dict], list[dict], dict[int, list[tu
                 "executed_finish_s": fin * dt,
                 "lost_s": fin * dt - a.finish * tick_s,
                 "interval_lost_s": interval_lost * dt,
-                "dependency_wait_s": int(c[DEPENDENCY]) * dt,
+                "dependency_wait_s": (int(c[DEPENDENCY]) - gain) * dt,
                 **{f"lost_{k}_s": v * dt for k, v in ap.items()}})
             prev_exec = fin
         trailing = plan.trailing_dwell(i)

@@ -39,7 +39,7 @@ COLOURS = {
     "control": "#8c564b", "injected": "#e377c2", "failures": "#7f7f7f",
     "rotation_repair": "#393b79",
     "freeze_recovery": "#bcbd22", "dwell_overrun": "#17becf", "faster_than_plan": "#2ca02c",
-    "plan_waits_skipped": "#98df8a",
+    "plan_waits_skipped": "#98df8a", "reorder_gain": "#006d2c",
 }
 
 

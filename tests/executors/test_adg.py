@@ -134,10 +134,12 @@ class Execution:
     then starts each ready AGV's next action with probability ``p``."""
 
     def __init__(self, graph: ActionGraph, sizes, cols: int, seed: int, p: float,
-                 max_delay: int) -> None:
+                 max_delay: int, p_agv: dict[int, float] | None = None) -> None:
         self.graph, self.sizes, self.cols = graph, sizes, cols
         self.rng = np.random.default_rng(seed)
         self.p, self.max_delay = p, max_delay
+        self.p_agv = p_agv or {}
+        """Per AGV its own start probability instead of ``p`` (late AGVs)."""
         self.where = {a: graph.state(a) for a in graph.agvs}  # tracked by the test
         self.left: dict[int, int] = {}
         self.done_moves: dict[int, list[tuple[int, int]]] = {a: [] for a in graph.agvs}
@@ -153,7 +155,8 @@ class Execution:
                 assert self.where[agv] == (a.src, a.dst)
                 self.where[agv] = (a.dst, a.dst)
         for agv in self.rng.permutation(g.agvs).tolist():
-            if agv not in self.left and g.ready(agv) and self.rng.random() < self.p:
+            if agv not in self.left and g.ready(agv) and \
+                    self.rng.random() < self.p_agv.get(agv, self.p):
                 a = g.start(agv)
                 assert self.where[agv] == (a.src, a.src)
                 self.where[agv] = (a.src, a.dst)

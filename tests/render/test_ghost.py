@@ -88,3 +88,23 @@ def test_ghost_shape_is_checked():
     g["x"] = g["x"][:, :1]
     with pytest.raises(WareroverError, match="ghost x"):
         recording_with_ghosts(_trajectory(), g)
+
+
+def test_switched_edges_show_for_a_while_after_their_switch():
+    from warerover_phys.render.trajectory import SWITCH_SHOW_S
+
+    sw = {"t_s": 2.0, "first": 1, "then": 0, "cells": [[1, 4], [1, 5]]}
+    rec = recording_with_ghosts(_trajectory(), ghost_poses(_plan(), np.array([1, 1]), COLS,
+                                                           1.0, 1.0), switches=(sw,))
+    assert rec.at(1.9).switches == () and rec.at(2.0).switches == (sw,)
+    assert rec.at(2.0 + SWITCH_SHOW_S - 0.01).switches == (sw,)
+    assert rec.at(2.0 + SWITCH_SHOW_S).switches == ()
+    snap = rec.at(3.0)
+    on = Style(size=(480, 300), ghosts=True, switches=True, show_legend=False)
+    drawn = draw_frame(snap, on)
+    off = draw_frame(snap, Style(size=(480, 300), ghosts=True, show_legend=False))
+    # the switched cells' outlines (the switch colour) appear; elsewhere nothing changes
+    changed = np.abs(drawn.astype(int) - off.astype(int)).max(axis=2) > 0
+    assert changed.sum() > 100
+    assert _near(drawn, PALETTE["switch"], 8) > _near(off, PALETTE["switch"], 8)
+    assert np.array_equal(draw_frame(snap, on), drawn)

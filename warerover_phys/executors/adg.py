@@ -282,6 +282,9 @@ class ActionGraph:
         self._bulk: set[int] | None = None
         """Between :meth:`begin_bulk` and :meth:`end_bulk`: the cells whose queues got
         visits (appended, sorted at the end)."""
+        self.plan_version = 0
+        """Counts :meth:`set_plan` and :meth:`end_bulk` calls: the queues changed other
+        than by actions starting and finishing (:mod:`.switch` rebuilds its order)."""
 
     # ----------------------------------------------------------------- building
 
@@ -306,6 +309,7 @@ class ActionGraph:
     def end_bulk(self) -> None:
         """Sort the queues that got visits since :meth:`begin_bulk`."""
         cells, self._bulk = self._bulk, None
+        self.plan_version += 1
         for c in cells or ():
             self._queues[c].sort(key=_bulk_key)
 
@@ -418,6 +422,7 @@ class ActionGraph:
         self.woken.add(agv)
         self.ext_woken.add(agv)
         self._plans_changed()
+        self.plan_version += 1
         self._dirty.add(agv)
 
     def _sweep_cells(self, anchor: int, sweep: Sweep) -> tuple[int, ...]:

@@ -82,6 +82,9 @@ class CauseLog:
     blockers: dict[tuple[int, int], int]
     """``(agv, blocker) -> steps`` the AGV waited on a dependency held up by ``blocker``
     (blocker -1: none found at the look-up)."""
+    reorder_gain: np.ndarray | None = None
+    """(M,) steps of dependency wait the interval's switched edges saved, as estimated
+    when they were switched (``executor.reorder``; zeros without it)."""
 
 
 class CauseRecorder:
@@ -100,6 +103,7 @@ class CauseRecorder:
         self._wait_run = np.zeros(n, dtype=np.int64)
         self._look = np.zeros(n, dtype=np.intp)
         self.blockers: dict[tuple[int, int], int] = {}
+        self._gain = np.zeros(n, dtype=np.int64)
 
     # ------------------------------------------------------------------------- hooks
 
@@ -113,8 +117,14 @@ class CauseRecorder:
         a, start = got
         self._flush_wait(i)
         self._done.append((i, a.seq, a.src, a.dst, a.tick, a.ticks, start, self.step_no,
-                           self._cur[i].copy()))
+                           self._cur[i].copy(), int(self._gain[i])))
         self._cur[i] = 0
+        self._gain[i] = 0
+
+    def reorder_gain(self, i: int, steps: int) -> None:
+        """A switched edge saves AGV ``i`` an estimated ``steps`` of dependency wait in
+        its current interval (:mod:`.reorder`)."""
+        self._gain[i] += steps
 
     def step(self, injected: np.ndarray) -> None:
         """Label the physics step that has just run (modes as the follower left them)."""
@@ -209,7 +219,7 @@ class CauseRecorder:
         for i in np.flatnonzero(self._wait_run):
             self._flush_wait(int(i))
         rows = self._done
-        cols = list(zip(*rows, strict=True)) if rows else [()] * 9
+        cols = list(zip(*rows, strict=True)) if rows else [()] * 10
 
         def arr(k: int) -> np.ndarray:
             return np.asarray(cols[k], dtype=np.int64)
@@ -219,4 +229,4 @@ class CauseRecorder:
         return CauseLog(dt_s=float(st.dt), steps_per_tick=int(round(st.tick_s / st.dt)),
                         steps=self.step_no, agv=arr(0), seq=arr(1), src=arr(2), dst=arr(3),
                         tick=arr(4), ticks=arr(5), start_step=arr(6), finish_step=arr(7),
-                        counts=counts, blockers=dict(self.blockers))
+                        counts=counts, blockers=dict(self.blockers), reorder_gain=arr(9))

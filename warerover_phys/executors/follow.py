@@ -96,6 +96,13 @@ class PlanFollower:
             st.n, st.cols, max(1, math.ceil(freeze_s / st.tick_s - 1e-9))) if freeze_s > 0 else None
         """Finds AGVs without progress while nothing they wait on can move
         (``executor.freeze_s``; None: off)."""
+        self.reorder = None
+        """Switches edges of the graph under delays (``executor.reorder``,
+        :mod:`.reorder`; None: off)."""
+        if getattr(spec, "reorder", "none") != "none" and spec.adg:
+            from .reorder import Reorderer
+
+            self.reorder = Reorderer(st, adg, spec, self._holds, acc)
 
     # ------------------------------------------------------------------------- per tick
 
@@ -216,6 +223,8 @@ class PlanFollower:
         t = st.sim_s
         self.adg.now = t
         if decide:
+            if self.reorder is not None:
+                self.reorder.decide(t, delayed)
             # Look further ahead for AGVs that would otherwise start braking before the
             # next look (the margin covers two decision intervals).
             driving = st.mode == DRIVE

@@ -402,6 +402,8 @@ class PhysicsExecutor:
             "parked_agv_s": self.parked_steps * self.dt,
             "off_reference": self.off_reference,
         })
+        if self.follow.reorder is not None:
+            out.update(self.follow.reorder.summary())
         return out
 
     def cause_log(self):

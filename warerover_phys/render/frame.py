@@ -93,6 +93,7 @@ PALETTE: dict[str, tuple[int, int, int]] = {
     "finished": (190, 190, 190),
     "working": _bgr("B89B00"),
     "arrow": _bgr("8C3C14"),
+    "switch": _bgr("C2007A"),      # a switched edge of the dependency graph (magenta)
     "outline": (30, 30, 30),
     "hud_bg": (38, 38, 38),
     "hud_text": (245, 245, 245),
@@ -177,6 +178,10 @@ class Snapshot:
     """The AGV each waiting AGV waits for (-1: none)."""
     progress: PlanProgress | None = None
     """A plan execution's figures for the heads-up line (None: not a plan execution)."""
+    switches: tuple[dict, ...] = ()
+    """Edges of the dependency graph switched a moment ago (``executor.reorder``):
+    ``{"first": AGV now passing first, "then": AGV passing after it, "cells": [[row, col],
+    ...]}``, drawn when ``Style.switches`` is on."""
 
 
 @dataclass(frozen=True)
@@ -206,6 +211,9 @@ class Style:
     to the real body when they are apart (and a legend entry)."""
     arrows: bool = True
     """Draw an arrow from each AGV waiting on a dependency to its blocker."""
+    switches: bool = False
+    """Draw switched edges (``Snapshot.switches``): their cells outlined and an arrow from
+    the AGV that now passes first to the one that passes after it (and a legend entry)."""
 
     def __post_init__(self) -> None:
         w, h = self.size
@@ -338,6 +346,8 @@ def _legend_items(scene: Scene, style: Style) -> list[tuple[str, str]]:
         items.append(("path", "path ahead"))
     if style.ghosts:
         items.append(("ghost", "planned pose (ghost)"))
+    if style.switches:
+        items.append(("switch", "switched edge (first -> then)"))
     return items
 
 
@@ -369,6 +379,9 @@ def _legend_mark(img: np.ndarray, key: str, x: int, yc: int, box: int, style: St
         cv2.arrowedLine(img, (x, yc), (x + box, yc), PALETTE["arrow"], 1, _AA, 0, 0.4)
     elif key == "ghost":
         cv2.rectangle(img, (x + 1, y0 + 1), (x + box - 1, y0 + box - 1), PALETTE["ghost"], 2)
+    elif key == "switch":
+        cv2.arrowedLine(img, (x, y0 + box - 1), (x + box, y0 + 1), PALETTE["switch"], 2, _AA,
+                        0, 0.4)
     elif key == "corridor":
         cv2.rectangle(img, (x, y0), (x + box, y0 + box),
                       _blend(PALETTE["floor"], PALETTE["corridor"], style.corridor_alpha), -1)
@@ -534,6 +547,26 @@ def _hud_text(snap: Snapshot, failures: int) -> str:
     return "   ".join(parts)
 
 
+def _switches(band: np.ndarray, geo: Geometry, snap: Snapshot, cx: np.ndarray,
+              cy: np.ndarray) -> None:
+    """Switched edges: each cell outlined, an arrow from the AGV passing first to the AGV
+    passing after it."""
+    cell_m = snap.scene.cell_m
+    cell_px = cell_m * geo.scale
+    color = PALETTE["switch"]
+    thick = max(1, int(round(cell_px * 0.06)))
+    n = len(cx)
+    for sw in snap.switches:
+        for r, c in sw["cells"]:
+            x0, y0 = _to_band(geo, c * cell_m, r * cell_m)
+            cv2.rectangle(band, (int(x0), int(y0)), (int(x0 + cell_px), int(y0 + cell_px)),
+                          color, thick, _AA)
+        a, b = int(sw["first"]), int(sw["then"])
+        if 0 <= a < n and 0 <= b < n:
+            cv2.arrowedLine(band, (int(cx[a]), int(cy[a])), (int(cx[b]), int(cy[b])), color,
+                            thick, _AA, 0, 0.15)
+
+
 def _hud(img: np.ndarray, geo: Geometry, snap: Snapshot, style: Style, failures: int) -> None:
     text = _hud_text(snap, failures)
     font = geo.font
@@ -577,6 +610,8 @@ def draw_frame(snapshot: Snapshot, style: Style | None = None) -> np.ndarray:
                 outline=PALETTE["outline"], cargo=PALETTE["shelf"])
     if style.arrows and snapshot.blocker is not None:
         _arrow_layer(band, geo, snapshot, cx, cy, half)
+    if style.switches and snapshot.switches:
+        _switches(band, geo, snapshot, cx, cy)
     _wipe_margins(band, background[geo.top:geo.bottom], geo)
     if style.show_hud:
         _hud(img, geo, snapshot, style, int(failed.sum()))

@@ -45,6 +45,8 @@ TO_SHELF = 1
 TO_STATION = 3
 REQUIRED = ("t", "x", "y", "heading", "state", "loaded", "footprint", "body_m", "cell_m",
             "tick_s", "grid")
+SWITCH_SHOW_S = 3.0
+"""Seconds a switched edge stays drawn after it was switched."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,6 +81,9 @@ class Recording:
     """(T, N) the AGV a waiting AGV waits for (-1: none)."""
     plan_tick: np.ndarray | None = None
     """(T, N) each AGV's progress in its plan (plan ticks; -1: at its plan's start)."""
+    switches: tuple[dict, ...] = ()
+    """Switched edges of the dependency graph (``reorder`` events: ``t_s``, ``first``,
+    ``then``, ``cells``), each shown for :data:`SWITCH_SHOW_S` seconds after it."""
     _scene: list = field(default_factory=list, repr=False)
     _plan_index: list = field(default_factory=list, repr=False)
     _run: dict = field(default_factory=dict, repr=False)
@@ -178,10 +183,12 @@ class Recording:
                                          *self._run_figures(index))
         ghost = _sample(self.ghost, q) if self.ghost is not None else \
             self.plan_index().pose_at(tick) if ghosts and self.plans else None
+        switches = tuple(s for s in self.switches if s["t_s"] <= q < s["t_s"] + SWITCH_SHOW_S)
         return Snapshot(scene=self.scene(), time_s=q, tick_s=self.tick_s, x=x, y=y,
                         heading=heading, state=state, loaded=loaded, corridors=corridors,
                         orders_done=done, orders_total=total, paths=paths, ghosts=ghost,
-                        exec_state=ex["exec_state"], blocker=ex["blocker"], progress=progress)
+                        exec_state=ex["exec_state"], blocker=ex["blocker"], progress=progress,
+                        switches=switches)
 
     def _run_figures(self, index: PlanIndex) -> tuple[np.ndarray, float]:
         """Each AGV's finish time and the planned makespan (seconds), computed once."""
@@ -230,10 +237,12 @@ def _facing(pos: np.ndarray, heading: np.ndarray) -> np.ndarray:
 
 def recording_with_ghosts(trajectory: dict, ghost: dict[str, np.ndarray],
                           source: str = "open loop",
-                          planned: list[dict] | None = None) -> Recording:
+                          planned: list[dict] | None = None,
+                          switches: tuple[dict, ...] = ()) -> Recording:
     """A :class:`Recording` of an executor's ``trajectory`` dict with ``ghost`` poses
-    (:func:`ghost_poses`) to draw beside the bodies (``Style(ghosts=True)``) and the
-    ``planned`` paths (``{"agv", "tick", "states"}``, as ``EpisodeResult.planned``)."""
+    (:func:`ghost_poses`) to draw beside the bodies (``Style(ghosts=True)``), the
+    ``planned`` paths (``{"agv", "tick", "states"}``, as ``EpisodeResult.planned``) and the
+    ``reorder`` events' switched edges (``Style(switches=True)``)."""
     import dataclasses
 
     rec = _from_dict(trajectory, None, planned, source)
@@ -243,7 +252,8 @@ def recording_with_ghosts(trajectory: dict, ghost: dict[str, np.ndarray],
             raise WareroverError(f"{source}: ghost {key}: expected shape "
                                  f"({len(ghost['t'])}, {n})")
     return dataclasses.replace(rec, ghost={k: np.asarray(v, dtype=np.float64)
-                                           for k, v in ghost.items()})
+                                           for k, v in ghost.items()},
+                               switches=tuple(switches))
 
 
 # ------------------------------------------------------------------------------ building

@@ -1,0 +1,250 @@
+"""``executor.reorder`` (executors/reorder.py, reorder_milp.py): the two-robot corridor
+shows the switch and its gain; a switch that would not pay is not made; reordered runs
+are deterministic per seed, collision-free and drive every plan's cells in order; the
+lost-time parts still add up with ``reorder_gain``. (The command line: test_reorder_cli.py.)"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from types import MappingProxyType
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, assume, event, given, settings
+from hypothesis import strategies as st
+from pydantic import ValidationError
+from test_adg import instances
+
+from warerover_phys.config import AgvTypeSpec, ExecutorSpec, LayoutSpec
+from warerover_phys.executors.base import AgvBody, ExecutorSetup, TickView
+from warerover_phys.executors.physics import PhysicsExecutor
+from warerover_phys.executors.reorder import check_executed, slowdown
+from warerover_phys.gap_open import PARTS
+from warerover_phys.layout import build_layout
+from warerover_phys.planning.base import TimedPath
+
+REPO = Path(__file__).resolve().parents[2]
+
+# Row 0 is a corridor; AGV 0 enters it from (1, 2) and drives east to (0, 5), AGV 1
+# drives east along it behind AGV 0 and leaves it down to (1, 3). The plan lets AGV 0
+# pass (0, 2) and (0, 3) first; AGV 1 waits for it at (0, 1).
+GRID = ["......", "##..##", "SR####"]
+PATHS = {0: TimedPath(0, 0, ((8, 8), (2, 2), (3, 3), (4, 4), (5, 5))),
+         1: TimedPath(1, 0, ((0, 0), (1, 1), (1, 1), (2, 2), (3, 3), (9, 9)))}
+
+
+def corridor(mode: str, delay_s: float, **options) -> PhysicsExecutor:
+    """Execute the corridor plan with AGV 0 held by a delay for its first ``delay_s``."""
+    layout = build_layout(LayoutSpec(grid=GRID))
+    ex = PhysicsExecutor(ExecutorSpec(name="physics", reorder=mode, **options))
+    ex.bind(ExecutorSetup(layout=layout, tick_s=1.0, rng=np.random.default_rng(0),
+                          agvs=tuple(AgvBody(i, 1, AgvTypeSpec(), PATHS[i].states[0])
+                                     for i in range(2))))
+    ex.delayed_until[0] = delay_s
+    ex.test_events = []
+    plans = MappingProxyType(PATHS)
+    for tick in range(60):
+        rep = ex.step(TickView(tick=tick, plans=plans, behind=(0, 0), failed=frozenset(),
+                               loaded=(False, False), carried=(None, None),
+                               task_state=(0, 0)))
+        ex.test_events += rep.events
+        if all(ex.adg.done(i) for i in range(2)) and (ex.mode == 0).all():
+            return ex
+    raise AssertionError("the corridor plan did not finish")
+
+
+def switches(ex: PhysicsExecutor) -> list[dict]:
+    return [f for name, f in ex.test_events if name == "reorder"]
+
+
+def test_greedy_lets_the_waiting_agv_pass_first_and_wins_its_wait():
+    plain = corridor("none", 8.0)
+    greedy = corridor("greedy", 8.0)
+    assert plain.follow.reorder is None and "reorder_switches" not in plain.summary()
+    (sw,) = switches(greedy)
+    assert (sw["first"], sw["then"], sw["cells"]) == (1, 0, [[0, 2], [0, 3]])
+    assert sw["wait_s"] > 5 and sw["cost_s"] == 0.0
+    # AGV 1 no longer waits for the late AGV 0; AGV 0 loses nothing (it was late anyway)
+    assert plain.last_finish[1] - greedy.last_finish[1] > 8.0
+    assert greedy.last_finish[0] == pytest.approx(plain.last_finish[0], abs=1e-9)
+    s = greedy.summary()
+    assert s["reorder_switches"] == 1 and s["agv_contacts"] == 0 == plain.summary()[
+        "agv_contacts"]
+    log = greedy.cause_log()
+    won = log.reorder_gain[log.agv == 1]
+    assert won.sum() * log.dt_s == pytest.approx(sw["wait_s"], abs=log.dt_s)
+    assert not plain.cause_log().reorder_gain.any()
+
+
+def test_no_switch_that_does_not_win_the_margin():
+    plain = corridor("none", 8.0)
+    greedy = corridor("greedy", 8.0, reorder_margin_s=30.0)  # it would win ~10 s
+    assert switches(greedy) == []
+    assert greedy.summary()["reorder_candidates"] >= 1
+    np.testing.assert_array_equal(plain.last_finish, greedy.last_finish)
+    # AGV 0 only a moment late (AGV 1 has not stopped yet when it passes): no candidate
+    assert corridor("greedy", 0.5).summary()["reorder_candidates"] == 0
+
+
+def test_milp_chooses_the_switch_and_falls_back_to_greedy_without_an_optimum():
+    greedy = corridor("greedy", 8.0)
+    milp = corridor("milp", 8.0)
+    assert switches(milp) == switches(greedy)
+    assert milp.summary()["reorder_milp_solves"] >= 1
+    assert milp.summary()["reorder_milp_fallbacks"] == 0
+    # A time limit the solver cannot meet: every decision falls back to the greedy rule.
+    late = corridor("milp", 8.0, reorder_time_limit_s=1e-9)
+    assert late.summary()["reorder_milp_fallbacks"] >= 1
+    assert switches(late) == switches(greedy)
+    np.testing.assert_array_equal(late.last_finish, greedy.last_finish)
+
+
+def test_reorder_settings_are_checked():
+    with pytest.raises(ValidationError):
+        ExecutorSpec(name="physics", reorder="sometimes")
+    with pytest.raises(ValidationError):
+        ExecutorSpec(name="physics", reorder="milp", reorder_node_limit=0)
+
+
+def test_slowdown_is_the_expected_share_of_time_held_by_delays():
+    from warerover_phys.execute import parse_delays
+
+    assert slowdown(parse_delays(None)) == 1.0
+    # a delay starts with p = 0.1 per free tick and lasts 5.5 ticks on average
+    assert slowdown(parse_delays("bernoulli:0.1")) == pytest.approx(1.55)
+    assert slowdown(parse_delays("poisson:0.1:2:2")) == pytest.approx(
+        1 + 2 * (1 - math.exp(-0.1)))
+
+
+# --------------------------------------------------------------------------- fleets
+
+
+@pytest.fixture(scope="module")
+def plan40(tmp_path_factory):
+    """A LaCAM plan of 40 agents on random-32-32-10 (the project's planner)."""
+    from warerover_phys.movingai import read_map, read_scen
+    from warerover_phys.planning.oneshot import solve, write_plan
+
+    m = read_map(REPO / "tests" / "data" / "random-32-32-10.map")
+    agents = read_scen(REPO / "tests" / "data" / "random-32-32-10-random-1.scen", 40)
+    res = solve(m.obstacles, [a.start for a in agents], [a.goal for a in agents],
+                planner="lacam", time_limit_s=30)
+    out = tmp_path_factory.mktemp("reorder") / "plan40.txt"
+    write_plan(out, res)
+    return out
+
+
+def gap(plan_file, mode: str, seed: int = 1):
+    from warerover_phys.gap import plan_gap
+
+    return plan_gap(REPO / "tests" / "data" / "random-32-32-10.map", plan_file,
+                    delays="bernoulli:0.2", reorder=mode, seed=seed)
+
+
+@pytest.mark.parametrize("mode", ["greedy", "milp"])
+def test_reordered_runs_are_deterministic_safe_and_in_plan_order(plan40, mode):
+    a, b = gap(plan40, mode), gap(plan40, mode)
+    s = a.run.summary
+    assert s["reorder_switches"] >= 1 and s["agv_contacts"] == 0 and s["deadlocks"] == 0
+    assert a.report["completed"]
+    assert a.run.executed == b.run.executed
+    assert [e for e in a.run.events if e["event"] == "reorder"] == \
+        [e for e in b.run.events if e["event"] == "reorder"]
+    assert [r["executed_finish_s"] for r in a.agents] == \
+        [r["executed_finish_s"] for r in b.agents]
+    plan = a.run.plan
+    assert check_executed({i: p.states for i, p in plan.paths.items()}, a.run.executed,
+                          plan.layout.cols) == []
+    # the space-time check of the recorded bodies: no two met, between samples too
+    from warerover_phys.spacetime import from_trajectory, validate_spacetime
+
+    assert validate_spacetime(from_trajectory(a.run.trajectory)).colliding_pairs == 0
+    # the lost-time parts still add up for every AGV, the gain is <= 0 and counted
+    for row in a.agents:
+        assert math.isclose(sum(row[f"lost_{p}_s"] for p in PARTS), row["lost_s"],
+                            abs_tol=1e-9)
+        assert row["lost_reorder_gain_s"] <= 0 <= row["lost_dependency_s"]
+    assert a.report["lost_reorder_gain_s_fleet_total"] < 0
+
+
+def test_check_executed_finds_a_wrong_order_and_a_shared_cell(plan40):
+    g = gap(plan40, "none")
+    plan = g.run.plan
+    planned = {i: p.states for i, p in plan.paths.items()}
+    cols = plan.layout.cols
+    assert check_executed(planned, g.run.executed, cols) == []
+    movers = [i for i, s in g.run.executed.items() if len({a for a, _ in s}) > 2]
+    i, j = movers[:2]
+    wrong = dict(g.run.executed)
+    wrong[i] = wrong[i][:1] + wrong[i][2:][::-1]  # the same cells, another order
+    assert any(f"AGV {i} " in p for p in check_executed(planned, wrong, cols))
+    clash = dict(g.run.executed)
+    clash[j] = [g.run.executed[i][0]] * len(clash[j])  # j stands where i starts
+    assert any("both hold cell" in p for p in check_executed(planned, clash, cols))
+
+
+# --------------------------------------------------------------------------- property
+
+
+def execute_with_delays(layout, paths, sizes, mode: str, p: float, seed: int):
+    """Execute ``paths`` on physics with random delays; executed states per tick."""
+    from warerover_phys.config import DelaySpec
+
+    n = len(paths)
+    ids = sorted(paths)
+    assert ids == list(range(n))
+    spec = ExecutorSpec(name="physics", reorder=mode,
+                        delays=DelaySpec(model="bernoulli", prob=p, max_ticks=6))
+    ex = PhysicsExecutor(spec)
+    ex.bind(ExecutorSetup(layout=layout, tick_s=1.0, rng=np.random.default_rng(seed),
+                          agvs=tuple(AgvBody(i, sizes[i], AgvTypeSpec(footprint=sizes[i]),
+                                             paths[i].states[0]) for i in ids)))
+    plans = MappingProxyType(dict(paths))
+    executed = {i: [paths[i].states[0]] for i in ids}
+    for tick in range(400):
+        rep = ex.step(TickView(tick=tick, plans=plans, behind=(0,) * n, failed=frozenset(),
+                               loaded=(False,) * n, carried=(None,) * n,
+                               task_state=(0,) * n))
+        for i, s in rep.states.items():
+            executed[i].append(s)
+        if all(ex.adg.done(i) for i in ids) and (ex.mode == 0).all():
+            return ex, executed
+    raise AssertionError("not finished in 400 ticks")
+
+
+@settings(max_examples=12, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@given(instances(), st.integers(0, 2**32 - 1), st.floats(0.1, 0.4),
+       st.sampled_from(["greedy", "milp"]))
+def test_reordered_physics_runs_keep_every_plan_and_never_collide(instance, seed, p, mode):
+    from test_adg import rotation_agvs
+
+    layout, paths, sizes, _, trajs = instance
+    assume(rotation_agvs(trajs, sizes, layout.cols) is None)  # (no order exists)
+    ex, executed = execute_with_delays(layout, paths, sizes, mode, p, seed)
+    s = ex.summary()
+    event(f"{mode}: {'switched' if s['reorder_switches'] else 'no switch'}")
+    assert s["agv_contacts"] == 0 and s["deadlocks"] == 0
+    assert check_executed({i: q.states for i, q in paths.items()}, executed, layout.cols,
+                          sizes) == []
+    ex.adg.check_acyclic()
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.integers(15, 40), st.integers(0, 2**32 - 1), st.floats(0.1, 0.3),
+       st.sampled_from(["greedy", "milp"]))
+def test_reordered_fleets_keep_every_plan_and_never_collide(plan40, n, seed, p, mode):
+    from warerover_phys.execute import load_floor, plan_to_paths
+    from warerover_phys.plans import read_plan
+
+    layout, _, _ = load_floor(REPO / "tests" / "data" / "random-32-32-10.map")
+    full = plan_to_paths(read_plan(plan40), layout.cols)
+    paths = {i: TimedPath(i, full[i].start_tick, full[i].states) for i in range(n)}
+    ex, executed = execute_with_delays(layout, paths, dict.fromkeys(range(n), 1), mode, p,
+                                       seed)
+    s = ex.summary()
+    event(f"{mode}: {'switched' if s['reorder_switches'] else 'no switch'}")
+    assert s["agv_contacts"] == 0 and s["deadlocks"] == 0
+    assert check_executed({i: q.states for i, q in paths.items()}, executed,
+                          layout.cols) == []

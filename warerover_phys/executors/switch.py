@@ -1,0 +1,370 @@
+"""Switchable action dependency graph (Berndt, van Duijkeren, Palmieri, Keviczky 2020):
+change the order of AGVs at the cells they share, keeping the graph acyclic.
+
+The :class:`~.adg.ActionGraph` keeps per cell a queue of visits; the order of two
+neighbouring visits ``u`` (AGV ``i``) and ``w`` (AGV ``j``) is the type-2 edge
+``leave(u) -> enter(w)``. *Switching* puts ``w`` right before ``u``: the edge becomes
+``leave(w) -> enter(u)``, and ``j`` also goes before any (movable) visits that were
+between the two. Every AGV still drives its own actions in their order; only who passes a
+shared cell first changes.
+
+A switch is made for a :class:`Group` (:meth:`SwitchableGraph.candidate`): the AGV ``j``
+that waits, its next action's cells reserved for AGVs that have not entered them yet, and
+``j``'s visits that then go first. On each cell ``j`` enters before it has left all the
+group's cells it passes the visits ahead of its own too: those AGVs may wait for the ones
+it passed, and ``j`` would wait for them there, a cycle. (Switching only the first cell of
+a corridor that ``i`` and ``j`` both drive through is the plainest such cycle: ``j`` would
+wait for ``i`` on the second cell, ``i`` for ``j`` on the first.) So a whole corridor, or a
+single crossing cell, is switched at once, or nothing.
+
+**Acyclic, checked.** :class:`SwitchableGraph` keeps a topological order of the remaining
+actions (a number per action: Kahn's algorithm once per plan change,
+:attr:`~.adg.ActionGraph.plan_version`) over a graph that contains every dependency of
+the ADG: type-1 edges between an AGV's actions and an edge between each two *neighbouring*
+visits of a queue (whose transitive closure holds every type-2 edge, shelf sweep visits
+included). A switch adds, per cell, the one edge ``leave(w) -> enter(u)``; each is
+inserted with the incremental algorithm of Pearce and Kelly (2006): if the new edge goes
+backwards in the order, the actions reachable from ``enter(u)`` and the actions that reach
+``leave(w)`` between the two positions are searched; reaching ``leave(w)`` is a cycle,
+otherwise the two sets are renumbered. The group's old edges are taken out before its new
+ones go in (the graph in between has neither order at the cells not yet switched), so a
+group that is acyclic as a whole is never refused because one of its cells alone would
+close a cycle. A cycle, or a search that exceeds ``search_limit`` actions, undoes the
+whole group (a deterministic limit: no wall clock). Removing actions (started, finished)
+keeps the order valid. With ``check=True`` :meth:`~.adg.ActionGraph.check_acyclic` also
+runs after every switch (tests).
+
+Visits that may not move: an entered visit (the AGV is on the cell), a claimed one (the
+AGV drives through it without stopping, :meth:`~.adg.ActionGraph.claim`), a turn's swept
+cells, and visits whose AGV's plan ends on the cell.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import islice
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .adg import ActionGraph, _Step, _Visit
+
+__all__ = ["Group", "SwitchableGraph", "SEARCH_LIMIT", "SEGMENT_LIMIT"]
+
+SEARCH_LIMIT = 20_000
+"""Most actions one edge insertion may search before the switch is refused."""
+SEGMENT_LIMIT = 256
+"""Most actions of the waiting AGV a group's cells may span."""
+
+
+@dataclass(frozen=True, eq=False)
+class Group:
+    """A switch: at each pair's cell ``second``'s visit goes before the other's."""
+
+    first: int
+    """The AGV whose visit holds ``second``'s next action back (``i``; with others of
+    :attr:`pairs` it will wait for ``second``)."""
+    second: int
+    """The waiting AGV (``j``)."""
+    pairs: tuple[tuple[_Visit, _Visit], ...]
+    """``(u, w)``: the first visit ahead of ``second``'s visit ``w`` that ``w`` passes,
+    per cell, in ``second``'s order."""
+
+    @property
+    def cells(self) -> tuple[int, ...]:
+        """The switched cells (queue keys), in ``second``'s order."""
+        return tuple(u.cell for u, _ in self.pairs)
+
+
+def _movable(u: _Visit, w: _Visit, q: list[_Visit]) -> bool:
+    """``w`` may go before ``u`` in queue ``q`` (``u`` ahead of it), and before the visits
+    between them (see the module doc)."""
+    if not (not u.entered and not u.claimed and not u.sweep and not u.shelf
+            and u.enter is not None and u.leave is not None
+            and not w.entered and not w.sweep and not w.shelf
+            and w.enter is not None and w.leave is not None):
+        return False
+    i, n = q.index(u), q.index(w)
+    return i < n and all(not x.claimed and not x.entered and not x.sweep and not x.shelf
+                         for x in q[i + 1:n])
+
+
+class SwitchableGraph:
+    """Switches on an :class:`~.adg.ActionGraph` that keep it acyclic (module doc). A
+    friend of the graph: it reads and reorders its queues."""
+
+    def __init__(self, adg: ActionGraph, *, check: bool = False,
+                 search_limit: int = SEARCH_LIMIT) -> None:
+        self.adg = adg
+        self.check = check
+        self.search_limit = search_limit
+        self.switches = 0
+        """Groups switched."""
+        self.refused = 0
+        """Groups refused: a cycle, or a search over the limit."""
+        self.rebuilds = 0
+        """Topological orders built from scratch (once per plan change)."""
+        self._version = -1
+        self._ok = False
+        self._ord: dict[_Step, int] = {}
+        self._where: dict[_Step, tuple[int, int]] = {}
+        self._chain: dict[int, list[_Step]] = {}
+        self._step_of: dict[int, _Step] = {}
+        self._pend_u: dict[int, list[_Visit]] = {}
+        self._pend_w: dict[int, _Visit] = {}
+        """Pairs ``(u, w)`` of the group being switched whose old edges are out and new one
+        not yet in: ``id(u) -> [w, ...]`` and ``id(w) -> u``."""
+
+    # ----------------------------------------------------------------- candidates
+
+    def candidate(self, j: int, limit: int = SEGMENT_LIMIT) -> Group | None:
+        """The group that would let standing AGV ``j`` start its next action now, or
+        None. Each cell its next action enters must be free for it but for movable
+        visits of other AGVs that have not entered it; ``j`` goes before them. Then, on
+        each cell ``j`` enters before it has left every cell of the group, it goes before
+        the visits ahead of its own there too (they may wait for those it passed: a
+        cycle), unless such a cell is held (its AGV is on it: ``j`` waits there). None if
+        a visit it must pass may not move, or ``j``'s plan ends on a cell of the group."""
+        self._sync()
+        adg = self.adg
+        rec = adg._agents.get(j)
+        if rec is None or rec.running is not None or not rec.pending:
+            return None
+        queues = adg._queues
+        steps = list(islice(rec.pending, limit))
+        pairs: list[tuple[_Visit, _Visit]] = []
+        last = 0  # j's step that leaves the group's last cell
+        k = 0
+        while k <= last and k < len(steps):
+            for w in steps[k].enter_visits:
+                q = queues[w.cell]
+                idx = q.index(w)
+                ahead = [x for x in q[:idx] if x.agv != j]
+                if w.sweep or w.shelf:
+                    if k == 0 and ahead and not adg._first(w):
+                        return None  # a turn that waits for its swept cells
+                    continue
+                if not ahead or (k > 0 and any(x.entered for x in ahead)):
+                    continue
+                if w.leave is None or not _movable(ahead[0], w, q):
+                    return None
+                pairs.append((ahead[0], w))
+                last = max(last, self.pending_index(self._step_of[id(w.leave)]))
+            if k == 0 and not pairs:
+                return None  # its next action's cells are free: nothing to switch
+            k += 1
+        if not pairs or last >= len(steps):
+            return None
+        return Group(pairs[0][0].agv, j, tuple(pairs))
+
+    def pending_index(self, step: _Step) -> int:
+        """The position of ``step`` among its AGV's not-started actions (-1: running)."""
+        self._sync()
+        agv, k = self._where[step]
+        return k - self._live_from(agv) - (1 if self.adg._agents[agv].running is not None
+                                           else 0)
+
+    def step_of(self, visit_action) -> _Step:
+        """The step of an action of a visit (``visit.enter`` / ``visit.leave``)."""
+        self._sync()
+        return self._step_of[id(visit_action)]
+
+    # ----------------------------------------------------------------- switching
+
+    def switch(self, group: Group) -> bool:
+        """Switch ``group`` if the graph stays acyclic (see the module doc); returns
+        whether it did. The AGVs waiting on its cells are woken."""
+        self._sync()
+        if not self._ok or not group.pairs:
+            self.refused += 1
+            return False
+        queues = self.adg._queues
+        for u, w in group.pairs:  # still as found (nothing moved since)?
+            q = queues.get(u.cell)
+            if q is None or u not in q or w not in q or not _movable(u, w, q):
+                return False
+        pend_u, pend_w = self._pend_u, self._pend_w
+        for u, w in group.pairs:  # (j may pass a cell twice: then two w for one u)
+            pend_u.setdefault(id(u), []).append(w)
+            pend_w[id(w)] = u
+        journal: list[tuple[_Step, int]] = []
+        done: list[tuple[list[_Visit], int, int]] = []
+        ok = True
+        for u, w in group.pairs:
+            q = queues[u.cell]
+            iw, iu = q.index(w), q.index(u)
+            q.insert(iu, q.pop(iw))  # w right before u
+            done.append((q, iu, iw))
+            pend_u[id(u)].remove(w)
+            del pend_w[id(w)]
+            if not self._insert(self._step_of[id(w.leave)], self._step_of[id(u.enter)],
+                                journal):
+                ok = False
+                break
+        pend_u.clear()
+        pend_w.clear()
+        if not ok:
+            for q, iu, iw in reversed(done):
+                q.insert(iw, q.pop(iu))
+            for node, old in reversed(journal):
+                self._ord[node] = old
+            self.refused += 1
+            return False
+        for u, _ in group.pairs:
+            self.adg._touch(u.cell)
+        self.switches += 1
+        if self.check:
+            self.adg.check_acyclic()
+        return True
+
+    # ----------------------------------------------------------------- the order
+
+    def _sync(self) -> None:
+        if self._version != self.adg.plan_version:
+            self._rebuild()
+
+    def _rebuild(self) -> None:
+        """A topological order of the remaining actions from scratch (Kahn)."""
+        adg = self.adg
+        self._version = adg.plan_version
+        self.rebuilds += 1
+        self._where, self._chain, self._step_of, self._ord = {}, {}, {}, {}
+        nodes: list[_Step] = []
+        for agv in sorted(adg._agents):
+            rec = adg._agents[agv]
+            chain = ([rec.running] if rec.running is not None else []) + list(rec.pending)
+            self._chain[agv] = chain
+            for k, s in enumerate(chain):
+                self._where[s] = (agv, k)
+                self._step_of[id(s.action)] = s
+            nodes += chain
+        indeg = dict.fromkeys(nodes, 0)
+        for s in nodes:
+            for t in self._succ(s):
+                indeg[t] += 1
+        todo = [s for s in nodes if indeg[s] == 0]
+        todo.reverse()  # pop from the end: AGV id order first
+        order = self._ord
+        while todo:
+            s = todo.pop()
+            order[s] = len(order)
+            for t in self._succ(s):
+                indeg[t] -= 1
+                if indeg[t] == 0:
+                    todo.append(t)
+        self._ok = len(order) == len(nodes)
+
+    def _live_from(self, agv: int) -> int:
+        """Index in the AGV's chain of its first remaining action."""
+        rec = self.adg._agents[agv]
+        head = rec.running if rec.running is not None else (
+            rec.pending[0] if rec.pending else None)
+        return self._where[head][1] if head is not None else len(self._chain[agv])
+
+    def _target(self, action) -> _Step | None:
+        """The step a type-2 edge into ``action`` reaches (None: started or gone)."""
+        if action is None:
+            return None
+        s = self._step_of.get(id(action))
+        if s is None:
+            return None
+        agv, k = self._where[s]
+        rec = self.adg._agents[agv]
+        if rec.running is s or k < self._live_from(agv):
+            return None
+        return s
+
+    def _after(self, q: list[_Visit], idx: int) -> list[_Visit]:
+        """The visits right behind ``q[idx]``. A visit ``w`` of the group being switched
+        whose old edges are out and new one not yet in hangs between the visit before
+        its ``u`` and the visit after its own place."""
+        k = idx + 1
+        while k < len(q) and id(q[k]) in self._pend_w:
+            k += 1
+        if k >= len(q):
+            return []
+        return [q[k], *self._pend_u.get(id(q[k]), ())]
+
+    def _before(self, q: list[_Visit], idx: int) -> list[_Visit]:
+        """The visits right ahead of ``q[idx]`` (see :meth:`_after`)."""
+        u = self._pend_w.get(id(q[idx]))
+        if u is not None:
+            iu = q.index(u)
+            return [q[iu - 1]] if iu > 0 else []
+        k = idx - 1
+        out = []
+        while k >= 0 and id(q[k]) in self._pend_w:
+            out.append(q[k])
+            k -= 1
+        if k >= 0:
+            out.append(q[k])
+        return out
+
+    def _succ(self, s: _Step) -> list[_Step]:
+        agv, k = self._where[s]
+        chain = self._chain[agv]
+        out = [chain[k + 1]] if k + 1 < len(chain) else []
+        queues = self.adg._queues
+        for v in s.leave_visits:
+            q = queues[v.cell]
+            for w in self._after(q, q.index(v)):
+                t = self._target(w.enter)
+                if t is not None:
+                    out.append(t)
+        return out
+
+    def _pred(self, s: _Step) -> list[_Step]:
+        agv, k = self._where[s]
+        rec = self.adg._agents[agv]
+        if rec.running is s:
+            return []
+        out = [self._chain[agv][k - 1]] if k - 1 >= self._live_from(agv) else []
+        queues = self.adg._queues
+        for v in s.enter_visits:
+            q = queues[v.cell]
+            for u in self._before(q, q.index(v)):
+                if u.leave is not None:
+                    t = self._step_of.get(id(u.leave))
+                    if t is not None:
+                        out.append(t)
+        return out
+
+    def _insert(self, x: _Step, y: _Step, journal: list[tuple[_Step, int]]) -> bool:
+        """Insert the edge ``x -> y`` (Pearce-Kelly); False on a cycle or a search over
+        the limit (the order is then as the journal says to restore)."""
+        order = self._ord
+        ox, oy = order[x], order[y]
+        if ox < oy:
+            return True
+        budget = self.search_limit
+        fwd, seen, stack = [], {y}, [y]
+        while stack:
+            n = stack.pop()
+            fwd.append(n)
+            for m in self._succ(n):
+                if m is x:
+                    return False
+                if m not in seen and order[m] < ox:
+                    seen.add(m)
+                    stack.append(m)
+            budget -= 1
+            if budget <= 0:
+                return False
+        back, seen_b, stack = [], {x}, [x]
+        while stack:
+            n = stack.pop()
+            back.append(n)
+            for m in self._pred(n):
+                if m not in seen_b and order[m] > oy:
+                    seen_b.add(m)
+                    stack.append(m)
+            budget -= 1
+            if budget <= 0:
+                return False
+        back.sort(key=order.__getitem__)
+        fwd.sort(key=order.__getitem__)
+        moved = back + fwd
+        slots = sorted(order[n] for n in moved)
+        for n, p in zip(moved, slots, strict=True):
+            journal.append((n, order[n]))
+            order[n] = p
+        return True
