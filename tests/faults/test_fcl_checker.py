@@ -286,6 +286,28 @@ def test_fcl_checker_follows_moves_turns_and_corridor_changes():
     assert seen == [[(0, 5)], [], [(1, 5), (2, 5)], [(0, 5), (1, 5)], [(1, 6)]]
 
 
+def _box_corridor(cid: int, rect: tuple, margin: float) -> Corridor:
+    poly = shapely.box(*rect)
+    return Corridor(id=cid, agv=99, access=(0, 0), route=((0, 0),), rects=(rect,),
+                    margin_m=margin, polygon=poly, zone=poly, cells=frozenset())
+
+
+@pytest.mark.parametrize("kind", ["fcl", "numpy"])
+def test_the_boundary_rule_is_strict_for_both_checkers(kind):
+    """A pair intrudes when ``sd < margin`` (binary fractions: no rounding). Margin 0.25:
+    an edge exactly 0.25 m off is out, 2^-20 m nearer is in; a corner 0.2 m off on both
+    axes (0.28 m away) is out although it is inside the rectangle grown by the margin (fcl's
+    box). Margin 0: touching along an edge or at a corner is out, 2^-20 m of overlap is in."""
+    eps = 2.0 ** -20
+    chk = make_checker(kind, np.tile([0.5, 0.25], (6, 1)))
+    chk.set_corridors([_box_corridor(1, (0.0, 0.0, 2.0, 1.0), 0.25),
+                       _box_corridor(2, (10.0, 0.0, 12.0, 1.0), 0.0)])
+    poses = np.array([[2.75, 0.5, 0.0], [2.75 - eps, 0.5, 0.0], [2.7, 1.45, 0.0],
+                      [12.5, 0.5, 0.0], [12.5 - eps, 0.5, 0.0], [12.5, 1.25, math.pi]])
+    got = [(h.agv, h.corridor, h.depth_m) for h in chk.check(poses)]
+    assert got == [(1, 1, pytest.approx(eps, abs=1e-15)), (4, 2, pytest.approx(eps, abs=1e-15))]
+
+
 def test_make_checker_and_the_config_field():
     half = np.array([[0.3, 0.2]])
     assert make_checker("fcl", half).name == "fcl"
