@@ -256,6 +256,30 @@ def test_the_issue_13_pose_through_fcl(worker):
     assert hit[2] == pytest.approx(0.2 + 0.5 + half_x, abs=1e-9)
 
 
+HAIRS = [  # (rectangle, margin, pose, half size): touching at the margin, heading 2 pi
+    ((-5.507324, -25.184618, -2.789026, -22.318699000000002), 0.2,
+     (-0.9742829999999996, -20.522249000000002, 2 * math.pi), (1.614743, 1.79645)),
+    ((-2.631712, -6.462714, -1.3387969999999998, -4.0605329999999995), 0.0,
+     (-1.2253219999999998, -5.698403271547247, 2 * math.pi), (0.113475, 0.99102)),
+    ((-10.278186, 7.648672, -7.618385, 8.195439), 0.3,
+     (-6.4797780000000005, 9.959497, 2 * math.pi), (0.838607, 1.764058)),
+]
+"""Found by a search with the fcl rectangles grown by the margin alone (no slack): the
+closed form puts these bodies 1e-16 m inside the margin, fcl's rounding puts its box just
+outside the grown rectangle."""
+
+
+@pytest.mark.parametrize("rect, margin, pose, half", HAIRS)
+def test_pairs_a_rounding_hair_inside_the_margin_are_found(worker, rect, margin, pose, half):
+    """fcl's rectangles reach ``slack_m`` beyond the margin, so a pair the closed form puts
+    a rounding error inside is still proposed (without the slack fcl missed these)."""
+    scene = {"half": [list(half)], "corridors": [{"id": 4, "rects": [list(rect)],
+                                                   "margin": margin}],
+             "poses": [[list(pose)]], "skip": []}
+    ((hit,),) = worker.ask(scene)
+    assert hit[:2] == [0, 4] and 0 < hit[2] < 1e-15
+
+
 def test_fcl_checker_follows_moves_turns_and_corridor_changes():
     """One fcl checker over a sequence: bodies that only turn, only move, stand still or
     leave; corridors replaced. Each answer equals a fresh numpy checker's (a checker that
