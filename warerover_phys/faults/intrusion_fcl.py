@@ -21,10 +21,12 @@ geometries of the contact (``id(geometry)``), needs ``enable_contact``: with con
 fcl's box-box routine reports *no collision* when it finds no contact point, which happens
 for a zero-length or zero-width box standing inside another (found by the fuzz test). So
 contacts stay off and every box carries its name in its height: AGV ``i`` stands centred at
-``z = i``, rectangle ``j`` at ``z = -1 - j`` (integers, exact in a float), and the boxes are
-tall enough (AGVs ``2 (N + 1)``, rectangles ``2 (R + 1)``) that every AGV box spans every
-rectangle's heights: the rotations are about ``z`` only, so the heights never separate a
-pair, and the wrapper's ``getTranslation()[2]`` names it.
+``z = i / 2^30``, rectangle ``j`` at ``z = -(1 + j) / 2^30`` (exact in a float, read back
+exactly by the wrapper's ``getTranslation()``). All boxes are 1 m tall, so their heights
+overlap whatever their names (up to half a million boxes) and never separate a pair
+(rotations are about ``z`` only); kept that small, the heights do not steer the AABB trees,
+which split along the floor's axes. (Integer heights with boxes tall enough to overlap made
+the trees split along ``z``: 100 times slower.)
 
 **fcl proposes, the closed form decides.** The pairs fcl reports are candidates: they are
 measured by :func:`~warerover_phys.faults.intrusion.box_rect_signed_distance` (through
@@ -58,6 +60,15 @@ from .intrusion import _REACH_EPS_M, IntrusionChecker
 
 __all__ = ["FclIntrusionChecker"]
 
+HEIGHT_M = 1.0
+"""Height of every box (the problem is planar)."""
+NAME_Z = 2.0 ** -30
+"""Height step that names a box: AGV ``i`` stands at ``z = i NAME_Z``, rectangle ``j`` at
+``-(1 + j) NAME_Z``."""
+MAX_BOXES = 2 ** 19
+"""Most AGVs (and most rectangles) one checker names: their heights stay within
+``HEIGHT_M / 2`` of each other."""
+
 SLACK_REL = 1e-10
 """Slack on the grown rectangles relative to the scene's largest coordinate (see
 :attr:`FclIntrusionChecker.slack_m`)."""
@@ -85,10 +96,11 @@ class FclIntrusionChecker(IntrusionChecker):
     def __init__(self, half_sizes: np.ndarray) -> None:
         super().__init__(half_sizes)
         hs = self.half_sizes
-        height = 2.0 * (self.n + 1)
+        if self.n > MAX_BOXES:
+            raise ValueError(f"the fcl checker names at most {MAX_BOXES} AGVs, got {self.n}")
         self._agv_objs = [
-            fcl.CollisionObject(fcl.Box(2 * hx, 2 * hy, height),
-                                fcl.Transform(np.array([0.0, 0.0, float(i)])))
+            fcl.CollisionObject(fcl.Box(2 * hx, 2 * hy, HEIGHT_M),
+                                fcl.Transform(np.array([0.0, 0.0, i * NAME_Z])))
             for i, (hx, hy) in enumerate(hs.tolist())]
         self._agv_mgr = fcl.DynamicAABBTreeCollisionManager()
         if self._agv_objs:
@@ -98,7 +110,7 @@ class FclIntrusionChecker(IntrusionChecker):
         self._given = np.full((self.n, 3), np.nan)
         """The poses fcl's AGV boxes stand at (NaN: never placed)."""
         self._trans = np.zeros((self.n, 3))
-        self._trans[:, 2] = np.arange(self.n)
+        self._trans[:, 2] = np.arange(self.n) * NAME_Z
         """Each AGV box's translation: ``(x, y, i)``, its name in its height."""
         self._request = fcl.CollisionRequest()
         self.slack_m = _REACH_EPS_M
@@ -114,11 +126,13 @@ class FclIntrusionChecker(IntrusionChecker):
         r = self._rects
         scale = float(np.abs(r).max(initial=0.0) + self.half_sizes.sum(axis=1).max(initial=0.0))
         self.slack_m = max(_REACH_EPS_M, SLACK_REL * scale)
+        if len(r) > MAX_BOXES:
+            raise ValueError(f"the fcl checker names at most {MAX_BOXES} corridor "
+                             f"rectangles, got {len(r)}")
         grow = self._margins[self._owner] + self.slack_m
-        height = 2.0 * (len(r) + 1)
         objs = [fcl.CollisionObject(
-            fcl.Box(x1 - x0 + 2 * g, y1 - y0 + 2 * g, height),
-            fcl.Transform(np.array([(x0 + x1) / 2, (y0 + y1) / 2, -1.0 - j])))
+            fcl.Box(x1 - x0 + 2 * g, y1 - y0 + 2 * g, HEIGHT_M),
+            fcl.Transform(np.array([(x0 + x1) / 2, (y0 + y1) / 2, -(1.0 + j) * NAME_Z])))
             for j, ((x0, y0, x1, y1), g) in enumerate(zip(r.tolist(), grow.tolist(),
                                                            strict=True))]
         self._rect_mgr = fcl.DynamicAABBTreeCollisionManager()
@@ -147,7 +161,7 @@ class FclIntrusionChecker(IntrusionChecker):
         self._agv_mgr.collide(self._rect_mgr, None, on_pair)
         if errors:
             raise errors[0]
-        z = np.array(found).reshape(-1, 2)
+        z = np.array(found).reshape(-1, 2) / NAME_Z  # exact: a power of two
         self.fcl_pairs += len(z)
         agv = z.max(axis=1).astype(np.int64)  # AGVs stand at z >= 0, rectangles below
         rect = (-1.0 - z.min(axis=1)).astype(np.int64)
