@@ -111,7 +111,7 @@ class FclIntrusionChecker(IntrusionChecker):
         """The poses fcl's AGV boxes stand at (NaN: never placed)."""
         self._trans = np.zeros((self.n, 3))
         self._trans[:, 2] = np.arange(self.n) * NAME_Z
-        """Each AGV box's translation: ``(x, y, i)``, its name in its height."""
+        """Each AGV box's translation: ``(x, y, i NAME_Z)``, its name in its height."""
         self._request = fcl.CollisionRequest()
         self.slack_m = _REACH_EPS_M
         """How much farther than the margin the fcl rectangles reach (m): ``1e-6``, or
@@ -122,13 +122,14 @@ class FclIntrusionChecker(IntrusionChecker):
 
     def set_corridors(self, corridors: Sequence[Corridor]) -> None:
         """Replace the open corridors: their grown rectangles become a new fcl manager."""
+        count = sum(len(c.rects) for c in corridors)
+        if count > MAX_BOXES:
+            raise ValueError(f"the fcl checker names at most {MAX_BOXES} corridor "
+                             f"rectangles, got {count}")
         super().set_corridors(corridors)
         r = self._rects
         scale = float(np.abs(r).max(initial=0.0) + self.half_sizes.sum(axis=1).max(initial=0.0))
         self.slack_m = max(_REACH_EPS_M, SLACK_REL * scale)
-        if len(r) > MAX_BOXES:
-            raise ValueError(f"the fcl checker names at most {MAX_BOXES} corridor "
-                             f"rectangles, got {len(r)}")
         grow = self._margins[self._owner] + self.slack_m
         objs = [fcl.CollisionObject(
             fcl.Box(x1 - x0 + 2 * g, y1 - y0 + 2 * g, HEIGHT_M),
