@@ -378,13 +378,20 @@ def episode(sets: list, checker: str, seed: int, max_ticks: int | None = None) -
 
 
 def assert_same_episode(sets: list, seed: int, max_ticks: int | None = None) -> int:
+    """Both checkers on one episode: identical; returns the hits of all its checks (and
+    prints the seed's figures: ``pytest -s`` shows them)."""
     a = episode(sets, "fcl", seed, max_ticks)
     b = episode(sets, "numpy", seed, max_ticks)
     assert (a["checker"], b["checker"]) == ("fcl", "numpy")
     assert a["checks"] == b["checks"]
     assert a["events"] == b["events"]
     assert a["metrics"] == b["metrics"]
-    return sum(len(c) for c in a["checks"])
+    hits = sum(len(c) for c in a["checks"])
+    depth = max((d for c in a["checks"] for _, _, d in c), default=0.0)
+    print(f"seed {seed}: {hits} hits in {len(a['checks'])} checks, deepest {depth:.4f} m, "
+          f"{a['metrics']['corridor_intrusions']} intrusions, "
+          f"{a['metrics']['corridor_intrusion_agv_s']} intrusion AGV-s; identical")
+    return hits
 
 
 def test_fault_episodes_identical_with_either_checker():
