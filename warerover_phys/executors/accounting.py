@@ -184,7 +184,7 @@ class Accounting:
             if keys:
                 if self._checker is None:
                     from ..config import FaultsSpec
-                    from ..faults.intrusion import make_checker
+                    from ..faults.checker import make_checker
 
                     kind = self.intrusion_checker or FaultsSpec().checker
                     self._checker = make_checker(kind, self.fleet.half_size)

@@ -2,15 +2,14 @@
 
 from __future__ import annotations
 
+from .checker import CHECKERS, make_checker
 from .corridors import Corridor, cover_mask, plan_corridor
 from .intrusion import (
-    CHECKERS,
     Intrusion,
     IntrusionChecker,
     agv_boxes,
     box_rect_signed_distance,
     intrusions_shapely,
-    make_checker,
 )
 
 __all__ = ["Corridor", "plan_corridor", "cover_mask", "Intrusion", "IntrusionChecker",

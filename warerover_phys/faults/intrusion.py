@@ -30,7 +30,7 @@ and no failure mode: any finite input gives a finite answer, degenerate boxes (z
 or width) and touching or collinear edges included.
 :class:`~warerover_phys.faults.intrusion_fcl.FclIntrusionChecker` (``faults.checker:
 fcl``) finds the candidate pairs with fcl's boolean box-box collide (never GJK/EPA) and
-measures them here; :func:`make_checker` builds either.
+measures them here; :func:`~warerover_phys.faults.checker.make_checker` builds either.
 """
 
 from __future__ import annotations
@@ -43,8 +43,8 @@ import shapely
 
 from .corridors import Corridor
 
-__all__ = ["CHECKERS", "Intrusion", "IntrusionChecker", "agv_boxes",
-           "box_rect_signed_distance", "intrusions_shapely", "make_checker"]
+__all__ = ["Intrusion", "IntrusionChecker", "agv_boxes", "box_rect_signed_distance",
+           "intrusions_shapely"]
 
 _REACH_EPS_M = 1e-6
 """Slack on the broad-phase search distance, so that a zero margin still finds overlaps."""
@@ -262,24 +262,6 @@ class IntrusionChecker:
         ids, margins = self._corridor_ids, self._margins
         return sorted((Intrusion(a, ids[kk], float(margins[kk] - d))
                        for (a, kk), d in best.items()), key=lambda i: (i.agv, i.corridor))
-
-
-CHECKERS = ("fcl", "numpy")
-"""The corridor checkers (``faults.checker``)."""
-
-
-def make_checker(kind: str, half_sizes: np.ndarray) -> IntrusionChecker:
-    """The ``faults.checker`` named ``kind`` for AGV bodies of ``half_sizes`` (``(N, 2)``
-    m): ``numpy`` (:class:`IntrusionChecker`) or ``fcl``
-    (:class:`~warerover_phys.faults.intrusion_fcl.FclIntrusionChecker`, imported on
-    first use)."""
-    if kind == "numpy":
-        return IntrusionChecker(half_sizes)
-    if kind == "fcl":
-        from .intrusion_fcl import FclIntrusionChecker
-
-        return FclIntrusionChecker(half_sizes)
-    raise ValueError(f"faults.checker must be one of {', '.join(CHECKERS)}, got {kind!r}")
 
 
 # ------------------------------------------------------------------------------ reference
