@@ -137,8 +137,10 @@ def rects(draw, before: list) -> list:
 @st.composite
 def pose(draw, half: tuple, placed: list, corridors: list) -> list:
     """A pose for a body of ``half``: free, centred on a rectangle, touching its grown
-    edge or corner, or the same as another body's."""
-    how = draw(st.sampled_from(["free", "centred", "touch_x", "touch_y", "corner", "same"]))
+    edge or corner, diagonally off its grown corner at any heading, or the same as another
+    body's."""
+    how = draw(st.sampled_from(["free", "centred", "touch_x", "touch_y", "corner", "diagonal",
+                                "same"]))
     c = draw(st.sampled_from(corridors))
     x0, y0, x1, y1 = draw(st.sampled_from(c["rects"]))
     m = c["margin"] if draw(st.booleans()) else 0.0
@@ -158,6 +160,9 @@ def pose(draw, half: tuple, placed: list, corridors: list) -> list:
         a = draw(axis_angle)
         hx, hy = (half[1], half[0]) if abs(math.sin(a)) > 0.5 else half
         return [x1 + m + hx, y1 + m + hy, a]
+    if how == "diagonal":  # off the grown corner, turned: only the box's rotation decides
+        t = draw(st.sampled_from([0.0, 0.1, 0.3])) * max(half)
+        return [x1 + m + t, y1 + m + t, draw(st.one_of(st.just(math.pi / 4), angle))]
     return [draw(coord), draw(coord), draw(angle)]
 
 
@@ -282,8 +287,10 @@ def test_pairs_a_rounding_hair_inside_the_margin_are_found(worker, rect, margin,
 
 def test_fcl_checker_follows_moves_turns_and_corridor_changes():
     """One fcl checker over a sequence: bodies that only turn, only move, stand still or
-    leave; corridors replaced. Each answer equals a fresh numpy checker's (a checker that
-    forgot a turn or a move would keep a stale box)."""
+    leave; corridors replaced; a body turning in place into the margin (only its new
+    rotation reaches it); a body at 45 degrees off a corner and its mirror image (a box
+    turned the wrong way misses). Each answer equals a fresh numpy checker's (a checker that forgot
+    a turn or a move would keep a stale box and miss a pair)."""
     half = np.array([[0.45, 0.05], [0.3, 0.3], [0.45, 0.05]])
     a = make_checker("fcl", half)
     rect = (0.0, 0.0, 2.0, 1.0)
@@ -298,6 +305,10 @@ def test_fcl_checker_follows_moves_turns_and_corridor_changes():
         ([cor], [[2.3, 0.5, math.pi / 2], [2.35, 0.5, 0.0], [2.54, 0.5, 0.0]]),  # 1, 2 move in
         ([cor], [[2.3, 0.5, 0.0], [2.35, 0.5, 0.0], [2.54, 0.5, math.pi / 2]]),  # 0 in, 2 out
         ([far], [[2.3, 0.5, 0.0], [10.5, 1.2, 0.0], [2.54, 0.5, math.pi / 2]]),  # new corridor
+        ([cor], [[1.0, 1.5, 0.0], [5.0, 5.0, 0.0], [5.0, 8.0, 0.0]]),  # 0 above, 0.45 m off
+        ([cor], [[1.0, 1.5, math.pi / 2], [5.0, 5.0, 0.0], [5.0, 8.0, 0.0]]),  # 0 turns: 0.05 m in
+        ([cor], [[2.3, 1.3, math.pi / 4], [5.0, 5.0, 0.0], [5.0, 8.0, 0.0]]),  # 0 at the corner
+        ([cor], [[2.3, 1.3, 3 * math.pi / 4], [5.0, 5.0, 0.0], [5.0, 8.0, 0.0]]),  # mirrored: out
     ]
     seen = []
     for cors, poses in steps:
@@ -307,7 +318,8 @@ def test_fcl_checker_follows_moves_turns_and_corridor_changes():
         got = a.check(np.array(poses))
         assert got == ref.check(np.array(poses))
         seen.append([(h.agv, h.corridor) for h in got])
-    assert seen == [[(0, 5)], [], [(1, 5), (2, 5)], [(0, 5), (1, 5)], [(1, 6)]]
+    assert seen == [[(0, 5)], [], [(1, 5), (2, 5)], [(0, 5), (1, 5)], [(1, 6)], [],
+                    [(0, 5)], [(0, 5)], []]
 
 
 def _box_corridor(cid: int, rect: tuple, margin: float) -> Corridor:
