@@ -711,7 +711,8 @@ def executor_setup(world: World) -> ExecutorSetup:
     """What an executor is bound to for ``world``'s episode."""
     return ExecutorSetup(
         layout=world.layout, tick_s=world.scenario.tick_s, rng=world.rngs["delays"],
-        agvs=tuple(AgvBody(a.id, a.k, a.spec, a.pos) for a in world.agvs))
+        agvs=tuple(AgvBody(a.id, a.k, a.spec, a.pos) for a in world.agvs),
+        intrusion_checker=world.scenario.faults.checker)
 
 
 def tick_view(world: World) -> TickView:

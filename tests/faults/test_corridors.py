@@ -275,8 +275,11 @@ def test_margin_only_touch_far_body_and_skip():
 
 
 def test_checker_rejects_bad_shapes():
-    with pytest.raises(ValueError):
-        IntrusionChecker(np.array([[0.3, 0.0]]))
+    for half in ([[0.3, -0.1]], [[0.3, np.nan]], [[0.3, np.inf]], [0.3, 0.2]):
+        with pytest.raises(ValueError):
+            IntrusionChecker(np.array(half))
+    # A zero length or width is a segment (or a point), measured like any body.
+    assert IntrusionChecker(np.array([[0.3, 0.0]])).n == 1
     chk = IntrusionChecker(np.array([[0.3, 0.2]]))
     chk.set_corridors([long_corridor()])
     with pytest.raises(ValueError):

@@ -27,11 +27,14 @@ SCENARIOS = ("layouts/paper_homogeneous.yaml", "layouts/paper_heterogeneous.yaml
              "layouts/paper_fault.yaml")
 PLANNERS = ("astar", "cbs", "pibt", "lacam")
 CLEAN_ERROR = (1, 2)
+CHECKERS = ("fcl", "numpy")
+"""``faults.checker``, alternating case by case (issue 38: fcl checks corridors again)."""
 
 
 def cases(n: int, seed: int, max_ticks: int, orders: int) -> list[list[str]]:
     """``n`` argument lists for ``warerover run``: every planner x scenario pair in turn,
-    random delay model / probability, failure rate, repair time and episode seed."""
+    random delay model / probability, failure rate, repair time and episode seed; the
+    corridor checker alternates."""
     rng = np.random.default_rng(seed)
     out = []
     for i in range(n):
@@ -46,6 +49,7 @@ def cases(n: int, seed: int, max_ticks: int, orders: int) -> list[list[str]]:
                 "--set", f"faults.random.repair_ticks={int(rng.integers(3, 40))}",
                 "--set", f"max_ticks={max_ticks}",
                 "--set", "orders.pattern=oneshot", "--set", f"orders.oneshot.count={orders}",
+                "--set", f"faults.checker={CHECKERS[i % len(CHECKERS)]}",
                 "--seed", str(int(rng.integers(0, 10_000)))]
         out.append(args)
     return out

@@ -8,7 +8,8 @@
   counted ``limit_violation``;
 - a swept segment query catches any body that moves farther than half its width in one
   physics step (tunnelling);
-- open safety corridors are checked with fcl every step;
+- open safety corridors are checked every step (``faults.checker``: numpy or python-fcl
+  candidates, measured in closed form, :mod:`warerover_phys.faults.intrusion`);
 - delay shares (dependency waits, injected delays, turns, kinematic lag) are summed per step;
 - poses are recorded at ``trajectory_hz`` into a :class:`~.recording.TrajectoryStore`, with
   what each AGV was doing (:meth:`Accounting.execution`: a few array operations per sample,
@@ -71,7 +72,8 @@ class Accounting:
 
     def __init__(self, st: FleetState, space: pymunk.Space, fleet: PhysicalFleet, io: BodyIO,
                  adg: ActionGraph, layout: Layout, shelf_of: dict[int, int],
-                 trajectory_hz: float, engine: str | None = None) -> None:
+                 trajectory_hz: float, engine: str | None = None,
+                 intrusion_checker: str | None = None) -> None:
         n = st.n
         self.st, self.space, self.fleet, self.io, self.adg = st, space, fleet, io, adg
         self.layout = layout
@@ -85,6 +87,8 @@ class Accounting:
         # corridors
         self._corridor_keys: tuple[int, ...] = ()
         self._checker = None
+        self.intrusion_checker = intrusion_checker
+        """``faults.checker`` (None: the schema's default), built on the first corridor."""
         # figures
         self.wall_s = 0.0
         self.steps = 0
@@ -190,15 +194,18 @@ class Accounting:
         return carried
 
     def sync_corridors(self, corridors: dict) -> None:
-        """Open corridors go to the fcl checker (built on the first one)."""
+        """Open corridors go to the corridor checker (``faults.checker``, built on the
+        first one)."""
         keys = tuple(sorted(corridors))
         if keys != self._corridor_keys:
             self._corridor_keys = keys
             if keys:
                 if self._checker is None:
-                    from ..faults.intrusion import IntrusionChecker
+                    from ..config import FaultsSpec
+                    from ..faults.checker import make_checker
 
-                    self._checker = IntrusionChecker(self.fleet.half_size)
+                    kind = self.intrusion_checker or FaultsSpec().checker
+                    self._checker = make_checker(kind, self.fleet.half_size)
                 self._checker.set_corridors([corridors[k] for k in keys])
 
     # ------------------------------------------------------------------------- actions
@@ -304,7 +311,7 @@ class Accounting:
         return self._swept_need
 
     def _check_corridors(self, pos: np.ndarray, ang: np.ndarray) -> None:
-        """fcl check of every AGV body against the open corridors' protected zones."""
+        """Check of every AGV body against the open corridors' protected zones."""
         poses = np.column_stack([pos, ang])
         skip = {c.agv for c in self.view.corridors.values()}
         self.intrusion_checks.append(

@@ -56,6 +56,8 @@ class ExecutorSetup:
     agvs: tuple[AgvBody, ...]
     rng: np.random.Generator
     """The episode's ``delays`` generator (random delays, speed scales)."""
+    intrusion_checker: str | None = None
+    """``faults.checker``: ``numpy`` or ``fcl`` (None: the scenario schema's default)."""
 
 
 @dataclass(frozen=True)

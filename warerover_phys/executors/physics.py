@@ -135,7 +135,8 @@ class PhysicsExecutor:
                                rows=layout.rows,
                                latency_s=getattr(spec, "comm_latency_s", 0.0))
         self.acc = Accounting(self.state, self.space, self.fleet, self.io, self.adg, layout,
-                              shelf_of, spec.trajectory_hz)
+                              shelf_of, spec.trajectory_hz,
+                              intrusion_checker=setup.intrusion_checker)
         self.follow = PlanFollower(self.state, self.adg, spec, rng, self.acc)
         self._mass = np.array([a.spec.mass_kg for a in agvs], dtype=float)
         self._payload = np.array([a.spec.payload_kg for a in agvs], dtype=float) \

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .checker import CHECKERS, make_checker
 from .corridors import Corridor, cover_mask, plan_corridor
 from .intrusion import (
     Intrusion,
@@ -12,4 +13,5 @@ from .intrusion import (
 )
 
 __all__ = ["Corridor", "plan_corridor", "cover_mask", "Intrusion", "IntrusionChecker",
-           "agv_boxes", "box_rect_signed_distance", "intrusions_shapely"]
+           "agv_boxes", "box_rect_signed_distance", "intrusions_shapely", "CHECKERS",
+           "make_checker"]

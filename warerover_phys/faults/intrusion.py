@@ -21,13 +21,16 @@ axis-aligned bounding-box broad phase; :func:`intrusions_shapely` is an independ
 reference (STRtree ``dwithin`` candidates, signed distance from the Minkowski difference)
 for tests.
 
-Why not python-fcl: its signed distance runs libccd's GJK/EPA, which aborts the whole
-process (``std::logic_error`` from ``validateNearestFeatureOfPolytopeBeingEdge``, SIGABRT)
-on deep, near-symmetric overlaps such as an AGV box standing centred on a corridor
-rectangle: the failed AGV on its own footprint rectangle did exactly that (issue 13,
-fault 1). The closed form has no iteration and no failure mode: any finite input gives a
-finite answer, degenerate boxes (zero length or width) and touching or collinear edges
-included.
+Why the closed form decides, and python-fcl only proposes: fcl's signed distance runs
+libccd's GJK/EPA, which aborts the whole process (``std::logic_error`` from
+``validateNearestFeatureOfPolytopeBeingEdge``, SIGABRT) on deep, near-symmetric overlaps
+such as an AGV box standing centred on a corridor rectangle: the failed AGV on its own
+footprint rectangle did exactly that (issue 13, fault 1). The closed form has no iteration
+and no failure mode: any finite input gives a finite answer, degenerate boxes (zero length
+or width) and touching or collinear edges included.
+:class:`~warerover_phys.faults.intrusion_fcl.FclIntrusionChecker` (``faults.checker:
+fcl``) finds the candidate pairs with fcl's boolean box-box collide (never GJK/EPA) and
+measures them here; :func:`~warerover_phys.faults.checker.make_checker` builds either.
 """
 
 from __future__ import annotations
@@ -71,16 +74,26 @@ def box_rect_signed_distance(centre: np.ndarray, angle: np.ndarray, half: np.nda
     ...                          np.array([[-1.0, -1.0, 1.0, 1.0], [-1.0, -1.0, 1.0, 1.0]]))
     array([-1.5,  1.5])
     """
-    centre = np.asarray(centre, dtype=float).reshape(-1, 2)
     angle = np.asarray(angle, dtype=float).reshape(-1)
+    with np.errstate(invalid="ignore"):
+        return _signed_distance(centre, np.cos(angle), np.sin(angle), half, rect)
+
+
+def _signed_distance(centre: np.ndarray, cs: np.ndarray, sn: np.ndarray, half: np.ndarray,
+                     rect: np.ndarray) -> np.ndarray:
+    """:func:`box_rect_signed_distance` with the headings given by their cosines ``cs`` and
+    sines ``sn`` (both checkers take them from one ``cos`` / ``sin`` of every AGV's
+    heading, so a pair's figure never depends on which other pairs share the batch)."""
+    centre = np.asarray(centre, dtype=float).reshape(-1, 2)
+    cs = np.asarray(cs, dtype=float).reshape(-1)
+    sn = np.asarray(sn, dtype=float).reshape(-1)
     half = np.abs(np.asarray(half, dtype=float).reshape(-1, 2))
     rect = np.asarray(rect, dtype=float).reshape(-1, 4)
     with np.errstate(invalid="ignore", over="ignore"):
         rc = np.column_stack([(rect[:, 0] + rect[:, 2]) / 2, (rect[:, 1] + rect[:, 3]) / 2])
         rh = np.abs(np.column_stack([rect[:, 2] - rect[:, 0], rect[:, 3] - rect[:, 1]])) / 2
         d = centre - rc
-        c, s = np.abs(np.cos(angle)), np.abs(np.sin(angle))
-        cs, sn = np.cos(angle), np.sin(angle)
+        c, s = np.abs(cs), np.abs(sn)
         # Separation along each axis (positive: a gap on that axis).
         sep_x = np.abs(d[:, 0]) - rh[:, 0] - (half[:, 0] * c + half[:, 1] * s)
         sep_y = np.abs(d[:, 1]) - rh[:, 1] - (half[:, 0] * s + half[:, 1] * c)
@@ -105,8 +118,8 @@ def box_rect_signed_distance(centre: np.ndarray, angle: np.ndarray, half: np.nda
         gap_r = np.hypot(np.maximum(ru, 0.0), np.maximum(rv, 0.0)).min(axis=1)
         gap = np.minimum(gap_b, gap_r)
         out = np.where(sep > 0, gap, sep)
-    bad = ~(np.isfinite(centre).all(axis=1) & np.isfinite(angle) & np.isfinite(half).all(axis=1)
-            & np.isfinite(rect).all(axis=1))
+    bad = ~(np.isfinite(centre).all(axis=1) & np.isfinite(cs) & np.isfinite(sn)
+            & np.isfinite(half).all(axis=1) & np.isfinite(rect).all(axis=1))
     out[bad] = np.nan
     return out
 
@@ -122,13 +135,21 @@ class Intrusion:
 
 
 class IntrusionChecker:
-    """Finds AGV bodies within the margin of open corridors.
+    """Finds AGV bodies within the margin of open corridors (``faults.checker: numpy``).
 
     :meth:`set_corridors` keeps the open corridors' rectangles as arrays; each
     :meth:`check` compares every AGV's axis-aligned bounding box with every rectangle grown
     by its corridor's margin (broad phase, one numpy comparison) and measures the candidate
     pairs in closed form (:func:`box_rect_signed_distance`). Nothing is handed to a
     collision library, so no pose can make it abort.
+    :class:`~warerover_phys.faults.intrusion_fcl.FclIntrusionChecker` (``faults.checker:
+    fcl``) finds the candidate pairs with python-fcl instead and measures them here, so
+    both checkers give the same intrusions, depths to the bit.
+
+    **Boundary rule**: a pair intrudes when its closed-form signed distance is strictly
+    below the margin (``sd < margin_m``): with a zero margin, a body touching the person's
+    space along an edge or at a corner is not an intrusion, one overlapping it by any amount
+    is. Only the closed form decides; a broad phase just has to find every such pair.
 
     >>> import numpy as np
     >>> from warerover_phys.config import LayoutSpec
@@ -144,11 +165,14 @@ class IntrusionChecker:
     [(1, 0, 0.1)]
     """
 
+    name = "numpy"
+
     def __init__(self, half_sizes: np.ndarray) -> None:
-        """``half_sizes``: ``(N, 2)`` half length and half width of each AGV body (m)."""
+        """``half_sizes``: ``(N, 2)`` half length and half width of each AGV body (m;
+        zero is allowed: the body is then the segment or point it is)."""
         hs = np.asarray(half_sizes, dtype=float)
-        if hs.ndim != 2 or hs.shape[1] != 2 or not (np.isfinite(hs).all() and (hs > 0).all()):
-            raise ValueError(f"half_sizes must be (N, 2), finite and positive, got shape "
+        if hs.ndim != 2 or hs.shape[1] != 2 or not (np.isfinite(hs).all() and (hs >= 0).all()):
+            raise ValueError(f"half_sizes must be (N, 2), finite and >= 0, got shape "
                              f"{hs.shape}")
         self.half_sizes = hs
         self.n = len(hs)
@@ -166,13 +190,16 @@ class IntrusionChecker:
                 rects.append(r)
                 owner.append(k)
         rects_a = np.array(rects, dtype=float).reshape(-1, 4)
+        margins = np.array([float(cor.margin_m) for cor in corridors])
         if not np.isfinite(rects_a).all() or (rects_a[:, 2:] < rects_a[:, :2]).any():
             raise ValueError(f"corridor rectangles must be finite (xmin, ymin, xmax, ymax) "
                              f"with max >= min, got {rects_a.tolist()}")
+        if not (np.isfinite(margins).all() and (margins >= 0).all()):
+            raise ValueError(f"corridor margins must be finite and >= 0, got {margins.tolist()}")
         self._rects = rects_a
         self._owner = np.array(owner, dtype=np.int64)
         self._corridor_ids = [cor.id for cor in corridors]
-        self._margins = np.array([float(cor.margin_m) for cor in corridors])
+        self._margins = margins
 
     def check(self, poses: np.ndarray, skip: Collection[int] = ()) -> list[Intrusion]:
         """Intrusions of the AGVs at ``poses`` (``(N, 3)``: x m, y m, heading rad) into the
@@ -196,23 +223,36 @@ class IntrusionChecker:
         if len(bad):
             raise ValueError(f"AGV pose not finite: AGV {int(bad[0])} at "
                              f"{poses[bad[0]].tolist()} ({len(bad)} AGVs in all)")
-        # Broad phase: bounding boxes against rectangles grown by margin + eps.
+        agv, rect = self._candidates(poses, live)
+        return self._measure(poses, agv, rect)
+
+    def _candidates(self, poses: np.ndarray, live: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(agv, rectangle)`` index pairs that may intrude (live AGVs only): every pair
+        with ``sd < margin`` and maybe more. Here: bounding boxes against rectangles grown by
+        margin + eps, one numpy comparison of every AGV with every rectangle."""
         hs = self.half_sizes
         c, s = np.abs(np.cos(poses[:, 2])), np.abs(np.sin(poses[:, 2]))
         ex = hs[:, 0] * c + hs[:, 1] * s
         ey = hs[:, 0] * s + hs[:, 1] * c
         grow = self._margins[self._owner] + _REACH_EPS_M
         r = self._rects
-        near = ((poses[:, None, 0] + ex[:, None] > r[None, :, 0] - grow[None])
-                & (poses[:, None, 0] - ex[:, None] < r[None, :, 2] + grow[None])
-                & (poses[:, None, 1] + ey[:, None] > r[None, :, 1] - grow[None])
-                & (poses[:, None, 1] - ey[:, None] < r[None, :, 3] + grow[None])
-                & live[:, None])
-        agv, rect = np.nonzero(near)
+        with np.errstate(invalid="ignore"):  # skipped AGVs may stand nowhere (NaN)
+            near = ((poses[:, None, 0] + ex[:, None] > r[None, :, 0] - grow[None])
+                    & (poses[:, None, 0] - ex[:, None] < r[None, :, 2] + grow[None])
+                    & (poses[:, None, 1] + ey[:, None] > r[None, :, 1] - grow[None])
+                    & (poses[:, None, 1] - ey[:, None] < r[None, :, 3] + grow[None])
+                    & live[:, None])
+        return np.nonzero(near)
+
+    def _measure(self, poses: np.ndarray, agv: np.ndarray, rect: np.ndarray) -> list[Intrusion]:
+        """The narrow phase, in closed form, of the candidate pairs ``(agv[i], rect[i])``:
+        the intrusions among them, one per (AGV, corridor) with its largest depth."""
         if not len(agv):
             return []
-        # Narrow phase, in closed form.
-        sd = box_rect_signed_distance(poses[agv, :2], poses[agv, 2], hs[agv], r[rect])
+        with np.errstate(invalid="ignore"):  # skipped AGVs may stand nowhere (NaN)
+            cs, sn = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+        sd = _signed_distance(poses[agv, :2], cs[agv], sn[agv], self.half_sizes[agv],
+                              self._rects[rect])
         k = self._owner[rect]
         hit = sd < self._margins[k]
         best: dict[tuple[int, int], float] = {}
@@ -238,8 +278,8 @@ def intrusions_shapely(poses: np.ndarray, half_sizes: np.ndarray,
                        skip: Collection[int] = ()) -> list[Intrusion]:
     """Reference for :meth:`IntrusionChecker.check` with shapely alone (slow, for tests).
 
-    Candidates come from an STRtree of the corridor rectangles queried with
-    ``dwithin`` at the largest margin; the signed distance of a body to a rectangle is the
+    Candidates come from an STRtree of the corridor rectangles queried with the bodies'
+    envelopes grown by the largest margin; the signed distance of a body to a rectangle is the
     signed distance of the origin to the boundary of their Minkowski difference (convex
     hull of the corner differences): positive outside, negative inside.
     """
@@ -252,8 +292,12 @@ def intrusions_shapely(poses: np.ndarray, half_sizes: np.ndarray,
     rect_geoms = shapely.box(*np.array([r for _, r in rects]).T)
     owner = np.array([k for k, _ in rects])
     margins = np.array([cor.margin_m for cor in corridors])
-    body_idx, rect_idx = shapely.STRtree(rect_geoms).query(
-        bodies, predicate="dwithin", distance=float(margins.max()))
+    # Candidates: envelopes grown by the largest margin (a ``dwithin`` query finds nothing
+    # for a zero-size body: GEOS skips its empty-area envelope).
+    grow = float(margins.max()) + _REACH_EPS_M
+    env = shapely.bounds(bodies)
+    body_idx, rect_idx = shapely.STRtree(rect_geoms).query(shapely.box(
+        env[:, 0] - grow, env[:, 1] - grow, env[:, 2] + grow, env[:, 3] + grow))
     if not len(body_idx):
         return []
     rx0, ry0, rx1, ry1 = np.array([r for _, r in rects]).T
@@ -262,8 +306,11 @@ def intrusions_shapely(poses: np.ndarray, half_sizes: np.ndarray,
     diffs = corners[body_idx][:, :, None, :] - rect_corners[rect_idx][:, None, :, :]
     hulls = shapely.convex_hull(shapely.multipoints(diffs.reshape(len(body_idx), 16, 2)))
     origin = shapely.points(0.0, 0.0)
-    dist = shapely.distance(shapely.boundary(hulls), origin)
-    sd = np.where(shapely.contains(hulls, origin), -dist, dist)
+    # Inside: minus the distance to the boundary. Outside (or a hull with no area: a
+    # segment or point, when both shapes are degenerate): the distance to the hull.
+    sd = np.where((shapely.area(hulls) > 0) & shapely.contains(hulls, origin),
+                  -shapely.distance(shapely.boundary(hulls), origin),
+                  shapely.distance(hulls, origin))
     best: dict[tuple[int, int], float] = {}
     skip = frozenset(skip)
     for a, k, d in zip(body_idx.tolist(), owner[rect_idx].tolist(), sd.tolist(), strict=True):
