@@ -19,7 +19,9 @@ Plans (``--plans DIR``): ``DIR/planN.txt`` (lacam3) and ``DIR/ownN.txt`` (the pr
 LaCAM) for ``--agents``, on ``warehouse-10-20-10-2-1``, executed as ``warerover execute``
 does with the default 1x1 fleet, once with ``robot: diffdrive``'s settings and once with
 the default model; poses recorded at 10 Hz (the overlap checks run on those samples; the
-peaks are the executor's per-step monitors). ``--plans-only`` skips the episodes.
+peaks are the executor's per-step monitors). ``--plans-only`` skips the episodes. Rows are
+also appended to ``NAME.jsonl`` beside ``--json`` as they come; ``--resume`` keeps those and
+runs the rest.
 
 Columns: ``eps`` episodes, ``SR`` mean success rate, ``contacts`` / ``static`` AGV-AGV and
 AGV-wall contacts (independent: samples with an overlap; ``exec``: the executor's
@@ -38,7 +40,7 @@ import os
 import sys
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
@@ -202,6 +204,36 @@ def plan_table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def _key(scenario: str, planner: str, seed: int, delays: bool) -> str:
+    return f"{scenario}|{planner}|{seed}|{delays}"
+
+
+def run_episodes(jobs: list[tuple], workers: int, log: Path, resume: bool) -> list[dict]:
+    """Run ``jobs`` in ``workers`` processes; each row is appended to ``log`` (JSON lines)
+    as it comes, and with ``resume`` the rows already there are kept and not run again."""
+    rows = []
+    if resume and log.exists():
+        rows = [json.loads(line) for line in log.read_text().splitlines() if line.strip()]
+    done = {_key(r["scenario"], r["planner"], r["seed"], r["delays"]) for r in rows}
+    todo = [j for j in jobs if _key(j[0] + (f"+{j[1]}" if j[1] else ""), j[2], j[3], j[4])
+            not in done]
+    log.parent.mkdir(parents=True, exist_ok=True)
+    with ProcessPoolExecutor(max_workers=workers) as pool, \
+            log.open("a" if resume else "w") as out:
+        futures = [pool.submit(episode, j) for j in todo]
+        for fut in as_completed(futures):
+            row = fut.result()
+            rows.append(row)
+            out.write(json.dumps(row, default=float) + "\n")
+            out.flush()
+            print(f"{row['scenario']} {row['planner']} seed {row['seed']} delays "
+                  f"{row['delays']}: overlaps {row['agv_overlap_samples']}/"
+                  f"{row['static_overlap_samples']}, exec {row['exec']['agv_contacts']}/"
+                  f"{row['exec']['static_contacts']}/{row['exec']['limit_violations']}, "
+                  f"{row['cpu_s']} s", file=sys.stderr, flush=True)
+    return rows
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenarios", nargs="+", default=SHIPPED)
@@ -216,7 +248,10 @@ def main() -> int:
     ap.add_argument("--agents", type=int, nargs="+", default=[500, 1000])
     ap.add_argument("--plan-dt", type=float, default=0.02)
     ap.add_argument("--plans-only", action="store_true")
-    ap.add_argument("--json", type=Path, default=ROOT / "tools" / "out" / "diffdrive.json")
+    ap.add_argument("--json", type=Path, default=ROOT / "tools" / "out" / "diffdrive.json",
+                    help="the rows (and, as they come, JSON lines beside it: NAME.jsonl)")
+    ap.add_argument("--resume", action="store_true",
+                    help="keep the episodes already in NAME.jsonl, run the others")
     args = ap.parse_args()
     delays = {"off": [False], "on": [True], "both": [False, True]}[args.delays]
     jobs = []
@@ -226,15 +261,8 @@ def main() -> int:
                                else [])
             jobs += [(name, v, p, s, d, args.max_ticks) for v in variants
                      for p in args.planners for d in delays for s in range(args.seeds)]
-    rows, plan_rows = [], []
-    with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        for row in pool.map(episode, jobs):
-            rows.append(row)
-            print(f"{row['scenario']} {row['planner']} seed {row['seed']} delays "
-                  f"{row['delays']}: overlaps {row['agv_overlap_samples']}/"
-                  f"{row['static_overlap_samples']}, exec {row['exec']['agv_contacts']}/"
-                  f"{row['exec']['static_contacts']}/{row['exec']['limit_violations']}, "
-                  f"{row['cpu_s']} s", file=sys.stderr, flush=True)
+    rows, plan_rows = run_episodes(jobs, args.jobs, args.json.with_suffix(".jsonl"),
+                                   args.resume), []
     if args.plans:
         for n in args.agents:  # one at a time: the 1,000-agent runs want the memory
             for stem, solver in (("plan", "lacam3"), ("own", "lacam")):

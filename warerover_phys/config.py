@@ -518,9 +518,13 @@ class ExecutorSpec(_Model):
     grows by ``payload_kg``) while it carries a shelf; the command limiter, the braking
     profile and the measured-limit checks use the limit in force."""
     no_slip: Bool = False
-    """Physics: differential-drive AGVs cannot move sideways: the control law commands
-    velocity only along the body's heading and corrects lateral error by steering. Off: the
-    default controller also pulls sideways (``peak_lateral_speed_mps`` shows how much)."""
+    """Physics: differential-drive AGVs cannot move sideways: the unicycle law of
+    :mod:`~warerover_phys.executors.diffdrive` commands velocity only along the body's
+    heading, turns in place where the path turns, corrects lateral error by steering and
+    keeps speed, acceleration, turn rate and wheel speeds (``wheel_base_m``,
+    ``max_wheel_speed_mps``) within their limits at every step (``robot: diffdrive`` sets
+    it). Off: the default controller also pulls sideways (``peak_lateral_speed_mps`` shows
+    how much)."""
     comm_latency_s: NonNegFloat = 0.0
     """Physics with ``adg: true``: seconds before an AGV hears that another AGV's action it
     depends on is done (the dependency graph's messages arrive late): an action whose

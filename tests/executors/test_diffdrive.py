@@ -5,6 +5,7 @@ heading; ``robot: diffdrive`` turns it on in one line."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -275,3 +276,33 @@ def test_bad_robot_settings_name_the_field(data, field, words):
     with pytest.raises(ScenarioError) as err:
         scenario_from_dict({**base, **data})
     assert err.value.field == field and words in str(err.value)
+
+
+def test_execute_takes_robot_diffdrive_and_bad_values_exit_2(tmp_path):
+    """``warerover execute --set robot=diffdrive``: no-slip drive and the preset's wheel
+    limits on a plan made elsewhere; a bad value, or ``no_slip=false`` beside it, exits 2."""
+    from typer.testing import CliRunner
+
+    from warerover_phys.cli import app
+    from warerover_phys.execute import DEFAULT_TYPE, robot_model
+    from warerover_phys.plans import Plan, write_plan
+
+    opts, types = robot_model({"robot": "diffdrive", "park": False}, [DEFAULT_TYPE] * 2)
+    assert opts == {"no_slip": True, "park": False}
+    assert types[0] == types[1] and types[0].wheel_base_m == pytest.approx(0.85 * 0.7)
+    assert robot_model({}, [DEFAULT_TYPE]) == ({}, [DEFAULT_TYPE])
+    floor = tmp_path / "open.map"
+    floor.write_text("type octile\nheight 3\nwidth 5\nmap\n.....\n.....\n.....\n")
+    plan = tmp_path / "plan.txt"
+    write_plan(Plan((((0, 0), (0, 1), (0, 2), (1, 2), (2, 2)),
+                     ((2, 4), (2, 4), (1, 4), (0, 4), (0, 3))), rows=3, cols=5), plan, "lacam")
+    base = ["execute", str(floor), "--plan", str(plan), "--json", "-q"]
+    runner = CliRunner()
+    r = runner.invoke(app, [*base, "--out", str(tmp_path / "a"), "--set", "robot=diffdrive"])
+    assert r.exit_code == 0, r.output
+    m = json.loads(r.output)
+    assert m["no_slip"] is True and m["limit_violations"] == 0 and m["agv_contacts"] == 0
+    assert 0.99 < m["peak_wheel_speed_ratio"] <= 1 + TOL
+    for bad in (["--set", "robot=tank"], ["--set", "robot=diffdrive", "--set", "no_slip=false"]):
+        r = runner.invoke(app, [*base, "--out", str(tmp_path / "b"), *bad])
+        assert r.exit_code == 2 and "robot" in r.output, r.output
