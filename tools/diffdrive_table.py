@@ -261,6 +261,7 @@ def main() -> int:
                                else [])
             jobs += [(name, v, p, s, d, args.max_ticks) for v in variants
                      for p in args.planners for d in delays for s in range(args.seeds)]
+    jobs.sort(key=lambda j: j[3])  # seed by seed: a run cut short covers every case
     rows, plan_rows = run_episodes(jobs, args.jobs, args.json.with_suffix(".jsonl"),
                                    args.resume), []
     if args.plans:

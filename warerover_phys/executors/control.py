@@ -276,7 +276,7 @@ def steer_compiled(st: FleetState, pos: np.ndarray, ang: np.ndarray, v_now: np.n
                np.ascontiguousarray(v_now, dtype=np.float64),
                np.ascontiguousarray(ref0, dtype=np.float64), cmd, w, skip)
     if st.no_slip is not None and st.no_slip.any():
-        diffdrive.steer(st, pos, ang, v_now, ref0, cmd, w, skip)
+        diffdrive.steer(st, pos, ang, v_now, cmd, w, skip)
     return cmd, w
 
 
@@ -304,5 +304,5 @@ def steer_numpy(st: FleetState, pos: np.ndarray, ang: np.ndarray, v_now: np.ndar
     w = np.clip(wrap(want - ang) / dt, -st.wmax, st.wmax)
     cmd = limit_command(vel, v_now, st.vmax, a, dt)
     if st.no_slip is not None and st.no_slip.any():
-        diffdrive.steer(st, pos, ang, v_now, ref0, cmd, w)
+        diffdrive.steer(st, pos, ang, v_now, cmd, w)
     return cmd, w

@@ -19,8 +19,8 @@ it:
   up at the limit could not lose the speed it had gained when its reference braked, which
   put bodies against walls and each other).
 - **Commands along the heading only** (:func:`steer_rows`): the speed is the reference's
-  mean speed over the step (driving) or the hold pull projected onto the heading (standing,
-  turning); the velocity vector is that speed along the step's chord (the heading at the
+  mean speed over the step along the run (driving), or the default law's hold pull along
+  the heading (standing, turning); the velocity vector is that speed along the step's chord (the heading at the
   middle of the step, ``theta + omega dt / 2``, as the body turns while it moves), so the
   lateral speed measured from the poses is zero up to float error. A body put off its path
   line (a contact, a start off the cell centre) steers back (a heading offset
@@ -53,17 +53,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numba import njit
 
-from .fleet_state import DRIVE, TURN
+from .fleet_state import DRIVE
 
 if TYPE_CHECKING:
     from .base import AgvBody
 
-__all__ = ["DiffParams", "HOLD_SPEED", "MAX_STEER_RAD", "STEER_DEADBAND_M", "STEER_GAIN",
+__all__ = ["DiffParams", "MAX_STEER_RAD", "STEER_DEADBAND_M", "STEER_GAIN",
            "WheelMonitor", "limit_unicycle", "steer_rows", "sync_references", "sync_rows"]
 
-HOLD_SPEED = 0.3
-"""m/s: fastest approach of a standing body that is off its hold point (as
-:data:`.control.HOLD_SPEED`)."""
 STEER_DEADBAND_M = 1e-3
 """Lateral offsets from the path line below this (metres) are not steered out: they come
 from float error and from the last step of a turn, which ends as the run begins (micrometres),
@@ -220,72 +217,44 @@ def sync_references(st, pos: np.ndarray, v_now: np.ndarray) -> None:
 
 
 @njit(cache=True)
-def _wanted(i, dt, mode, origin, direction, s_ref, hold_xy, ang_ref, heading, amax, pos, ang,
-            ref0):
-    """Row ``i``'s wanted displacement pull ``(vx, vy)`` (m/s, the deadbeat pull of
-    :func:`.control.steer_numpy`), wanted turn rate and whether it steers back onto its
-    path (then its turn rate is capped by its speed)."""
-    m = mode[i]
-    a = amax[i]
-    if m == DRIVE:
-        tx = origin[i, 0] + direction[i, 0] * s_ref[i]
-        ty = origin[i, 1] + direction[i, 1] * s_ref[i]
-    else:
-        tx = hold_xy[i, 0]
-        ty = hold_xy[i, 1]
-    px, py = pos[i, 0], pos[i, 1]
-    ex = ref0[i, 0] - px
-    ey = ref0[i, 1] - py
-    dist = math.sqrt(ex * ex + ey * ey)
-    cap = math.sqrt(2 * a * dist)
-    if m != DRIVE:
-        cap = min(cap, HOLD_SPEED)
-    if dist / dt > cap:
-        f = cap / dist
-        vx = (tx - ref0[i, 0]) / dt + ex * f
-        vy = (ty - ref0[i, 1]) / dt + ey * f
-    else:
-        vx = (tx - px) / dt
-        vy = (ty - py) / dt
-    want = ang_ref[i] if m == TURN else heading[i]
-    steering = False
-    if m == DRIVE:
-        dx, dy = direction[i, 0], direction[i, 1]
-        lateral = (px - origin[i, 0]) * -dy + (py - origin[i, 1]) * dx
-        if abs(lateral) > STEER_DEADBAND_M:
-            steering = True
-            ref_speed = max(abs(vx * dx + vy * dy), STEER_MIN_SPEED)
-            off = math.atan2(-STEER_GAIN * lateral, ref_speed)
-            want = heading[i] + _clamp(off, -MAX_STEER_RAD, MAX_STEER_RAD)
-    return vx, vy, _wrap(want - ang[i]) / dt, steering
+def _steer_back(i, dt, origin, direction, heading, pos, ang, speed):
+    """Row ``i`` driving: the turn rate that steers it back onto its path line (a heading
+    offset ``atan(-STEER_GAIN x lateral / speed)``), or nan within
+    :data:`STEER_DEADBAND_M` of the line."""
+    dx, dy = direction[i, 0], direction[i, 1]
+    lateral = (pos[i, 0] - origin[i, 0]) * -dy + (pos[i, 1] - origin[i, 1]) * dx
+    if abs(lateral) <= STEER_DEADBAND_M:
+        return math.nan
+    off = math.atan2(-STEER_GAIN * lateral, max(abs(speed), STEER_MIN_SPEED))
+    return _wrap(heading[i] + _clamp(off, -MAX_STEER_RAD, MAX_STEER_RAD) - ang[i]) / dt
 
 
 @njit(cache=True)
-def steer_rows(dt, no_slip, skip, mode, origin, direction, s_ref, hold_xy, ang_ref, heading,
-               vmax, amax, wmax, half_w, half_base, wheel_max, pos, ang, v_now, ref0, cmd, w):
-    """Commands ``cmd`` (N, 2) and ``w`` (N,) of the no-slip rows (``no_slip``, but not
-    ``skip``), written in place; other rows are left as they are. Driving, the speed is the
-    reference's mean speed along the run over the step; standing or turning, the hold pull
-    along the heading (see the module docstring)."""
+def steer_rows(dt, no_slip, skip, mode, origin, direction, s_ref, heading, vmax, amax, wmax,
+               half_w, half_base, wheel_max, pos, ang, v_now, cmd, w):
+    """The no-slip rows' commands (``no_slip``, but not ``skip``), written
+    over ``cmd`` (N, 2) and ``w`` (N,), which hold the default law's
+    (:func:`.control.steer`: the deadbeat pull onto the reference, the turn onto its
+    heading). Driving, the speed wanted is the reference's mean speed over the step along
+    the run (the reference started from the body), the turn the default's or the one that
+    steers back onto the path; standing or turning, the default's command along the step's
+    chord and its turn. Other rows are left as they are."""
     for i in range(len(mode)):
-        if not no_slip[i]:
+        if not no_slip[i] or skip[i]:  # (the default law left skipped rows zero)
             continue
-        if skip[i]:
-            cmd[i, 0] = 0.0
-            cmd[i, 1] = 0.0
-            w[i] = 0.0
-            continue
-        vx, vy, w_t, steering = _wanted(i, dt, mode, origin, direction, s_ref, hold_xy,
-                                        ang_ref, heading, amax, pos, ang, ref0)
         th = ang[i]
-        if mode[i] == DRIVE:
-            u_t = vx * direction[i, 0] + vy * direction[i, 1]
+        w_t = w[i]
+        if mode[i] == DRIVE:  # the reference's mean speed over the step, along the run
+            along = (pos[i, 0] - origin[i, 0]) * direction[i, 0] + (
+                pos[i, 1] - origin[i, 1]) * direction[i, 1]
+            u_t = (s_ref[i] - along) / dt
+            w_s = _steer_back(i, dt, origin, direction, heading, pos, ang, u_t)
+            if w_s == w_s:  # steering: no faster than its speed over its half width
+                lim = abs(u_t) / half_w[i]
+                w_t = _clamp(w_s, -lim, lim)
         else:
-            m = th + 0.5 * _clamp(w_t, -wmax[i], wmax[i]) * dt
-            u_t = vx * math.cos(m) + vy * math.sin(m)
-        if steering:
-            lim = abs(u_t) / half_w[i]
-            w_t = _clamp(w_t, -lim, lim)
+            m = th + 0.5 * w_t * dt
+            u_t = cmd[i, 0] * math.cos(m) + cmd[i, 1] * math.sin(m)
         u, wr, hx, hy = limit_unicycle(u_t, w_t, th, v_now[i, 0], v_now[i, 1], vmax[i],
                                        amax[i], wmax[i], wheel_max[i], half_base[i], dt)
         cmd[i, 0] = u * hx
@@ -293,11 +262,12 @@ def steer_rows(dt, no_slip, skip, mode, origin, direction, s_ref, hold_xy, ang_r
         w[i] = wr
 
 
-def steer(st, pos: np.ndarray, ang: np.ndarray, v_now: np.ndarray, ref0: np.ndarray,
-          cmd: np.ndarray, w: np.ndarray, skip: np.ndarray | None = None) -> None:
+def steer(st, pos: np.ndarray, ang: np.ndarray, v_now: np.ndarray, cmd: np.ndarray,
+          w: np.ndarray, skip: np.ndarray | None = None) -> None:
     """Overwrite the commands of the no-slip rows of ``st`` (a
-    :class:`~.fleet_state.FleetState` whose references ran through the step) with the
-    unicycle law's; ``skip``: rows whose commands nobody reads (left zero)."""
+    :class:`~.fleet_state.FleetState` whose references ran through the step; ``cmd`` /
+    ``w``: the default law's commands, :func:`.control.steer`) with the unicycle law's;
+    ``skip``: rows whose commands nobody reads (left as the default law left them: zero)."""
     n = st.n
     p = st.diff if st.diff is not None else DiffParams.default(n)
     if skip is None:
@@ -305,11 +275,9 @@ def steer(st, pos: np.ndarray, ang: np.ndarray, v_now: np.ndarray, ref0: np.ndar
     f64 = np.float64
     steer_rows(float(st.dt), np.ascontiguousarray(st.no_slip, dtype=np.bool_),
                np.ascontiguousarray(skip, dtype=np.bool_), st.mode, st.origin, st.direction,
-               st.s_ref, st.hold_xy, st.ang_ref, st.heading, st.vmax, st.amax, st.wmax,
-               p.half_width, p.half_base, p.wheel_max,
+               st.s_ref, st.heading, st.vmax, st.amax, st.wmax, p.half_width, p.half_base, p.wheel_max,
                np.ascontiguousarray(pos, dtype=f64), np.ascontiguousarray(ang, dtype=f64),
-               np.ascontiguousarray(v_now, dtype=f64), np.ascontiguousarray(ref0, dtype=f64),
-               cmd, w)
+               np.ascontiguousarray(v_now, dtype=f64), cmd, w)
 
 
 # ----------------------------------------------------------------------------- wheel speeds
