@@ -245,7 +245,7 @@ def main() -> int:
     ap.add_argument("--max-ticks", type=int, default=1000)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--plans", type=Path, help="folder with planN.txt (lacam3), ownN.txt")
-    ap.add_argument("--agents", type=int, nargs="+", default=[500, 1000])
+    ap.add_argument("--agents", type=int, nargs="+", default=[100, 500, 1000])
     ap.add_argument("--plan-dt", type=float, default=0.02)
     ap.add_argument("--plans-only", action="store_true")
     ap.add_argument("--json", type=Path, default=ROOT / "tools" / "out" / "diffdrive.json",
