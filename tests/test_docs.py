@@ -12,7 +12,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.mark.parametrize("module", ["warerover_phys", "warerover_phys.config",
-                                    "warerover_phys.sim"])
+                                    "warerover_phys.sim", "warerover_phys.schedulers.costs"])
 def test_docstring_examples(module, monkeypatch):
     monkeypatch.chdir(ROOT)
     result = doctest.testmod(importlib.import_module(module))

@@ -31,7 +31,7 @@ def test_plan_with_rotation_gap_and_ghost_video(tmp_path):
     floor, plan = _files(tmp_path)
     video = tmp_path / "ghost.mp4"
     r = run_cli("gap", floor, "--plan", plan, "--out", tmp_path / "g", "--json",
-                "--video", video, "--no-pictures", cwd=REPO)
+                "--video", video, "--ghost", "--no-pictures", cwd=REPO)
     assert r.returncode == 0, r.stderr[-2000:]
     rep = json.loads(r.stdout)
     assert rep["completed"] and rep["cycle_repairs"] == 1

@@ -186,7 +186,7 @@ CASES = [
          ("greater than 0", "(got -1.0)"), cli=True),
     Case("seed-not-an-int", tiny(set_(["seed"], "abc")), "seed", ("integer", "'abc'"), cli=True),
     Case("unknown-scheduler", tiny(set_(["scheduler"], "fifo")), "scheduler.name",
-         ("unknown scheduler", "['rd', 'ta']", "'fifo'"), cli=True),
+         ("unknown scheduler", "['errands', 'rd', 'ta']", "'fifo'"), cli=True),
     Case("unknown-order-pattern", tiny(set_(["orders", "pattern"], "zigzag")), "orders.pattern",
          ("'zigzag'",), cli=True),
     Case("unknown-agv-type", tiny(set_(["fleet", "agvs", 0, "type"], "big")), "fleet",

@@ -55,7 +55,10 @@ def build_lacam3() -> Path | None:
     return exe if exe.exists() else None
 
 
-def make_plan(n: int, lacam3: Path | None, out: Path) -> str:
+def make_plan(n: int, lacam3: Path | None, out: Path, planner: str = "lacam") -> str:
+    """Write a plan for the first ``n`` agents of the scenario: by ``lacam3`` (the C++
+    reference, 30 s of LaCAM*) when given, else by the project's one-shot ``planner``
+    (``lacam`` or ``pibt``, 120 s at most)."""
     if lacam3 is not None:
         subprocess.run([str(lacam3), "-m", str(MAP), "-i", str(SCEN), "-N", str(n),
                         "-t", "30", "-o", str(out), "-s", "0"], check=True,
@@ -67,9 +70,9 @@ def make_plan(n: int, lacam3: Path | None, out: Path) -> str:
     m = read_map(MAP)
     agents = read_scen(SCEN, n)
     res = solve(m.obstacles, [a.start for a in agents], [a.goal for a in agents],
-                planner="lacam", time_limit_s=120)
+                planner=planner, time_limit_s=120)
     write_plan(out, res)
-    return "warerover lacam"
+    return f"warerover {planner}"
 
 
 def one(n: int, plan_file: Path, solver: str, dt_s: float = 0.02) -> dict:
@@ -133,6 +136,10 @@ def main() -> int:
     ap.add_argument("--agents", type=int, nargs="+", default=[100, 500, 1000])
     ap.add_argument("--lacam3", type=Path, help="lacam3 binary (default: build the reference)")
     ap.add_argument("--own", action="store_true", help="plan with the project's own LaCAM")
+    ap.add_argument("--solver", choices=("lacam3", "lacam", "pibt"),
+                    help="who makes the plans: the reference lacam3 (default), or the "
+                         "project's one-shot lacam or pibt (--own = --solver lacam); plans "
+                         "are kept as DIR/SOLVER-planN.txt with --plans")
     ap.add_argument("--json", type=Path, help="write the figures here")
     ap.add_argument("--plans", type=Path,
                     help="reuse DIR/planN.txt if there (else make it and keep it there): the "
@@ -145,16 +152,19 @@ def main() -> int:
         n, plan, solver, dt = args._one
         print(json.dumps(one(int(n), Path(plan), solver, float(dt))))
         return 0
-    lacam3 = None if args.own else (args.lacam3 or build_lacam3())
+    who = args.solver or ("lacam" if args.own else "lacam3")
+    lacam3 = None if who != "lacam3" else (args.lacam3 or build_lacam3())
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for n in args.agents:
-            plan = (args.plans or Path(tmp)) / f"plan{n}.txt"
+            # (lacam3 plans keep their old names, planN.txt, for earlier comparisons)
+            name = f"plan{n}.txt" if who == "lacam3" else f"{who}-plan{n}.txt"
+            plan = (args.plans or Path(tmp)) / name
             if args.plans is not None and plan.exists():
-                solver = "given plan (" + ("warerover lacam" if args.own
-                                          else "lacam3 (C++ reference)") + ")"
+                solver = "given plan (" + ("lacam3 (C++ reference)" if who == "lacam3"
+                                          else f"warerover {who}") + ")"
             else:
-                solver = make_plan(n, lacam3, plan)
+                solver = make_plan(n, lacam3, plan, planner=who)
             for dt in args.dt:
                 proc = subprocess.run([sys.executable, __file__, "--_one", str(n), str(plan),
                                        solver, str(dt)], capture_output=True, text=True,
@@ -165,7 +175,7 @@ def main() -> int:
                 row = json.loads(proc.stdout.strip().splitlines()[-1])
                 rows.append(row)
                 print(json.dumps(row), flush=True)
-    keys = ["agents", "dt_s", "validate_s", "rotations", "repairs", "execute_wall_s",
+    keys = ["agents", "solver", "dt_s", "validate_s", "rotations", "repairs", "execute_wall_s",
             "real_time_factor", "execute_cpu_s", "rtf_cpu", "load_avg", "makespan_ratio",
             "agv_contacts", "validator_conflicts", "peak_rss_mb"]
     print("| " + " | ".join(keys) + " |")

@@ -1,120 +1,175 @@
-"""Lifelong PIBT on any League of Robot Runners problem: ms per timestep, tasks, memory.
+"""Benchmark of the one lifelong loop at warehouse scale: busy AGVs on the grid and on
+physics, Robot Runners problems on physics, planners invoked every tick, periodically or on
+an event, with and without a planning latency.
 
-Runs :func:`warerover_phys.lorr.run_lifelong` (the engine of ``warerover lorr``) on the
-problem JSON given, with ``--agents`` robots (default: its ``teamSize``; fewer: its first
-ones; more: the extra ones drawn on free cells with ``--agents-seed``, as
-``tools/make_lorr_agents.py`` does), with and/or without the rotation model, and prints and
-writes (JSON) ms per timestep (mean, p99, max; of it the PIBT step and the breadth-first
-searches of the distance tables), set-up seconds (of it numba's compile or cache load),
-tasks finished, the distance-table
-store's counters (hits, misses, evictions, prefetched) and peak memory (the process's peak
-RSS so far: give one ``--rotations`` value per call to measure a run alone). Every
-timestep's configuration is checked by the runner (no vertex or swap conflicts, no jumps).
+Two kinds of case, each run in its own process (its peak memory its own):
 
-    .venv/bin/python tools/bench_lifelong.py \\
-        ../shared/data/robotrunners/lorr2026_warehouse_fulfill/fulfill-example_2500.json \\
-        --agents 5000 --ticks 1000 --rotations off --prefetch --dist-budget-mb 2200 --stream
+- ``loop``: ``layouts/industrial.yaml`` (1,680 shelves, 24 stations) with N AGVs and a busy
+  order stream (``orders.constant.batch = N / 5`` every 10 ticks: most AGVs get work), TA,
+  lifelong PIBT; ``--set`` overrides apply;
+- ``lorr``: a Robot Runners problem (``--problem``; default the 2026 fulfill example grown
+  to N robots by ``tools/make_lorr_agents.py``, written under ``tools/out``), its rotation
+  model, the league's task pool.
+
+Per case: wall and CPU seconds of the run (set-up excluded), the real-time factor by wall
+clock and by CPU (simulated seconds over each), peak RSS, the moving share (physics), the
+dependency deadlocks the executor found (cycles of the graph) and the freezes (no progress
+for ``executor.freeze_s``), both per 1,000 AGV-minutes, AGV-AGV contacts, throughput
+(orders or tasks finished per tick), scheduler and planner milliseconds per call (mean,
+p99) and the AGV-seconds lost waiting for plans, with the load average at the end.
+
+    python tools/bench_lifelong.py --cases loop:1000:physics:0.05 loop:1000:physics:0.02 \\
+        lorr:5000:physics:0.02 --ticks 120 --json out.json
+
+A case is ``kind:agents:executor:dt[:invoke[:latency]]`` (``invoke`` and ``latency`` as
+``planner.invoke`` / ``planner.latency``, e.g. ``loop:1000:physics:0.05:periodic=5:fixed=1``
+with ``=`` for ``:``). ``--all`` runs the issue's table (slow: about an hour on 2 cores).
+
+For reference (not measured here): LSMART (2026) runs 1,000 robots on
+warehouse-10-20-10-2-1 with windowed PIBT, 600 simulated seconds in 268 s of wall clock on a
+16-core desktop, about 2.2x real time.
 """
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
-import platform
 import resource
+import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
-from warerover_phys.lorr import read_problem, run_lifelong
-
 ROOT = Path(__file__).resolve().parent.parent
-DEFAULT = ROOT / "tests" / "data" / "lorr2023_warehouse_small" / "warehouse_small_50.json"
+FULFILL = ROOT.parent / "shared" / "data" / "robotrunners" / "lorr2026_warehouse_fulfill" / \
+    "fulfill-example_2500.json"
+ALL = [f"loop:{n}:{ex}:{dt}" for n in (100, 1000) for ex in ("grid", "physics")
+       for dt in ((0.05,) if ex == "grid" else (0.02, 0.05))] + [
+    "loop:5000:grid:0.05", "loop:5000:physics:0.05",
+    "loop:1000:physics:0.05:every_tick:measured", "loop:1000:physics:0.05:periodic=5:none",
+    "loop:1000:physics:0.05:periodic=5:fixed=1", "loop:1000:physics:0.05:event=3:measured",
+    "lorr:1000:grid:0.02", "lorr:1000:physics:0.02", "lorr:1000:physics:0.05",
+    "lorr:5000:physics:0.02", "lorr:5000:physics:0.05"]
+LSMART = {"robots": 1000, "map": "warehouse-10-20-10-2-1", "planner": "windowed PIBT",
+          "sim_s": 600, "wall_s": 268, "real_time_factor": 600 / 268, "cores": 16}
 
 
-def with_agents(problem, n: int, seed: int = 0):
-    """``problem`` with ``n`` agents: its first ``n``, or all and ``n - teamSize`` more on
-    free cells no agent stands on, drawn uniformly by ``default_rng(seed)`` in one draw."""
-    starts = list(problem.starts[:n])
-    extra = n - len(starts)
-    if extra > 0:
-        free = np.setdiff1d(np.flatnonzero(~problem.grid.obstacles.ravel()),
-                            np.asarray(starts))
-        if extra > len(free):
-            raise SystemExit(f"only {len(free)} free cells left for {extra} more agents")
-        starts += np.random.default_rng(seed).choice(free, size=extra, replace=False).tolist()
-    return dataclasses.replace(problem, starts=tuple(starts))
+def problem_for(n: int, given: Path | None) -> Path:
+    """The Robot Runners problem of a ``lorr`` case: ``given``, or the fulfill example with
+    ``n`` robots (its 2,500 plus robots on free cells, ``make_lorr_agents.py``, seed 0)."""
+    if given is not None:
+        return given
+    out = ROOT / "tools" / "out" / f"fulfill_{n}"
+    if not (out / "problem.json").exists():
+        subprocess.run([sys.executable, str(ROOT / "tools" / "make_lorr_agents.py"),
+                        str(FULFILL), "--agents", str(n), "--out", str(out)], check=True,
+                       capture_output=True)
+    return out / "problem.json"
 
 
-def _rss_mb() -> float:
-    """Peak RSS of this process so far, MB (Linux: ru_maxrss in KiB)."""
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+def run_case(case: str, ticks: int, problem: Path | None, sets: list[str]) -> dict:
+    from warerover_phys.config import parse_override
+    from warerover_phys.sim import Simulation
+
+    parts = case.split(":")
+    kind, n, executor, dt = parts[0], int(parts[1]), parts[2], float(parts[3])
+    invoke = parts[4].replace("=", ":") if len(parts) > 4 else "every_tick"
+    latency = parts[5].replace("=", ":") if len(parts) > 5 else "none"
+    over = [f"executor={executor}", f"executor.dt_s={dt}", f"planner.invoke={invoke}",
+            f"planner.latency={latency}", f"max_ticks={ticks}", *sets]
+    t0 = time.perf_counter()
+    if kind == "loop":
+        from warerover_phys import load_scenario
+
+        over = [f"fleet.agvs.0.count={n}", f"orders.constant.batch={max(1, n // 5)}",
+                "scheduler=ta", "planner=pibt", *over]
+        sc = load_scenario(ROOT / "layouts" / "industrial.yaml",
+                           [parse_override(s) for s in over])
+    else:
+        from warerover_phys.problems.robotrunners import problem_scenario, read_problem
+
+        prob = read_problem(problem_for(n, problem))
+        sc = problem_scenario(prob, ticks=ticks, executor=executor,
+                              overrides=[parse_override(s) for s in over])
+    sim = Simulation(sc)
+    setup_s = time.perf_counter() - t0
+    w0, c0 = time.perf_counter(), time.process_time()
+    result = sim.run()
+    wall, cpu = time.perf_counter() - w0, time.process_time() - c0
+    m = result.metrics
+    sim_s = m["ticks"] * sc.tick_s
+    agv_min = len(result.world.agvs) * sim_s / 60 / 1000
+    adg = m.get("deadlocks", 0) - m.get("freezes", 0)
+    return {
+        "case": case, "kind": kind, "agents": n, "executor": executor, "dt_s": dt,
+        "invoke": invoke, "latency": latency, "ticks": m["ticks"], "setup_s": setup_s,
+        "wall_s": wall, "cpu_s": cpu, "rtf_wall": sim_s / wall, "rtf_cpu": sim_s / cpu,
+        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        "moving_share": m.get("moving_share"), "adg_deadlocks": adg,
+        "freezes": m.get("freezes", 0), "adg_deadlocks_per_1000_agv_min": adg / agv_min,
+        "freezes_per_1000_agv_min": m.get("freezes", 0) / agv_min,
+        "agv_contacts": m.get("agv_contacts"), "throughput": m["throughput"],
+        "completed": m["orders_completed"], "sched_ms_mean": m["ct_sched_mean_ms"],
+        "sched_ms_p99": m["ct_sched_p99_ms"], "plan_call_ms_mean": m["ct_plan_call_mean_ms"],
+        "plan_call_ms_p99": m["ct_plan_call_p99_ms"], "planner_calls": m["planner_calls"],
+        "plan_wait_agv_s": m["plan_wait_agv_s"], "load_avg": os.getloadavg()[0],
+    }
 
 
-def main() -> None:
+COLUMNS = ["case", "ticks", "wall_s", "cpu_s", "rtf_wall", "rtf_cpu", "peak_rss_mb",
+           "moving_share", "adg_deadlocks_per_1000_agv_min", "freezes_per_1000_agv_min",
+           "agv_contacts", "throughput", "sched_ms_mean", "sched_ms_p99", "plan_call_ms_mean",
+           "plan_call_ms_p99", "plan_wait_agv_s", "load_avg"]
+
+
+def fmt(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.3g}" if abs(v) < 100 else f"{v:.0f}"
+    return "-" if v is None else str(v)
+
+
+def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("problem", type=Path, nargs="?", default=DEFAULT)
-    ap.add_argument("--agents", type=int, help="robots (default: the problem's teamSize)")
-    ap.add_argument("--agents-seed", type=int, default=0)
-    ap.add_argument("--ticks", type=int, default=500)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--rotations", choices=["on", "off", "both"], default="both")
-    ap.add_argument("--rule", choices=["actions", "turn-first"], default="actions",
-                    help="how PIBT meets the rotation model (see warerover lorr)")
-    ap.add_argument("--dist-budget-mb", type=float, default=1024.0)
-    ap.add_argument("--prefetch", action="store_true",
-                    help="tables of the errand cells before the first timestep")
-    ap.add_argument("--stream", action="store_true",
-                    help="stream the actions to a temporary folder (as `lorr --out`)")
-    ap.add_argument("--engine", choices=["auto", "numba", "python"], default="auto",
-                    help="the PIBT step: compiled (numba) or the Python reference")
-    ap.add_argument("--json", type=Path, default=Path(__file__).parent / "out" /
-                    "bench_lifelong.json")
+    ap.add_argument("--cases", nargs="+", default=["loop:1000:physics:0.05"])
+    ap.add_argument("--all", action="store_true", help="the issue's table (see the docstring)")
+    ap.add_argument("--ticks", type=int, default=120, help="ticks per case (default 120)")
+    ap.add_argument("--problem", type=Path, help="Robot Runners problem of lorr cases")
+    ap.add_argument("--set", dest="sets", action="append", default=[],
+                    help="scenario override for every case (repeatable)")
+    ap.add_argument("--json", type=Path, help="write the rows here (kept between runs: "
+                                              "cases already there are not run again)")
+    ap.add_argument("--_one", help=argparse.SUPPRESS)
     args = ap.parse_args()
-    problem = read_problem(args.problem)
-    if args.agents:
-        problem = with_agents(problem, args.agents, args.agents_seed)
-    rows = []
-    for rot in {"on": [True], "off": [False], "both": [False, True]}[args.rotations]:
-        load0 = os.getloadavg()[0]
-        t0 = time.perf_counter()
-        with tempfile.TemporaryDirectory(prefix="bench-lifelong-") as trace:
-            result = run_lifelong(
-                problem, args.ticks, rotations=rot, seed=args.seed, rule=args.rule,
-                dist_budget_mb=args.dist_budget_mb, prefetch=args.prefetch,
-                trace_dir=trace if args.stream else None, engine=args.engine,
-                progress=lambda t, n, t0=t0: print(
-                    f"  {t}/{n} {time.perf_counter() - t0:.0f} s RSS {_rss_mb():.0f} MB",
-                    file=sys.stderr, flush=True) if t % 100 == 0 else None)
-        s = result.summary()
-        s["whole_run_s"] = time.perf_counter() - t0
-        rss = _rss_mb()
-        s.update(peak_rss_mb_so_far=rss, streamed=args.stream,
-                 load_average=[load0, os.getloadavg()[0]])
-        rows.append(s)
-        d = s["dist_tables"]
-        print(f"{args.problem.name}: {s['agents']} robots, {s['ticks']} timesteps, rotations "
-              f"{'on (' + args.rule + ')' if rot else 'off'}: {s['ms_per_tick_mean']:.1f} ms/"
-              f"timestep mean, {s['ms_per_tick_p99']:.1f} p99, {s['ms_per_tick_max']:.1f} max "
-              f"(PIBT {s['pibt_ms_per_tick_mean']:.1f} mean, tables {d['bfs_ms_per_tick_mean']:.1f}"
-              f" mean; CPU {s['cpu_ms_per_tick_mean']:.1f} mean, {s['cpu_ms_per_tick_p99']:.1f}"
-              f" p99, PIBT CPU {s['pibt_cpu_ms_per_tick_mean']:.1f} mean); engine "
-              f"{s['engine']}; set-up {s['setup_s']:.1f} s (of it compiling or loading the "
-              f"compiled steps {s['compile_s']:.1f} s, prefetching tables "
-              f"{d['prefetch_s']:.1f} s); {s['tasks_finished']} tasks; tables: "
-              f"{d['misses']} computed, {d['prefetched']} prefetched, {d['hits']} hits, "
-              f"{d['evictions']} evicted; peak RSS {rss:.0f} MB; load average "
-              f"{load0:.1f} -> {os.getloadavg()[0]:.1f}")
-    out = {"runs": rows, "python": platform.python_version(), "platform": platform.platform(),
-           "argv": sys.argv[1:]}
-    args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps(out, indent=2) + "\n")
+    if args._one:
+        print(json.dumps(run_case(args._one, args.ticks, args.problem, args.sets)))
+        return 0
+    rows = json.loads(args.json.read_text()) if args.json and args.json.exists() else []
+    done = {r["case"] for r in rows}
+    for case in ALL if args.all else args.cases:
+        if case in done:
+            continue
+        cmd = [sys.executable, __file__, "--_one", case, "--ticks", str(args.ticks)]
+        cmd += ["--problem", str(args.problem)] if args.problem else []
+        for s in args.sets:
+            cmd += ["--set", s]
+        proc = subprocess.run(cmd, capture_output=True, text=True,
+                              env={**os.environ, "PYTHONPATH": str(ROOT)})
+        if proc.returncode != 0:
+            print(f"{case}: failed\n{proc.stderr[-2000:]}", file=sys.stderr)
+            continue
+        row = json.loads(proc.stdout.strip().splitlines()[-1])
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+        if args.json:
+            args.json.write_text(json.dumps(rows, indent=1) + "\n")
+    print("| " + " | ".join(COLUMNS) + " |")
+    print("|" + "---|" * len(COLUMNS))
+    for r in rows:
+        print("| " + " | ".join(fmt(r.get(k)) for k in COLUMNS) + " |")
+    print(f"LSMART (published, not measured here): {json.dumps(LSMART)}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from warerover_phys.lorr import read_problem
+from warerover_phys.problems.robotrunners import read_problem
 
 
 def main() -> None:

@@ -10,7 +10,9 @@ compares them exactly (float arrays bit for bit):
     python tools/physics_snapshot.py --out after.pkl --compare before.pkl [--atol 1e-9]
 
 (``--atol``: floats may differ by that much, for a change that moves results by float
-error only; the largest difference of each case is printed.) Or compare two saved
+error only; the largest difference of each case is printed. ``--allow-new``: keys found only
+in the new snapshot, such as a field added to the recording, are listed but do not count as
+differences; everything both have must still be identical.) Or compare two saved
 snapshots: ``--out after.pkl --compare before.pkl --reuse``.
 
 Cases: ``layouts/paper_homogeneous`` / ``paper_heterogeneous`` / ``paper_fault`` on physics,
@@ -141,13 +143,16 @@ def _gap(a, b) -> float:
     return 0.0 if a == b else math.inf
 
 
-def compare(old: dict, new: dict, atol: float = 0.0) -> list[str]:
+def compare(old: dict, new: dict, atol: float = 0.0, allow_new: bool = False) -> list[str]:
     """What differs between two snapshots of a case; with ``atol`` > 0 floats (and float
-    arrays, and the numbers in the events) may differ by that much."""
+    arrays, and the numbers in the events) may differ by that much; with ``allow_new`` keys
+    only in ``new`` are not differences."""
     diffs = []
     for part in ("metrics", "trajectory", "causes"):
         o, n = old[part], new[part]
         for k in sorted(set(o) | set(n)):
+            if allow_new and k not in o:
+                continue
             if k not in o or k not in n:
                 diffs.append(f"{part}.{k}: only in {'after' if k in n else 'before'}")
             elif not _same(o[k], n[k]) and not (atol > 0 and _gap(o[k], n[k]) <= atol):
@@ -178,6 +183,8 @@ def main() -> int:
     ap.add_argument("--only", help="run only the cases whose key contains this")
     ap.add_argument("--atol", type=float, default=0.0,
                     help="floats may differ by this much (default 0: bit for bit)")
+    ap.add_argument("--allow-new", action="store_true",
+                    help="keys only in the new snapshot (new recorded fields) are no difference")
     ap.add_argument("--reuse", action="store_true",
                     help="compare the snapshot already in --out instead of running")
     args = ap.parse_args()
@@ -209,7 +216,11 @@ def main() -> int:
         if old is None:
             print(f"{key}: not in {args.compare}")
             continue
-        diffs = compare(old, snap, args.atol)
+        diffs = compare(old, snap, args.atol, args.allow_new)
+        new = [f"{p}.{k}" for p in ("metrics", "trajectory", "causes")
+               for k in sorted(set(snap[p]) - set(old[p]))]
+        if new:
+            print(f"{key}: new in this snapshot: {', '.join(new)}")
         if diffs:
             bad += 1
             print(f"DIFF {key}:\n  " + "\n  ".join(diffs[:20]))

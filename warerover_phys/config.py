@@ -35,7 +35,7 @@ from .errors import ScenarioError
 
 __all__ = [
     "AgvTypeSpec", "AgvGroupSpec", "FleetSpec", "ShelfBlockSpec", "RectSpec", "InventorySpec",
-    "GeneratorSpec", "LayoutSpec", "OrdersSpec", "SchedulerSpec", "PlannerSpec", "ExecutorSpec",
+    "GeneratorSpec", "LayoutSpec", "ErrandsSpec", "OrdersSpec", "SchedulerSpec", "PlannerSpec", "ExecutorSpec",
     "FaultsSpec", "TasksSpec", "Scenario", "load_scenario", "scenario_from_dict",
     "apply_overrides", "parse_override", "diffdrive_preset",
 ]
@@ -103,7 +103,7 @@ def _builtin_or_plugin(*builtins: str) -> AfterValidator:
     return AfterValidator(check)
 
 
-SchedulerName = Annotated[str, _builtin_or_plugin("rd", "ta")]
+SchedulerName = Annotated[str, _builtin_or_plugin("rd", "ta", "errands")]
 PlannerName = Annotated[str, _builtin_or_plugin("astar", "cbs", "pibt", "lacam", "learned")]
 ExecutorName = Annotated[str, _builtin_or_plugin("grid", "physics")]
 Params = dict[str, Any]
@@ -367,10 +367,56 @@ class BurstSpec(_Model):
     """How long a burst lasts once it starts."""
 
 
+class ErrandsSpec(_Model):
+    """Errand tasks (``orders.pattern: errands``): each task is a list of cells that one
+    AGV visits in order, as in the League of Robot Runners (a task is done with its last
+    errand; an errand is done when the AGV stands at rest on its cell, any heading) or a
+    MovingAI map with a task stream. Tasks come from ``file``, from ``tasks`` or, with
+    neither, are drawn uniformly over the free cells with the orders generator
+    (``errands_per_task`` errands each). Task ``k`` is the ``k mod count``-th of the list
+    (the list wraps around, as the league's does).
+
+    ``assign`` is the release and assignment rule (scheduler ``errands`` applies it):
+
+    - ``roundrobin``: AGV ``i`` does tasks ``i``, ``i + n``, ``i + 2n``, ... (``n`` AGVs),
+      each released when the AGV is free (Robot Runners 2023, ``roundrobin`` and
+      ``roundrobin-fixed``);
+    - ``greedy``: a free AGV takes the next task of the list (2023, ``greedy``);
+    - ``pool``: ``max(1, int(reveal x n))`` tasks are open at the start and one more is
+      released for every task finished; free AGVs, in id order, each take the open task
+      whose first errand is nearest (Manhattan) (2024 and later: the start kit's default
+      scheduler). A plug-in scheduler may assign the open tasks instead.
+    """
+
+    file: str | None = None
+    """A Robot Runners task file (an optional ``# version`` line, the count, then one task
+    per line: its errands' linearised cells ``row * cols + col``, comma-separated), relative
+    to the scenario file."""
+    tasks: list[Annotated[list[Cell], Field(min_length=1)]] | None = None
+    """Tasks given inline: each a list of ``[row, col]`` errand cells."""
+    errands_per_task: tuple[PosInt, PosInt] = (1, 1)
+    """Random tasks: the fewest and most errands of a task (drawn uniformly)."""
+    assign: Literal["roundrobin", "greedy", "pool"] = "pool"
+    reveal: PosFloat = 1.0
+    """``pool``: open tasks per AGV (``numTasksReveal`` of a 2024+ problem)."""
+    idle: Literal["stay", "home"] = "stay"
+    """Where an AGV without a task goes: it stays where it is (Robot Runners), or drives
+    to its start cell."""
+
+    @model_validator(mode="after")
+    def _one_source(self) -> ErrandsSpec:
+        if self.file is not None and self.tasks is not None:
+            raise ValueError("give the tasks either in a file or inline, not both")
+        if self.errands_per_task[1] < self.errands_per_task[0]:
+            raise ValueError(f"errands_per_task: the most ({self.errands_per_task[1]}) is "
+                             f"below the fewest ({self.errands_per_task[0]})")
+        return self
+
+
 class OrdersSpec(_Model):
     """The order stream. Parameters of every pattern have defaults (WareRover's)."""
 
-    pattern: Literal["oneshot", "constant", "wave", "hotspot", "burst"] = "oneshot"
+    pattern: Literal["oneshot", "constant", "wave", "hotspot", "burst", "errands"] = "oneshot"
     duration_ticks: Ticks = 400
     """Streaming patterns generate orders in ticks [0, duration_ticks)."""
     large_fraction: Prob | None = None
@@ -380,6 +426,7 @@ class OrdersSpec(_Model):
     wave: WaveSpec = WaveSpec()
     hotspot: HotspotSpec = HotspotSpec()
     burst: BurstSpec = BurstSpec()
+    errands: ErrandsSpec = ErrandsSpec()
     stations_by_size: dict[PosInt, Annotated[list[NonNegInt], Field(min_length=1)]] | None = None
     """Size class -> indices (into the layout's stations) of the stations its orders go to,
     drawn uniformly; a class not listed uses every station. WareRover's heterogeneous floor
@@ -420,6 +467,39 @@ class SchedulerSpec(_Model):
     preferred)."""
 
 
+def parse_invoke(text: str) -> tuple[str, float]:
+    """``planner.invoke`` as (``every_tick`` | ``periodic`` | ``event``, its number)."""
+    if not isinstance(text, str):
+        raise ValueError("expected every_tick, periodic:S or event:K")
+    kind, _, num = text.partition(":")
+    if kind == "every_tick" and not num:
+        return kind, 0.0
+    try:
+        value = float(num)
+    except ValueError:
+        value = math.nan
+    if kind == "periodic" and math.isfinite(value) and 0 < value <= MAX_FLOAT:
+        return kind, value
+    if kind == "event" and value.is_integer() and 1 <= value <= MAX_TICKS:
+        return kind, value
+    raise ValueError(f"expected every_tick, periodic:S (seconds > 0) or event:K (ticks >= 1), "
+                     f"got {text!r}")
+
+
+def parse_latency(text: str) -> tuple[str, float]:
+    """``planner.latency`` as (``none`` | ``measured`` | ``fixed``, seconds)."""
+    if text in ("none", "measured"):
+        return text, 0.0
+    kind, _, num = text.partition(":") if isinstance(text, str) else ("", "", "")
+    try:
+        value = float(num)
+    except ValueError:
+        value = math.nan
+    if kind == "fixed" and math.isfinite(value) and 0 <= value <= MAX_FLOAT:
+        return kind, value
+    raise ValueError(f"expected none, measured or fixed:S (seconds >= 0), got {text!r}")
+
+
 class PlannerSpec(_Model):
     name: PlannerName = "astar"
     """``astar``, ``cbs``, ``pibt``, ``lacam``, an entry point, or a plugin class
@@ -455,6 +535,49 @@ class PlannerSpec(_Model):
     """CBS / LaCAM: a wall-clock safety stop per planning call (seconds). The work budgets
     above decide results; when this stop ends a search first it is counted in
     ``planner_budget_hits`` and logged, as the result then depends on machine speed."""
+    invoke: str = "every_tick"
+    """When the loop calls the planner: ``every_tick``; ``periodic:S`` (every ``S`` seconds of
+    simulated time, rounded to whole ticks); ``event:K`` (when some AGV whose committed path
+    does not end on its goal has fewer than ``K`` ticks of it left). Step planners (PIBT)
+    then plan ``window_ticks`` steps a call (windowed PIBT). See :mod:`warerover_phys.invoke`."""
+    latency: str = "none"
+    """How long the planner's computation takes in simulated time: ``none`` (the world waits
+    for it, as planners are usually studied), ``measured`` (its wall-clock time) or
+    ``fixed:S`` (``S`` seconds). With a latency the world keeps moving while it plans: it
+    plans from where the committed paths end at the tick the plan is expected to take
+    effect, and the new plan takes effect at the first tick after it is ready (the committed
+    prefix of the old plan stays)."""
+    window_ticks: Ticks | None = None
+    """Steps a step planner plans per call (windowed PIBT). Default: 1 with ``every_tick``,
+    twice the period (``periodic``) or ``2 K`` (``event``)."""
+    rotation_rule: Literal["cascade", "actions", "turn-first"] = "cascade"
+    """How lifelong PIBT meets rotations (``rotations: true``). ``cascade``: the
+    footprint-aware step of :mod:`~warerover_phys.planning.footprint_pibt` (any fleet).
+    ``actions``: PIBT over the actions forward / turn a quarter / wait, ranked by the
+    cost-to-go of the cell and heading each leads to (:mod:`~warerover_phys.planning.
+    pibt_heading`); ``turn-first``: PIBT on cells, then AGVs whose cell is not ahead turn
+    towards it instead. ``actions`` and ``turn-first`` are the Robot Runners rules: 1x1 AGVs
+    that move a cell and turn a quarter in one tick each, compiled (:mod:`~warerover_phys.
+    planning.pibt_numba`)."""
+    dist_budget_mb: PosFloat = 1024.0
+    """Lifelong PIBT of 1x1 fleets (:mod:`~warerover_phys.planning.pibt_compiled`): MiB its
+    distance tables (one per goal cell, shared by every AGV) may hold; least recently used
+    go first."""
+    ties: Literal["low_id", "high_id"] = "low_id"
+    """Lifelong PIBT: which AGV goes first among those whose goals are equally old (Robot
+    Runners problems: ``high_id``, as the league's runner this project had)."""
+    @field_validator("invoke")
+    @classmethod
+    def _invoke(cls, value: str) -> str:
+        parse_invoke(value)
+        return value
+
+    @field_validator("latency")
+    @classmethod
+    def _latency(cls, value: str) -> str:
+        parse_latency(value)
+        return value
+
     rotations: bool = False
     """Rotation-aware planning (issue 15): differential-drive AGVs are planned over states
     (cell, heading), move only along their heading and turn in place by quarter turns that
@@ -618,6 +741,8 @@ def _orders_bound(orders: OrdersSpec, max_ticks: int) -> int:
         return -(-ticks // every)
 
     p = orders.pattern
+    if p == "errands":  # released one per free AGV or per finished task: see World
+        return 0
     if p == "oneshot":
         return orders.oneshot.count
     if p == "constant":
@@ -717,6 +842,38 @@ class Scenario(_Model):
                                     f"{self.fleet.size}: ids 0..{self.fleet.size - 1})",
                                     file=self.source, field=f"faults.scheduled[{i}].agv",
                                     value=fault.agv)
+        return self
+
+    @model_validator(mode="after")
+    def _work_fits_the_boxes(self) -> Scenario:
+        """Errand tasks need a scheduler that assigns them (``errands`` or a plug-in), shelf
+        orders one that fetches shelves; the compiled rotation rules need 1x1 AGVs that
+        move a cell and turn a quarter within one tick."""
+        errands = self.orders.pattern == "errands"
+        name = self.scheduler.name
+        if errands and name in ("ta", "rd"):
+            raise ScenarioError(f"scheduler {name!r} fetches shelves for orders; errand tasks "
+                                "(orders.pattern: errands) need scheduler 'errands' (or a "
+                                "plug-in)", file=self.source, field="scheduler.name",
+                                value=name)
+        if not errands and name == "errands":
+            raise ScenarioError("scheduler 'errands' assigns errand tasks: set "
+                                "orders.pattern: errands, or use 'ta' or 'rd'",
+                                file=self.source, field="scheduler.name", value=name)
+        rule = self.planner.rotation_rule
+        if rule != "cascade":
+            for tname, spec in self.fleet.types.items():
+                quarter = math.pi / 2 / spec.max_turn_rate_radps
+                if spec.footprint != 1 or spec.ticks_per_move(self.layout.cell_m,
+                                                              self.tick_s) != 1 \
+                        or quarter > self.tick_s + 1e-9:
+                    raise ScenarioError(
+                        f"planner.rotation_rule {rule!r} plans 1x1 AGVs that move one cell "
+                        f"and turn a quarter in one tick; type {tname!r} (footprint "
+                        f"{spec.footprint}, {spec.max_speed_mps} m/s, "
+                        f"{spec.max_turn_rate_radps} rad/s, tick_s {self.tick_s}) does not: "
+                        "use rotation_rule 'cascade'", file=self.source,
+                        field="planner.rotation_rule", value=rule)
         return self
 
     @field_validator("name")

@@ -781,7 +781,7 @@ def write_execution(result: ExecutionResult, plan: Plan, layout: Layout,
         "agents.csv": buf.getvalue(),
     }
     traj = result.trajectory if result.trajectory is not None else \
-        _grid_trajectory(result, layout, types, tick_s)
+        _grid_trajectory(result, layout, types, tick_s, plan)
     traj.setdefault("corridors_json", np.array("[]"))
     writers: dict[str, Callable[[Path], object]] = {
         name: (lambda p, text=text: p.write_text(text, encoding="utf-8"))
@@ -796,14 +796,21 @@ def write_execution(result: ExecutionResult, plan: Plan, layout: Layout,
 
 
 def _grid_trajectory(result: ExecutionResult, layout: Layout, types: list[AgvTypeSpec],
-                     tick_s: float) -> dict[str, np.ndarray]:
-    """One sample per tick of the executed states (the renderer's grid poses)."""
+                     tick_s: float, plan: Plan | None = None) -> dict[str, np.ndarray]:
+    """One sample per tick of the executed states (the renderer's grid poses), with what
+    each agent was doing against ``plan``'s paths."""
+    from .executors.grid_record import grid_execution, state_array
     from .poses import states_poses
 
     k = np.array([t.footprint for t in types], dtype=np.int64)
     pos, heading = states_poses(result.executed, k, layout.cols, float(layout.cell_m))
     ticks, n = heading.shape
-    return {"t": np.arange(ticks, dtype=np.float64) * tick_s, "x": pos[..., 0],
+    cols = layout.cols
+    plans = [] if plan is None else [
+        (i, 0, [(r * cols + c, r * cols + c) for r, c in p]) for i, p in enumerate(plan.paths)]
+    execution = grid_execution(state_array(result.executed, n, ticks), plans, k, cols,
+                               layout.rows)
+    return {**execution, "t": np.arange(ticks, dtype=np.float64) * tick_s, "x": pos[..., 0],
             "y": pos[..., 1], "heading": heading,
             "state": np.zeros((ticks, n), dtype=np.int8),
             "loaded": np.zeros((ticks, n), dtype=bool), "footprint": k,

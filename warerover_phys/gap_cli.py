@@ -47,7 +47,7 @@ def run_gap(*, scenario: Path, mode: str, seed: int | None, seeds: str | None,
             fmt: str | None, yx: bool, fleet: Path | None, delays: str | None,
             tick_s: float, dt_s: float, agvs: str | None, pictures: bool, quiet: bool,
             overrides: Callable[[], Any], timing: str | None = None,
-            video: Path | None = None) -> None:
+            video: Path | None = None, ghost: bool = False) -> None:
     """See ``warerover gap --help``."""
     try:
         if mode not in MODE_LABEL:
@@ -65,14 +65,15 @@ def run_gap(*, scenario: Path, mode: str, seed: int | None, seeds: str | None,
                 raise WareroverError("--plan runs one open-loop execution: it takes neither "
                                      "--mode closed nor --seeds")
             return _plan_gap(scenario, plan, fmt, yx, fleet, delays, tick_s, dt_s, seed or 0,
-                             out, json_out, picked, pictures, quiet, timing or "unit", video)
+                             out, json_out, picked, pictures, quiet, timing or "unit", video,
+                             ghost)
         sc = _with_timing(overrides(), timing, mode)
         if seeds is not None:
             from .gap_stats import parse_seeds
 
             return _many(sc, parse_seeds(seeds), mode, workers, out, json_out, picked,
                          pictures, quiet)
-        return _one(sc, mode, out, json_out, picked, pictures, quiet, video)
+        return _one(sc, mode, out, json_out, picked, pictures, quiet, video, ghost)
     except ScenarioError as err:
         _fail(err.with_file(str(scenario)) if plan is None else err)
     except WareroverError as err:
@@ -119,7 +120,7 @@ def _bar(show: bool):
 
 
 def _one(sc, mode: str, out: Path | None, json_out: bool, agvs: list[int] | None,
-         pictures: bool, quiet: bool, video: Path | None = None) -> None:
+         pictures: bool, quiet: bool, video: Path | None = None, ghost: bool = False) -> None:
     from .gap import closed_loop_report, open_loop_gap
 
     show = not quiet and not json_out and err_console.is_terminal
@@ -132,7 +133,7 @@ def _one(sc, mode: str, out: Path | None, json_out: bool, agvs: list[int] | None
             report, result = g.report, _result(g, sc.seed)
     _print_repairs(report)
     if video is not None and mode == "open":
-        _video(g, video, f"{sc.name} seed {sc.seed}: ghost = plan", show)
+        _video(g, video, f"{sc.name} seed {sc.seed}", show, ghost)
     default = Path("runs") / f"{sc.name}-seed{sc.seed}-gap"
     written = _write_one(out or default, report, result, agvs, pictures)
     if json_out:
@@ -160,9 +161,11 @@ def _video_check(video: Path) -> None:
                              "pip install 'warerover-phys[render]'") from None
 
 
-def _video(g, video: Path, title: str, show: bool) -> None:
+def _video(g, video: Path, title: str, show: bool, ghost_on: bool = False) -> None:
     """Render the physics execution of an open-loop gap to ``video``: the bodies as
-    recorded, each AGV's planned pose (the executed plan's ticks x tick_s) as a ghost."""
+    recorded, coloured by what they do, the path ahead of each from its progress in the
+    plan, and with ``ghost_on`` each AGV's planned pose (the executed plan's ticks x
+    tick_s) as a ghost."""
     from .render import Style, ghost_poses, recording_with_ghosts, render_video
 
     run = g.run
@@ -172,8 +175,11 @@ def _video(g, video: Path, title: str, show: bool) -> None:
     ghost = ghost_poses({i: list(p.states) for i, p in plan.paths.items()},
                         [t.footprint for t in plan.types], plan.layout.cols,
                         float(plan.layout.cell_m), plan.tick_s)
-    rec = recording_with_ghosts(dict(run.trajectory), ghost)
-    style = Style(size=(1280, 720), show_paths=False, ghosts=True, title=title)
+    planned = [{"agv": i, "tick": p.start_tick, "states": [list(s) for s in p.states]}
+               for i, p in plan.paths.items()]
+    rec = recording_with_ghosts(dict(run.trajectory), ghost, planned=planned)
+    style = Style(size=(1280, 720), ghosts=ghost_on,
+                  title=title + (": ghost = plan" if ghost_on else ""))
     bar, update = _bar(show)
     with bar:
         info = render_video(rec, video, style=style, progress=None if update is None else
@@ -436,7 +442,7 @@ def _many(sc, seeds: list[int], mode: str, workers: int | None, out: Path | None
 def _plan_gap(floor: Path, plan: Path, fmt: str | None, yx: bool, fleet: Path | None,
               delays: str | None, tick_s: float, dt_s: float, seed: int, out: Path | None,
               json_out: bool, agvs: list[int] | None, pictures: bool, quiet: bool,
-              timing: str = "unit", video: Path | None = None) -> None:
+              timing: str = "unit", video: Path | None = None, ghost: bool = False) -> None:
     from .gap import plan_gap
 
     if not (math.isfinite(tick_s) and tick_s > 0):
@@ -450,7 +456,7 @@ def _plan_gap(floor: Path, plan: Path, fmt: str | None, yx: bool, fleet: Path | 
                      tick_s=tick_s, dt_s=dt_s, seed=seed, timing=timing, progress=update)
     _print_repairs(g.report)
     if video is not None:
-        _video(g, video, f"plan {plan.name}: ghost = plan", show)
+        _video(g, video, f"plan {plan.name}", show, ghost)
     written = _write_one(out or Path("runs") / f"gap-{plan.stem}", g.report,
                          _result(g, seed), agvs, pictures)
     if json_out:

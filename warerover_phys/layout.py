@@ -264,8 +264,9 @@ def _assign_inventory(shelf_cells: list[tuple[Cell, int]], inv: InventorySpec,
 
 
 def build_layout(spec: LayoutSpec, *, fleet_size: int = 0, file: str | None = None,
-                 name: str = "layout") -> Layout:
-    """Build (but do not yet check against a fleet) the layout a spec describes."""
+                 name: str = "layout", errands: bool = False) -> Layout:
+    """Build (but do not yet check against a fleet) the layout a spec describes. With
+    ``errands`` (errand tasks, no shelf orders) the floor may lack shelves and stations."""
     shelf_sizes: dict[Cell, int] = {}
     access: list[Cell] = []
     if spec.grid is not None:
@@ -321,7 +322,10 @@ def build_layout(spec: LayoutSpec, *, fleet_size: int = 0, file: str | None = No
         if (int(r), int(c)) not in covered:
             shelf_cells.append(((int(r), int(c)), 1))
     shelf_cells.sort()
-    shelves, num_skus = _assign_inventory(shelf_cells, spec.inventory, file)
+    if errands and not shelf_cells:
+        shelves, num_skus = [], 0
+    else:
+        shelves, num_skus = _assign_inventory(shelf_cells, spec.inventory, file)
 
     stations = tuple((int(r), int(c)) for r, c in zip(*np.nonzero(grid == CellType.STATION),
                                                        strict=True))
@@ -330,7 +334,7 @@ def build_layout(spec: LayoutSpec, *, fleet_size: int = 0, file: str | None = No
             s for s in stations if s not in {tuple(x) for x in spec.stations})
     parking = tuple((int(r), int(c)) for r, c in zip(*np.nonzero(grid == CellType.PARKING),
                                                       strict=True))
-    if not stations:
+    if not stations and not errands:
         raise LayoutError("layout has no receiving stations", file=file, field="layout.stations")
     grid.setflags(write=False)
     return Layout(grid=grid, cell_m=spec.cell_m, shelves=tuple(shelves), stations=stations,

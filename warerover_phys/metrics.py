@@ -50,6 +50,14 @@ any differential-drive AGV: how much the controller slips sideways; ~0 with
 ``delay_comm_latency_s`` (AGV-seconds spent with the next action's cells free but the
 dependency graph's message saying so not yet arrived).
 
+Planning that takes time (:mod:`warerover_phys.invoke`): ``planner_invoke``,
+``planner_latency``, ``planner_window_ticks``, ``planner_calls``, ``ct_plan_call_mean_ms`` /
+``ct_plan_call_p99_ms`` (wall ms per planner call, a window's steps together),
+``plan_effect_ticks_mean`` (ticks from a call to its plan taking effect), ``plan_wait_agv_s``
+(AGV-seconds standing at the end of a committed path short of the goal: waiting for a plan;
+counted with ``periodic`` / ``event`` calls or a latency) and ``plans_dropped`` (paths of a
+late plan not taken because the AGV's path changed while it was computed).
+
 CT keys, wall seconds and the physics executor's ``real_time_factor`` are the only ones that
 change between two runs with the same scenario and seed; :data:`TIMING_KEYS` lists every
 such key.
@@ -70,7 +78,7 @@ __all__ = ["MetricsRecorder", "TIMING_KEYS"]
 
 TIMING_KEYS = ("ct_total_s", "ct_mean_ms", "ct_p99_ms", "ct_sched_mean_ms", "ct_sched_p99_ms",
                "ct_plan_mean_ms", "ct_plan_p99_ms", "wall_s", "real_time_factor",
-               "execute_wall_s")
+               "execute_wall_s", "ct_plan_call_mean_ms", "ct_plan_call_p99_ms")
 
 
 class MetricsRecorder:
@@ -84,6 +92,9 @@ class MetricsRecorder:
         self.plan_failures = 0
         self.detours = 0
         self.budget_hits = 0
+        self.plans_dropped = 0
+        """New paths of a late plan not taken (the AGV's path changed while it was
+        computed; ``planner.latency``)."""
         self._t0 = time.perf_counter()
 
     def record_tick(self, *, sched_s: float, plan_s: float, blocked: int,
@@ -139,6 +150,7 @@ class MetricsRecorder:
             "plan_failures": self.plan_failures,
             "goal_busy_detours": self.detours,
             "planner_budget_hits": self.budget_hits,
+            "plans_dropped": self.plans_dropped,
             "failures": world.fault_stats["failures"],
             "down_ticks": world.fault_stats["down_ticks"],
             "orders_delayed_by_failures": len(world.delayed_orders),

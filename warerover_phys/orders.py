@@ -66,6 +66,12 @@ class Order:
     """Index into the layout's stations."""
     size: int
     """Container size class the order needs (``sku_sizes[sku]``)."""
+    errands: tuple[int, ...] = ()
+    """An errand task (``orders.pattern: errands``, :mod:`~warerover_phys.errands`): the
+    cells (nodes ``row * cols + col``) its AGV visits in order; ``sku`` and ``station`` are
+    then -1. Empty for a shelf order."""
+    for_agv: int | None = None
+    """The AGV an errand task is released for (``assign: roundrobin``), else None."""
 
 
 class OrderStream:

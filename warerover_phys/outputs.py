@@ -30,9 +30,12 @@ __all__ = ["write_outputs"]
 
 
 def write_outputs(result: EpisodeResult, out_dir: str | Path, *,
-                  with_trajectory: bool = False) -> dict[str, Path]:
+                  with_trajectory: bool = False,
+                  extra: dict[str, Callable[[Path], object]] | None = None) -> dict[str, Path]:
     """Write the output files of an episode into ``out_dir`` (created if missing), as one
     set. ``with_trajectory``: a grid episode also gets ``trajectories.npz`` (for rendering).
+    ``extra``: more files of the set, file name -> writer (e.g. ``warerover lorr``'s
+    ``output.json``); returned under their file names.
     """
     cols = result.world.layout.cols
 
@@ -69,12 +72,13 @@ def write_outputs(result: EpisodeResult, out_dir: str | Path, *,
         trajectory = grid_trajectory(result)
     if trajectory is not None:
         writers["trajectories.npz"] = lambda p: _savez(p, trajectory)
+    writers.update(extra or {})
     sc = result.world.scenario
     written = write_set(out_dir, writers, meta={"scenario": sc.name, "seed": sc.seed,
                                                 "source": sc.source})
     names = {"metrics.json": "metrics", "events.jsonl": "events", "paths.json": "paths",
              "trajectories.npz": "trajectory"}
-    return {names[n]: p for n, p in written.items()}
+    return {names.get(n, n): p for n, p in written.items()}
 
 
 def _savez(path: Path, trajectory: dict) -> None:

@@ -3,7 +3,7 @@
 A scenario names each box in its section (``scheduler.name``, ``planner.name``,
 ``executor.name``) in one of three ways, looked up in this order:
 
-1. a **built-in** (``ta``, ``rd``; ``astar``, ``cbs``, ``pibt``, ``lacam``; ``grid``,
+1. a **built-in** (``ta``, ``rd``, ``errands``; ``astar``, ``cbs``, ``pibt``, ``lacam``; ``grid``,
    ``physics``);
 2. an **entry point** of an installed package, in the group ``warerover_phys.schedulers``,
    ``warerover_phys.planners`` or ``warerover_phys.executors`` (``pyproject.toml``:
@@ -56,7 +56,8 @@ def _astar(spec):
 def _pibt(spec):
     from .planning.pibt_planner import PIBTPlanner
 
-    return PIBTPlanner(max_expansions=spec.max_expansions)
+    return PIBTPlanner(rotation=spec.rotation_rule, budget_mb=spec.dist_budget_mb,
+                       max_expansions=spec.max_expansions)
 
 
 def _cbs(spec):
@@ -91,6 +92,12 @@ def _rd(spec):
     return RandomDispatch(spec)
 
 
+def _errands(spec):
+    from .schedulers.errands import ErrandScheduler
+
+    return ErrandScheduler(spec)
+
+
 def _grid(spec):
     from .executors.grid import GridExecutor
 
@@ -104,7 +111,7 @@ def _physics(spec):  # pymunk is imported only when the physics executor is aske
 
 
 BUILTINS: dict[str, dict[str, Callable[[Any], Any]]] = {
-    "scheduler": {"ta": _ta, "rd": _rd},
+    "scheduler": {"ta": _ta, "rd": _rd, "errands": _errands},
     "planner": {"astar": _astar, "cbs": _cbs, "pibt": _pibt, "lacam": _lacam,
                 "learned": _learned},
     "executor": {"grid": _grid, "physics": _physics},

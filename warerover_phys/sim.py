@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 
 from .config import Scenario
@@ -29,6 +29,7 @@ from .executors import make_executor
 from .executors.base import AgvBody, ExecutorSetup, StepReport, TickView
 from .faults.exits import exit_spots, inside_open_corridor
 from .faults.model import FaultModel, close_failure, open_failure
+from .invoke import PlanClock, cut, plan_window, splice
 from .metrics import MetricsRecorder
 from .planning import make_planner
 from .planning.astar import nearest_free_anchor
@@ -50,6 +51,8 @@ STUCK_FAILURES = 3
 YIELD_TICKS = 8
 """How long an AGV that makes way stays away."""
 _TRAVEL_STATES = (AgvState.TO_SHELF, AgvState.TO_STATION, AgvState.RETURNING)
+"""States whose goal holds a step planner's AGV once it stands there (its work starts when
+it is at rest); an errand needs no work, so an AGV on an errand is never held."""
 
 
 @dataclass
@@ -66,6 +69,8 @@ class EpisodeResult:
     headings: dict[int, list[int]] | None = None
     """``planner.rotations``: the heading (direction index) of each rotation-aware AGV per
     tick, from tick 0, as the loop tracked it; None otherwise."""
+    plan_s: list[float] = field(default_factory=list)
+    """Wall seconds the planner took at every tick (0 where it was not called)."""
 
 
 class Simulation:
@@ -90,7 +95,12 @@ class Simulation:
         self.metrics = MetricsRecorder(scenario)
         self.faults = FaultModel(scenario.faults, self.world.rngs["faults"])
         self._pending: tuple | None = None
-        """Between begin_tick and finish_tick: (request, t0, t1)."""
+        """Between begin_tick and finish_tick: (request, t0, t1, asked at)."""
+        self.clock = PlanClock(scenario.planner, scenario.tick_s)
+        self._committed: dict[int, int] = {}
+        """AGVs the executor committed beyond their state: the node a new plan must start
+        from (``StepReport.committed``)."""
+        """When the planner is called and when its plans take effect (:mod:`.invoke`)."""
         self.last_report: StepReport | None = None
         """What the executor reported for the last tick (read-only for observers such as
         the live view: ``poses`` holds continuous poses on physics)."""
@@ -154,7 +164,8 @@ class Simulation:
     def step(self) -> None:
         """Run one tick of the loop."""
         request = self.begin_tick()
-        self.finish_tick(None if request is None else self.planner.plan(request))
+        self.finish_tick(None if request is None else
+                         plan_window(self.planner, request, self.clock.window))
 
     def begin_tick(self) -> PlanRequest | None:
         """The first half of a tick: faults, order arrivals, the scheduler, and the
@@ -165,16 +176,29 @@ class Simulation:
         w = self.world
         self._apply_faults()
         self._send_out()
-        w.add_orders(w.stream.arrivals(w.tick))
+        w.add_orders(w.arrivals())
         t0 = time.perf_counter()
         for a in self.scheduler.assign(SchedulerView(w), w.rngs["scheduler"]):
             w.start_trip(a.agv, a.shelf, list(a.orders))
         t1 = time.perf_counter()
-        agents = self._step_requests() if self._lifelong else self._replan_requests()
-        request = None if not agents else PlanRequest(
-            tick=w.tick, agents=agents, graphs=w.graphs, reservations=w.reservations.copy(),
-            rng=w.rngs["planner"], keep_clear=w.keep_clear())
-        self._pending = (request, t0, t1)
+        self._take_ready()
+        self._count_plan_waits()
+        request = None
+        if self.clock.due(w.tick, self._short_of_plan):
+            t_eff = self.clock.effect_tick(w.tick)
+            agents = self._step_requests(t_eff) if self._lifelong else \
+                self._replan_requests(t_eff)
+            if agents and t_eff > w.tick:  # the world moves on while the planner works
+                for a in agents:
+                    path = w.reservations.paths.get(a.agv)
+                    if path is not None:
+                        w.reservations.commit(cut(path, t_eff), a.k)
+            request = None if not agents else PlanRequest(
+                tick=t_eff, agents=agents, graphs=w.graphs,
+                reservations=w.reservations.snapshot(), rng=w.rngs["planner"],
+                keep_clear=w.keep_clear(),
+                acyclic=bool(getattr(self.executor, "acyclic_plans", False)))
+        self._pending = (request, t0, t1, time.perf_counter())
         return request
 
     def finish_tick(self, result: PlanResult | None) -> None:
@@ -183,18 +207,20 @@ class Simulation:
         report."""
         if self._pending is None:
             raise RuntimeError("finish_tick called without begin_tick")
-        (request, t0, t1), self._pending = self._pending, None
+        (request, t0, t1, asked), self._pending = self._pending, None
         w = self.world
         if request is None:
             self.metrics.replans_this_tick(0, 0, 0)
         else:
             if result is None:
                 raise TypeError("finish_tick: a plan request was made, the result is None")
-            self._take(result, request.agents)
+            self.clock.called(w.tick, request, result, time.perf_counter() - asked)
+            self._take_ready()
         t2 = time.perf_counter()
         report = self.executor.step(self._view())
         self._apply_report(report)
         self.last_report = report
+        self._committed = report.committed
         w.tick += 1
         self._follow_up(report.blocked)
         self._replan_now(report.replan)
@@ -215,6 +241,7 @@ class Simulation:
                     progress(self.world.tick, len(self.world.completed_tick),
                              len(self.world.status))
         metrics = self.metrics.summary(self.world)
+        metrics.update(self.clock.summary())
         metrics.update(self.executor.summary())
         metrics["freezes"] = len(self.freezes)
         metrics["deadlocks"] = metrics.get("deadlocks", 0) + len(self.freezes)
@@ -231,7 +258,8 @@ class Simulation:
             trajectory.update(corridor_arrays(self.world))
         return EpisodeResult(metrics=metrics, events=self.world.events, planned=self.planned,
                              actual=self.actual, world=self.world, trajectory=trajectory,
-                             headings=self.headings if self._rot else None)
+                             headings=self.headings if self._rot else None,
+                             plan_s=list(self.metrics.plan_s))
 
     # ------------------------------------------------------------------------- helpers
 
@@ -270,16 +298,73 @@ class Simulation:
             w.log("corridor_exit_sent", agv=aid, corridor=inside_open_corridor(w, aid),
                   spot=list(w.cell(spot)))
 
-    def _take(self, result: PlanResult, agents: list[AgentRequest]) -> None:
+    def _take_ready(self) -> None:
+        """Commit the pending plan whose time has come (at once without a latency)."""
+        pending = self.clock.take_ready(self.world.tick)
+        if pending is None:
+            return
+        request, result = pending.request, pending.result
+        if request.tick == self.world.tick == pending.call_tick:
+            self._take(result, request.agents)
+            return
+        # a late plan: splice each AGV's new path behind the prefix it kept
+        w = self.world
+        paths, dropped = {}, []
+        for aid, path in result.paths.items():
+            agv = w.agvs[aid]
+            new = splice(w.reservations.paths.get(aid), path, w.tick, agv.pos)
+            if new is None or agv.state == AgvState.FAILED:
+                dropped.append(aid)
+            else:
+                paths[aid] = new
+        self.metrics.plans_dropped += len(dropped)
+        self._take(replace(result, paths=paths), request.agents, keep_delay=True)
+
+    def _short_of_plan(self, k: int) -> bool:
+        """Whether some AGV whose committed path does not end on its goal has fewer than
+        ``k`` ticks of it left (``planner.invoke: event:K``)."""
+        w = self.world
+        for agv in w.agvs:
+            if agv.state not in MOVING_STATES:
+                continue
+            path = w.reservations.paths.get(agv.id)
+            goal = _goal_now(w, agv)
+            if goal is None or path is None or path.goal == goal:
+                continue
+            if path.end_tick - (w.tick - agv.delay) < k:
+                return True
+        return False
+
+    def _count_plan_waits(self) -> None:
+        """AGVs standing at the end of their committed paths short of their goals, with
+        the planner called seldom or slow (``plan_wait_agv_s``)."""
+        clock = self.clock
+        if clock.kind == "every_tick" and not clock.delayed:
+            return
+        w = self.world
+        for agv in w.agvs:
+            if agv.state not in MOVING_STATES or not agv.standing:
+                continue
+            goal = _goal_now(w, agv)
+            path = w.reservations.paths.get(agv.id)
+            if goal is not None and goal != agv.node and (
+                    path is None or path.end_tick <= w.tick - agv.delay):
+                clock.wait_agv_ticks += 1
+
+    def _take(self, result: PlanResult, agents: list[AgentRequest],
+              keep_delay: bool = False) -> None:
         """Take what the planner returned for the AGVs that needed planning (a new goal, a
         path that ran out short of its goal, blocked for ``replan_blocked_ticks``; every
         AGV for step planners): the planner worked on a copy of the reservations; the paths
-        it returns are committed here."""
+        it returns are committed here. ``keep_delay``: the paths keep the ticks of the
+        paths they replace (a spliced late plan), so the AGVs stay as late as they were."""
         w = self.world
         self._commit(result, agents)
         for aid, path in result.paths.items():
             agv = w.agvs[aid]
-            agv.delay = agv.blocked_ticks = agv.plan_failures = 0
+            if not keep_delay:
+                agv.delay = 0
+            agv.blocked_ticks = agv.plan_failures = 0
             if len(path.states) > 1 or not self._lifelong:
                 entry = {"agv": aid, "tick": path.start_tick,
                          "states": [list(s) for s in path.states]}
@@ -322,6 +407,9 @@ class Simulation:
         for a in agents:
             path = result.paths.get(a.agv)
             if path is not None:
+                old = res.paths.get(a.agv)
+                if old is not None and _stays_put(old, path):
+                    continue  # the same from here on: the executor sees no new plan
                 res.commit(path, a.k, a.heading)
             elif a.agv in failed and a.agv in res.paths:
                 res.commit(res.paths[a.agv], a.k)
@@ -330,11 +418,14 @@ class Simulation:
     def _lifelong(self) -> bool:
         return self.planner.replans_all
 
-    def _step_requests(self) -> list[AgentRequest]:
-        """Every AGV, for planners that move all of them each tick."""
+    def _step_requests(self, t_eff: int) -> list[AgentRequest]:
+        """Every AGV, for planners that move all of them each tick; from where each will
+        be at ``t_eff`` (later than now with a latency: where its committed path is then)."""
         w = self.world
         out = []
         n = len(w.agvs)
+        high = self.scenario.planner.ties == "high_id"
+        ahead = t_eff > w.tick
         for agv in w.agvs:
             goal = w.goal_of(agv)
             # Standing on a task stage's goal: hold there, so that the path ends on the
@@ -351,12 +442,16 @@ class Simulation:
                     self._freeze_yields.discard(agv.id)
             if goal != agv.last_goal:
                 agv.last_goal, agv.goal_since = goal, w.tick
-            age = w.tick - agv.goal_since + (n - agv.id) / (n + 1)
+            age = w.tick - agv.goal_since + ((agv.id if high else n - agv.id) / (n + 1))
+            start = self._committed.get(agv.id, agv.node)
+            if ahead and agv.id in w.reservations.paths:
+                start = w.reservations.paths[agv.id].state_at(t_eff)[1]
             out.append(AgentRequest(
-                agv=agv.id, start=agv.node, goal=goal, k=agv.k, loaded=agv.loaded,
+                agv=agv.id, start=start, goal=goal, k=agv.k, loaded=agv.loaded,
                 ticks_per_move=agv.ticks_per_move,
                 shelf=agv.trip.shelf if agv.loaded and agv.trip is not None else None,
-                priority=(0.0 if hold else age,), hold=hold, **self._turn_request(agv, goal)))
+                priority=(0.0 if hold else age,), hold=hold,
+                **self._turn_request(agv, goal)))
         return out
 
     def _turn_request(self, agv: Agv, goal: int) -> dict:
@@ -379,10 +474,12 @@ class Simulation:
             out["turn_ticks"] = rot
         return out
 
-    def _replan_requests(self) -> list[AgentRequest]:
-        """The AGVs that need a new path (see :meth:`_plan`)."""
+    def _replan_requests(self, t_eff: int) -> list[AgentRequest]:
+        """The AGVs that need a new path (see :meth:`_plan`), from where each will be at
+        ``t_eff`` (later than now with a latency)."""
         w = self.world
         res = w.reservations
+        ahead = t_eff > w.tick
         agents = []
         for agv in w.agvs:
             if not agv.standing or agv.state not in MOVING_STATES or w.tick < agv.retry_at:
@@ -405,13 +502,13 @@ class Simulation:
             if agv.node == goal and agv.state == AgvState.IDLE and path.end_tick <= w.tick:
                 continue
             agents.append(AgentRequest(
-                agv=agv.id, start=agv.node, goal=goal, k=agv.k, loaded=agv.loaded,
-                ticks_per_move=agv.ticks_per_move,
+                agv=agv.id, start=path.state_at(t_eff)[1] if ahead else agv.node, goal=goal,
+                k=agv.k, loaded=agv.loaded, ticks_per_move=agv.ticks_per_move,
                 shelf=agv.trip.shelf if agv.loaded and agv.trip is not None else None,
                 priority=(-agv.plan_failures, not agv.loaded, agv.state == AgvState.IDLE),
                 **self._turn_request(agv, goal)))
             # Re-anchor a delayed AGV's committed path at where it really stands.
-            if agv.delay or path.state_at(w.tick) != agv.pos:
+            if not ahead and (agv.delay or path.state_at(w.tick) != agv.pos):
                 res.commit(TimedPath(agv.id, w.tick, (agv.pos,)), agv.k)
         return agents
 
@@ -548,6 +645,18 @@ class Simulation:
 
 
 _DIRS = ((0, 1), (1, 0), (0, -1), (-1, 0))
+
+
+def _stays_put(old: TimedPath, new: TimedPath) -> bool:
+    """Whether ``new`` only stands, facing one way, where ``old`` has ended by ``new``'s
+    start: the same path from then on (a step planner's wait)."""
+    s = new.states[0]
+    if s[0] != s[1] or old.end_tick > new.start_tick or old.states[-1] != s \
+            or any(x != s for x in new.states):
+        return False
+    if new.headings is None:
+        return old.headings is None
+    return old.headings is not None and all(h == old.headings[-1] for h in new.headings)
 
 
 def failure_cause(world: World, freezes: list[dict]) -> dict:

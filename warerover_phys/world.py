@@ -6,7 +6,11 @@ methods here, so the order and AGV life cycles are in one place:
 - an order is exactly one of PENDING -> ASSIGNED -> IN_PROGRESS -> COMPLETED;
 - an AGV runs the task chain IDLE -> TO_SHELF -> PICKING -> TO_STATION -> HANDOVER
   (-> TO_STATION -> HANDOVER ...) -> RETURNING -> PLACING -> IDLE; an IDLE AGV drives to its
-  home parking spot and may be given a new trip on the way.
+  home parking spot and may be given a new trip on the way;
+- with errand tasks (``orders.pattern: errands``, :mod:`warerover_phys.errands`) an order is a
+  list of cells, and its AGV runs IDLE -> ERRAND (one errand after the other, each done when
+  it stands at rest on the errand's cell) -> IDLE; an IDLE AGV stays where it is (or drives
+  home, ``orders.errands.idle``).
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ from __future__ import annotations
 from collections.abc import Collection
 from dataclasses import dataclass, field
 from enum import IntEnum
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,6 +30,9 @@ from .orders import Order, OrderStream
 from .planning.base import State, TimedPath
 from .planning.graph import UNREACHABLE, GraphSet
 from .planning.reservation import ReservationTable
+
+if TYPE_CHECKING:
+    from .schedulers.costs import TripCosts
 
 __all__ = ["AgvState", "OrderStatus", "Agv", "Trip", "World", "make_rngs", "WORK_STATES",
            "STAGE_OF"]
@@ -48,9 +56,12 @@ class AgvState(IntEnum):
     RETURNING = 5
     PLACING = 6
     FAILED = 7
+    ERRAND = 8
+    """On an errand task: driving to its next errand cell."""
 
 
-MOVING_STATES = (AgvState.IDLE, AgvState.TO_SHELF, AgvState.TO_STATION, AgvState.RETURNING)
+MOVING_STATES = (AgvState.IDLE, AgvState.TO_SHELF, AgvState.TO_STATION, AgvState.RETURNING,
+                 AgvState.ERRAND)
 WORK_STATES = (AgvState.PICKING, AgvState.HANDOVER, AgvState.PLACING)
 """Dwells: the AGV works in place on its stage's goal."""
 STAGE_OF = {AgvState.PICKING: "pick", AgvState.HANDOVER: "handover", AgvState.PLACING: "place"}
@@ -158,7 +169,9 @@ class World:
     requeued: int = 0
     """Orders sent back to pending by ``orders.requeue_after_ticks`` (counting repeats)."""
     _pending: set[int] = field(default_factory=set, repr=False)
-    """Orders that were held by an AGV when it failed."""
+    """Pending orders, by id (kept by ``_set_status``)."""
+    _open: int = field(default=0, repr=False)
+    """Orders not completed (kept by ``_set_status``): ``all_done`` without a scan."""
 
     # ------------------------------------------------------------------------- building
 
@@ -167,7 +180,8 @@ class World:
         src = scenario.source
         try:
             layout = build_layout(scenario.layout, fleet_size=scenario.fleet.size, file=src,
-                                  name=scenario.name)
+                                  name=scenario.name,
+                                  errands=scenario.orders.pattern == "errands")
             graphs = GraphSet(layout)
             agvs = _place_fleet(scenario, layout, graphs)
             check_layout(scenario, layout, graphs, agvs)
@@ -180,12 +194,19 @@ class World:
         except ScenarioError as err:
             raise err.with_file(src) if src else err from None
         rngs = make_rngs(scenario.seed)
-        try:
-            stream = OrderStream(scenario.orders, layout.sku_sizes, len(layout.stations),
-                                 rngs["orders"])
-        except ValueError as err:
-            raise ScenarioError(str(err), file=src, field="orders.stations_by_size",
-                                value=scenario.orders.stations_by_size) from None
+        if scenario.orders.pattern == "errands":
+            from .errands import ErrandStream
+
+            stream = ErrandStream(scenario.orders.errands, layout.cols,
+                                  graphs.get(1, False).valid.ravel(), len(agvs),
+                                  rngs["orders"], scenario.base_dir, src)
+        else:
+            try:
+                stream = OrderStream(scenario.orders, layout.sku_sizes, len(layout.stations),
+                                     rngs["orders"])
+            except ValueError as err:
+                raise ScenarioError(str(err), file=src, field="orders.stations_by_size",
+                                    value=scenario.orders.stations_by_size) from None
         res = ReservationTable(layout.cols)
         for agv in agvs:
             res.commit(TimedPath(agv.id, 0, (agv.pos,)), agv.k)
@@ -220,6 +241,26 @@ class World:
             out += busy
         return out
 
+    def usable_shelves(self) -> np.ndarray:
+        """Bool per shelf: :meth:`free_shelves_for` may list it (nobody is using it, or
+        any shelf with ``orders.requeue_after_ticks``), whoever asks."""
+        mask = np.ones(len(self.layout.shelves), dtype=bool)
+        if self.scenario.orders.requeue_after_ticks is None and self.shelf_busy:
+            mask[list(self.shelf_busy)] = False
+        return mask
+
+    def trip_costs(self) -> TripCosts:
+        """Trip lengths as arrays (:class:`~warerover_phys.schedulers.costs.TripCosts`) on
+        the current motion graphs: a new one whenever the graphs are replaced (corridors
+        opening or closing), as :meth:`trip_distance` starts a new cache."""
+        costs = self.__dict__.get("_trip_costs")
+        if costs is None or costs.graphs is not self.graphs:
+            from .schedulers.costs import TripCosts
+
+            costs = self.__dict__["_trip_costs"] = TripCosts(self.layout, self.graphs,
+                                                              self.station_anchor)
+        return costs
+
     def keep_clear(self) -> np.ndarray:
         """Flat mask of the cells any AGV of the fleet covers while at a station, and the
         cells next to them: queues form away from the stations so they never block the
@@ -248,11 +289,21 @@ class World:
             node = cache[(station, k)] = self.node(anchor)
         return node
 
+    @property
+    def errands(self) -> bool:
+        """Whether the work is errand tasks (``orders.pattern: errands``)."""
+        return self.scenario.orders.pattern == "errands"
+
     def goal_of(self, agv: Agv) -> int | None:
         """Anchor node the AGV should drive to now (None while it works in place)."""
         if agv.state == AgvState.IDLE:
+            if self.errands and self.scenario.orders.errands.idle == "stay":
+                return agv.node
             return agv.home
         trip = agv.trip
+        if agv.state == AgvState.ERRAND:
+            assert trip is not None
+            return trip.stops[trip.stop_idx]
         if agv.state in (AgvState.TO_SHELF, AgvState.RETURNING):
             assert trip is not None
             return self.node(self.layout.shelves[trip.shelf].anchor)
@@ -287,13 +338,16 @@ class World:
 
     def all_done(self) -> bool:
         # Arrivals of ticks < self.tick are in; none may come later.
-        return self.tick > 0 and self.stream.exhausted(self.tick - 1) and all(
-            s == OrderStatus.COMPLETED for s in self.status.values())
+        return self.tick > 0 and self.stream.exhausted(self.tick - 1) and self._open == 0
 
     # ------------------------------------------------------------------------- changes
 
     def _set_status(self, order_id: int, status: OrderStatus) -> None:
-        """The one place order statuses change (keeps the pending set in step)."""
+        """The one place order statuses change (keeps the pending set and the count of
+        orders not completed in step)."""
+        before = self.status.get(order_id)
+        self._open += (status != OrderStatus.COMPLETED) - (
+            before is not None and before != OrderStatus.COMPLETED)
         self.status[order_id] = status
         if status == OrderStatus.PENDING:
             self._pending.add(order_id)
@@ -303,18 +357,34 @@ class World:
     def log(self, event: str, **fields) -> None:
         self.events.append({"tick": self.tick, "event": event, **fields})
 
+    def arrivals(self) -> list[Order]:
+        """The orders (or errand tasks) that arrive at this tick."""
+        if not self.errands:
+            return self.stream.arrivals(self.tick)
+        idle = [a.id for a in self.agvs if a.state == AgvState.IDLE]
+        return self.stream.arrivals(self.tick, idle, len(self.status) - len(self.completed_tick))
+
     def add_orders(self, orders: list[Order]) -> None:
         for order in orders:
+            if order.id in self.orders:
+                raise ValueError(f"order {order.id} exists already")
             self.orders[order.id] = order
             self._set_status(order.id, OrderStatus.PENDING)
-            self.log("order_created", order=order.id, sku=order.sku, station=order.station,
-                     size=order.size)
+            if order.errands:
+                self.log("order_created", order=order.id, errands=[
+                    list(self.cell(e)) for e in order.errands])
+            else:
+                self.log("order_created", order=order.id, sku=order.sku,
+                         station=order.station, size=order.size)
 
     def start_trip(self, agv_id: int, shelf: int, order_ids: list[int]) -> Trip:
-        """Give an idle AGV a trip. The scheduler decides; this keeps the books straight."""
+        """Give an idle AGV a trip. The scheduler decides; this keeps the books straight.
+        An errand task comes with ``shelf`` -1 and its one order (:meth:`_start_errands`)."""
         agv = self.agvs[agv_id]
         if agv.state != AgvState.IDLE:
             raise ValueError(f"AGV {agv_id} is not idle ({agv.state.name})")
+        if shelf < 0 or self.errands:
+            return self._start_errands(agv, shelf, order_ids)
         blind = shelf in self.shelf_busy
         if blind and self.scenario.orders.requeue_after_ticks is None:
             raise ValueError(f"shelf {shelf} is in use by trip {self.shelf_busy[shelf]}")
@@ -344,6 +414,48 @@ class World:
                  orders=list(order_ids), stops=list(stations))
         return trip
 
+    def _start_errands(self, agv: Agv, shelf: int, order_ids: list[int]) -> Trip:
+        if shelf >= 0 or not self.errands or len(order_ids) != 1:
+            raise ValueError("an errand task goes to one AGV alone, with shelf -1 (got shelf "
+                             f"{shelf}, orders {list(order_ids)})")
+        oid = order_ids[0]
+        order = self.orders.get(oid)
+        if order is None or self.status.get(oid) != OrderStatus.PENDING:
+            raise ValueError(f"order {oid} is not pending")
+        if order.for_agv is not None and order.for_agv != agv.id:
+            raise ValueError(f"errand task {oid} was released for AGV {order.for_agv}, "
+                             f"not {agv.id}")
+        trip = Trip(self._next_trip, agv.id, -1, (oid,), order.errands)
+        self._next_trip += 1
+        self.trips[trip.id] = trip
+        self._set_status(oid, OrderStatus.ASSIGNED)
+        self.assigned_tick[oid] = self.tick
+        self.log("order_assigned", order=oid, agv=agv.id, trip=trip.id)
+        agv.trip = trip
+        agv.state = AgvState.ERRAND
+        return trip
+
+    def _errand_done(self, agv: Agv) -> None:
+        """The AGV stands at rest on its task's next errand cell: that errand is done (and
+        the task with its last)."""
+        trip = agv.trip
+        assert trip is not None
+        oid = trip.orders[0]
+        trip.stop_idx += 1
+        self.log("errand_done", agv=agv.id, order=oid, errands=trip.stop_idx,
+                 cell=list(self.cell(agv.node)))
+        if trip.stop_idx == 1:
+            self._set_status(oid, OrderStatus.IN_PROGRESS)
+        if trip.stop_idx < len(trip.stops):
+            return
+        self._set_status(oid, OrderStatus.COMPLETED)
+        self.completed_tick[oid] = self.tick
+        self.assigned_tick.pop(oid, None)
+        self.log("order_completed", order=oid, agv=agv.id,
+                 latency=self.tick - self.orders[oid].tick)
+        agv.trip = None
+        agv.state = AgvState.IDLE
+
     def advance_tasks(self, settled: Collection[int] | None = None) -> None:
         """Arrivals, work in place and hand-overs for the tick that just ended.
 
@@ -358,10 +470,15 @@ class World:
         ``work_done`` bracket every dwell for the validator
         (:func:`warerover_phys.validate.validate_dwells`)."""
         tasks = self.scenario.tasks
+        stay = self.errands and self.scenario.orders.errands.idle == "stay"
         for agv in self.agvs:
             if agv.node != agv.home or not agv.standing:
                 agv.parked = False
             if not agv.standing:
+                continue
+            if agv.state == AgvState.ERRAND:
+                if agv.node == self.goal_of(agv) and self.at_rest(agv, settled):
+                    self._errand_done(agv)
                 continue
             if agv.state in WORK_STATES:
                 if self.at_rest(agv, settled):
@@ -373,7 +490,7 @@ class World:
             if goal is None or agv.node != goal or not self.at_rest(agv, settled):
                 continue
             if agv.state == AgvState.IDLE:
-                if not agv.parked and agv.yield_goal is None:
+                if not agv.parked and agv.yield_goal is None and not stay:
                     agv.parked = True
                     self.log("parked", agv=agv.id, cell=list(self.cell(agv.node)))
                 continue

@@ -20,14 +20,19 @@ def samples(n: int, count: int, seed: int = 0):
     for j in range(count):
         yield (0.05 * j, rng.normal(size=(n, 2)), rng.normal(size=n),
                rng.integers(0, 8, n).astype(np.int8), rng.random(n) < 0.5,
-               (rng.random((n, 2)) * 2).astype(np.float32))
+               (rng.random((n, 2)) * 2).astype(np.float32),
+               (rng.integers(0, 8, n).astype(np.int8), rng.integers(-1, n, n).astype(np.int32),
+                rng.integers(-1, 500, n).astype(np.int32)))
 
 
 def expected(rows) -> dict[str, np.ndarray]:
     return {"t": np.array([r[0] for r in rows]),
             "x": np.stack([r[1][:, 0] for r in rows]), "y": np.stack([r[1][:, 1] for r in rows]),
             "heading": np.stack([r[2] for r in rows]), "state": np.stack([r[3] for r in rows]),
-            "loaded": np.stack([r[4] for r in rows]), "shelf_m": np.stack([r[5] for r in rows])}
+            "loaded": np.stack([r[4] for r in rows]), "shelf_m": np.stack([r[5] for r in rows]),
+            "exec_state": np.stack([r[6][0] for r in rows]),
+            "blocker": np.stack([r[6][1] for r in rows]),
+            "plan_tick": np.stack([r[6][2] for r in rows])}
 
 
 def assert_same(got: dict, want: dict) -> None:
@@ -52,6 +57,20 @@ def test_samples_come_back_bit_identical_across_chunks(count):
     # Short runs stay in memory; longer ones are memory maps of the files.
     assert (store.folder is not None) == (count >= 6)
     assert all(isinstance(v, np.memmap) == (count >= 6) for v in got.values())
+
+
+def test_samples_without_execution_fields_read_as_standing_unblocked_unstarted():
+    """A caller that gives no execution fields (an executor that knows none) gets standing,
+    blocker -1 and plan tick -1 in every chunk, beside rows that gave them."""
+    rows = list(samples(2, 5, seed=3))
+    store = TrajectoryStore(2, chunk=2)
+    for j, r in enumerate(rows):
+        store.append(*(r[:6] if j % 2 else r))
+    got = store.arrays()
+    for j, r in enumerate(rows):
+        want = ((0, 0), (-1, -1), (-1, -1)) if j % 2 else tuple(map(tuple, r[6]))
+        assert tuple(tuple(got[k][j].tolist()) for k in
+                     ("exec_state", "blocker", "plan_tick")) == want
 
 
 def test_recording_goes_on_after_a_read():

@@ -20,6 +20,7 @@ from typer.testing import CliRunner
 
 from warerover_phys.cli import app
 from warerover_phys.config import load_scenario
+from warerover_phys.executors.recording import EXEC_STATES
 from warerover_phys.outputs import write_outputs
 from warerover_phys.render import (
     PALETTE,
@@ -98,8 +99,9 @@ def _seg_dist(p: np.ndarray, pts: np.ndarray) -> float:
 
 def test_mp4_of_paper_heterogeneous_with_failure(physics_run, tmp_path):
     """60 frames to H.264, decoded with PyAV: count, size, codec, then pixels: the failed
-    AGV in the failure colour at its recorded pose, every other lone AGV in its status
-    colour, and the corridor colour on a free corridor cell."""
+    AGV in the failure colour at its recorded pose, every other lone AGV in the colour of
+    what it was recorded doing (``exec_state``), and the corridor colour on a free corridor
+    cell."""
     rec = load_trajectory(physics_run / "trajectories.npz")
     assert rec.corridors and rec.corridors[0]["agv"] == FAILED_AGV
     style = Style(size=(1280, 720))
@@ -115,7 +117,7 @@ def test_mp4_of_paper_heterogeneous_with_failure(physics_run, tmp_path):
     for k in (0, 30, 59):
         img, snap = frames[k], rec.at(float(times[k]), style.path_ticks)
         status = status_of(snap.state, snap.loaded)
-        assert status[FAILED_AGV] == 3
+        assert status[FAILED_AGV] == 3 and EXEC_STATES[snap.exec_state[FAILED_AGV]] == "failed"
         cx, cy = geo.to_px(snap.x, snap.y)
         for i in range(rec.num_agvs):
             others = np.hypot(snap.x - snap.x[i], snap.y - snap.y[i])
@@ -127,7 +129,8 @@ def test_mp4_of_paper_heterogeneous_with_failure(physics_run, tmp_path):
             px = cx[i] - np.cos(snap.heading[i]) * back
             py = cy[i] - np.sin(snap.heading[i]) * back
             got = _patch(img, px, py)
-            assert _near(got, PALETTE[STATUS[status[i]]]), (k, i, got, STATUS[status[i]])
+            doing = EXEC_STATES[snap.exec_state[i]]
+            assert _near(got, PALETTE[doing]), (k, i, got, doing)
             checked_agvs += i == FAILED_AGV
         # A corridor cell away from AGVs and drawn paths shows the corridor tint.
         cols = rec.grid.shape[1]
@@ -138,7 +141,7 @@ def test_mp4_of_paper_heterogeneous_with_failure(physics_run, tmp_path):
             clear = np.hypot(snap.x - p[0], snap.y - p[1]) - rec.body_m.max(axis=1) * 0.71
             if not zone.contains(shapely.Point(p)) or clear.min() < 0.4:
                 continue
-            if any(q is not None and _seg_dist(p, q) < 0.4 for q in snap.paths or []):
+            if any(_seg_dist(p, q) < 0.4 for q in snap.paths.points):
                 continue
             got = _patch(img, *geo.to_px(p[0], p[1]), r=2)
             under = PALETTE[cell_names[rec.grid[r, c]]]
@@ -148,6 +151,20 @@ def test_mp4_of_paper_heterogeneous_with_failure(physics_run, tmp_path):
             checked_corridor += 1
             break
     assert checked_agvs == 3 and checked_corridor >= 2
+
+
+def test_closed_loop_header_keeps_orders_and_throughput(physics_run):
+    """A run with orders is no plan execution: its heads-up line gives orders and TP (and
+    what the AGVs do), not the plan-execution figures."""
+    from warerover_phys.render.frame import _hud_text
+
+    rec = load_trajectory(physics_run)
+    assert not rec.plan_execution and rec.exec_state is not None
+    snap = rec.at(rec.end_s, 4)
+    assert snap.progress is None and snap.orders_total
+    text = _hud_text(snap, 1)
+    assert f"orders {snap.orders_done}/{snap.orders_total}" in text and "TP " in text
+    assert "makespan" not in text and "waiting " in text
 
 
 def _blend(under, over, alpha):
@@ -383,6 +400,13 @@ for ex in ("grid", "physics"):
     sim.step()
     sim.fail(1)
     write_outputs(sim.run(), {str(tmp_path)!r} + "/" + ex)
+from typer.testing import CliRunner
+plan = {str(tmp_path)!r} + "/plan.txt"
+open(plan, "w").write("Agent 0:(0,0)->(0,1)->(0,2)->\\n")
+for ex in ("grid", "physics"):   # plan executions write their recordings too
+    r = CliRunner().invoke(warerover_phys.cli.app, ["execute", {str(REPO / "tests/data/random-32-32-10.map")!r},
+                           "--plan", plan, "--executor", ex, "--out", {str(tmp_path)!r} + "/x" + ex, "-q"])
+    assert r.exit_code == 0, r.output
 print(sorted(m for m in ("cv2", "av") if m in sys.modules))
 import warerover_phys.render
 print(sorted(m for m in ("cv2", "av") if m in sys.modules))

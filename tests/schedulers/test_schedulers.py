@@ -97,9 +97,13 @@ def test_ta_matching_is_optimal(orders, seed):
     skus = sorted({o[0] for o in orders})
     first = {sku: [o for o in w.pending_orders() if o.sku == sku][:1] for sku in skus}
 
-    def cost(agv, sku):
-        opts = ta._shelf_options(w, agv, sku, first[sku])
-        return opts[0][0] if opts else None
+    def cost(agv, sku):  # the nearest candidate shelves by Manhattan distance, true trips
+        r, c = w.cell(agv.node)
+        near = sorted(w.free_shelves_for(sku, agv), key=lambda s: (
+            abs(w.layout.shelves[s].anchor[0] - r) + abs(w.layout.shelves[s].anchor[1] - c), s))
+        trips = [w.trip_distance(agv, s, [first[sku][0].station])
+                 for s in near[:w.scenario.scheduler.candidate_shelves]]
+        return min(trips, default=None)
 
     table = {(a.id, s): cost(a, s) for a in idle for s in skus}
     got = sum(table[(a.agv, w.orders[a.orders[0]].sku)] for a in out)

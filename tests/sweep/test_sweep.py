@@ -375,7 +375,7 @@ def test_plugin_names_in_scenarios(tmp_path, monkeypatch):
                                      *SMALL_SET.items()])
     m = run_episode(sc, seed=1).metrics
     assert m["planner"] == f"{mod}:ReversedAStar" and m["orders_completed"] > 0
-    with pytest.raises(ScenarioError, match=r"unknown scheduler \(choose from \['rd', 'ta'\]"):
+    with pytest.raises(ScenarioError, match=r"unknown scheduler \(choose from \['errands', 'rd', 'ta'\]"):
         check_plugins(load_scenario(HOMOGENEOUS, [("scheduler.name", "fifo")]))
     with pytest.raises(ScenarioError, match="cannot import plugin module"):
         run_episode(load_scenario(HOMOGENEOUS, [("scheduler.name", "nope_mod:Sched")]))

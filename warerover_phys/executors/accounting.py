@@ -10,7 +10,9 @@
   physics step (tunnelling);
 - open safety corridors are checked with fcl every step;
 - delay shares (dependency waits, injected delays, turns, kinematic lag) are summed per step;
-- poses are recorded at ``trajectory_hz`` into a :class:`~.recording.TrajectoryStore`.
+- poses are recorded at ``trajectory_hz`` into a :class:`~.recording.TrajectoryStore`, with
+  what each AGV was doing (:meth:`Accounting.execution`: a few array operations per sample,
+  none per step).
 
 The per-step loops (monitors, delay shares, cause labels) run compiled
 (:mod:`.step_kernels`, ``engine="numba"``) for fleets of at least :data:`ENGINE_MIN_AGVS`
@@ -32,7 +34,17 @@ from .bodies import AGV, OBSTACLE, SHELF, SHELF_SIDE
 from .causes import CauseRecorder
 from .fleet_state import DRIVE, HOLD, TURN, FleetState
 from .measured import ClearanceMonitor, LimitMonitor
-from .recording import TrajectoryStore
+from .recording import (
+    DELAYED,
+    DRIVING,
+    FINISHED,
+    STANDING,
+    TURNING,
+    WAITING,
+    WORKING,
+    TrajectoryStore,
+)
+from .recording import FAILED as X_FAILED
 
 if TYPE_CHECKING:
     import pymunk
@@ -105,10 +117,13 @@ class Accounting:
         # trajectories
         self._traj_every = max(1, round(1.0 / (trajectory_hz * st.dt)))
         self._traj = TrajectoryStore(n)
-        self._due: tuple[float, np.ndarray, np.ndarray, np.ndarray] | None = None
-        """A sample due (time, task states, loaded flags, shelf sizes), recorded with the
-        poses of that time at the next :meth:`measure` (the poses before the next step,
-        or at the end of the tick): no extra read of the bodies."""
+        self._due: tuple | None = None
+        """A sample due (time, task states, loaded flags, shelf sizes, execution fields),
+        recorded with the poses of that time at the next :meth:`measure` (the poses before
+        the next step, or at the end of the tick): no extra read of the bodies."""
+        self.plan_tick = np.full(n, -1, dtype=np.int32)
+        """Per AGV, the plan tick of the state it drives to or last reached (the arrival
+        tick of its latest begun action; -1: none yet), for the recording."""
         self._task_state = np.zeros(n, dtype=np.int8)
         self._loaded = np.zeros(n, dtype=bool)
         self._last_view: tuple = (None, None, None)
@@ -141,6 +156,9 @@ class Accounting:
             if carried is not None and shelf != carried:
                 self.static_contacts += 1
 
+        self.agv_agv_begin = agv_agv
+        """The AGV-AGV ``begin`` callback (installed with the pair's ``pre_solve`` by
+        :func:`.bodies.unsolved_agv_contacts`: one handler per pair)."""
         self.space.on_collision(AGV, AGV, begin=agv_agv)
         self.space.on_collision(AGV, OBSTACLE, begin=agv_static)
         self.space.on_collision(AGV, SHELF, begin=agv_shelf)
@@ -189,6 +207,7 @@ class Accounting:
         self._act_start[i] = t
         self._act_planned[i] = a.ticks * self.st.tick_s
         self._act_injected[i] = 0.0
+        self.plan_tick[i] = a.tick + a.ticks
         self.causes.action_begun(i, a)
 
     def action_done(self, i: int, t: float) -> None:
@@ -215,7 +234,30 @@ class Accounting:
         if self._corridor_keys:
             self._check_corridors(raw, raw_ang)
         if self.steps % self._traj_every == 0:
-            self._due = (st.sim_s, self._task_state, self._loaded, self.shelf_m)
+            self._due = (st.sim_s, self._task_state, self._loaded, self.shelf_m,
+                         self.execution(injected))
+
+    def execution(self, injected: np.ndarray | None = None,
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What each AGV does in the step just run, for the recording: ``exec_state``
+        (:data:`~.recording.EXEC_STATES`, the priorities of :mod:`.causes`: working, failed,
+        delayed, driving, turning, waiting, then standing, or finished with nothing left),
+        ``blocker`` (the AGV a waiting one waits for, else -1) and ``plan_tick`` (copies).
+        ``injected``: the step's injected-delay mask (None: read from the delays)."""
+        st = self.st
+        mid = st.sim_s - 0.5 * st.dt
+        hold = st.mode == HOLD
+        state = np.where(hold & ~st.has_next, FINISHED, STANDING).astype(np.int8)
+        state[st.waiting] = WAITING
+        state[st.mode == TURN] = TURNING
+        state[st.mode == DRIVE] = DRIVING
+        if injected is None:
+            injected = st.delayed_until > st.sim_s
+        state[injected & (~hold | st.has_next)] = DELAYED
+        state[st.failed] = X_FAILED
+        state[(st.hold_until > mid) & (st.last_finish <= mid)] = WORKING
+        blocker = np.where(state == WAITING, self.causes.blocker, -1).astype(np.int32)
+        return state, blocker, self.plan_tick.copy()
 
     def _shares_numpy(self, injected: np.ndarray) -> None:
         """The step's delay shares and cause labels, the numpy reference of
@@ -275,7 +317,7 @@ class Accounting:
         due = self._due
         if due is not None and due[0] == t:
             self._due = None
-            self._traj.append(t, pos, ang, due[1], due[2], due[3])
+            self._traj.append(t, pos, ang, *due[1:])
         self.clearance.measure(pos, ang, t)
         self.events.extend(self.limits.measure(pos, ang, t))
 
@@ -285,10 +327,10 @@ class Accounting:
         due = self._due
         if due is not None:
             self._due = None
-            self._traj.append(due[0], pos, ang, due[1], due[2], due[3])
+            self._traj.append(due[0], pos, ang, *due[1:])
             return
         self._traj.append(self.st.sim_s, pos, ang, self._task_state, self._loaded,
-                          self.shelf_m)
+                          self.shelf_m, self.execution())
 
     # ------------------------------------------------------------------------- results
 

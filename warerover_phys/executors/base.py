@@ -125,6 +125,10 @@ class StepReport:
     """Freezes found during the tick (``freeze.Freeze``): AGVs without progress for
     ``executor.freeze_s`` while nothing they wait on can still move. The loop counts them
     as deadlocks, logs them and replans the AGVs involved from where they stand."""
+    committed: dict[int, int] = field(default_factory=dict)
+    """AGVs that are committed beyond their state (physics: they drive through released
+    actions they claimed, and cannot stop before): the node each will stand on when those
+    are done, where a new plan must start. Absent: its state's node."""
 
 
 @runtime_checkable

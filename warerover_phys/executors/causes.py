@@ -174,6 +174,14 @@ class CauseRecorder:
         self.step_no += 1
         return int(active)
 
+    @property
+    def blocker(self) -> np.ndarray:
+        """Per AGV, the blocker found at its last look-up while waiting on a dependency
+        (-1: none; stale once it no longer waits). Read-only view."""
+        view = self._blocker.view()
+        view.flags.writeable = False
+        return view
+
     # ------------------------------------------------------------------------- helpers
 
     def _find_blocker(self, i: int) -> int:

@@ -483,6 +483,9 @@ class PlanFollower:
         tick_next = view.tick + 1
         states, late, has_next, running = self.adg.progress(st.n, tick_next)
         report.states.update(enumerate(states))
+        cut = self.adg.cut_node
+        report.committed.update((i, c) for i, c in ((i, cut(i)) for i in range(st.n)
+                                                    if running[i]) if c != states[i][1])
         report.behind.update(enumerate(map(int, late)))
         report.blocked.extend(np.flatnonzero(st.waiting).tolist())
         # Distance of driving bodies from their path line (across the move direction).

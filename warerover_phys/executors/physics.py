@@ -89,6 +89,13 @@ class PhysicsExecutor:
         self.spec = spec
         self._bound = False
 
+    @property
+    def acyclic_plans(self) -> bool:
+        """Whether plans must have no cycle of moves within a tick (``PlanRequest.acyclic``):
+        following the action dependency graph (``executor.adg``), an AGV enters a cell only
+        once the AGV before it has left it, so a rotation would never start."""
+        return bool(getattr(self.spec, "adg", True))
+
     # ------------------------------------------------------------------------- set-up
 
     def bind(self, setup: ExecutorSetup) -> None:
@@ -146,7 +153,8 @@ class PhysicsExecutor:
         """Simulated time until which an AGV brakes after an AGV-AGV contact began."""
         self._tick = 0
         self._last_contact: tuple | None = None
-        unsolved_agv_contacts(self.space, self.fleet.agv_of_shape, self._contact)
+        unsolved_agv_contacts(self.space, self.fleet.agv_of_shape, self._contact,
+                              begin=self.acc.agv_agv_begin)
         self._shelf_contacts = bool(getattr(spec, "shelf_contacts", False))
         self._park = bool(getattr(spec, "park", True))
         self.parked_steps = 0
@@ -422,7 +430,8 @@ class PhysicsExecutor:
 
     def trajectory(self) -> dict[str, np.ndarray] | None:
         """Recorded poses: ``t`` (T,), ``x``, ``y``, ``heading`` (T, N), ``state`` (task
-        state, 7 = failed) and ``loaded`` (T, N), and what a renderer needs to draw them:
+        state, 7 = failed) and ``loaded`` (T, N), what each AGV was doing (``exec_state``,
+        ``blocker``, ``plan_tick``: :mod:`.recording`), and what a renderer needs to draw them:
         ``footprint``, ``body_m``, ``cell_m``, ``tick_s`` and the layout ``grid`` (the loop
         adds ``corridors_json``: the episode's corridors, see ``World.corridor_log``).
         Recordings longer than :data:`~.recording.CHUNK` samples are read-only memory maps

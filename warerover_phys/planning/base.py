@@ -77,6 +77,11 @@ class PlanRequest:
     every AGV size): planners must not park AGVs there to queue."""
     deadline: float | None = None
     """``time.monotonic()`` value after which the planner should stop planning more AGVs."""
+    acyclic: bool = False
+    """The executor follows an action dependency graph (physics): an AGV enters a cell only
+    after the AGV before it has left, so moves that form a cycle within one tick (AGVs
+    rotating into each other's cells) would wait for each other for ever. Step planners
+    (PIBT) then plan no such cycle."""
 
 
 @dataclass

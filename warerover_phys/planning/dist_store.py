@@ -6,7 +6,7 @@ thousands at the start. :class:`DistStore` keeps one table per goal cell, whoeve
 it first, in a least recently used cache bounded in bytes (``budget_mb``); a table evicted
 while a robot still holds it is found again (a weak reference) instead of being recomputed.
 
-With ``reserve`` (``run_lifelong`` passes its robot count) every table is a row of one 2-D
+With ``reserve`` (the compiled lifelong step, :mod:`.pibt_compiled`, passes its robot count) every table is a row of one 2-D
 array, :attr:`DistStore.slab`, so compiled code reads any robot's table by a row number; a
 row is reused once nobody holds its table.
 
@@ -70,7 +70,12 @@ class DistStore:
     """
 
     def __init__(self, graph: MotionGraph, budget_mb: float = DEFAULT_BUDGET_MB,
-                 reserve: int | None = None) -> None:
+                 reserve: int | None = None, *, dtype: type | None = None,
+                 share: DistStore | None = None, stores: int = 1) -> None:
+        """``dtype``: the tables' dtype (default: :meth:`_choose_dtype`). ``share``: keep the
+        tables in the slab of that store (its dtype, its rows: robots on two graphs, loaded
+        and not, read one slab); the first store of such a pair reserves rows for
+        ``stores`` caches."""
         if not budget_mb > 0:
             raise ValueError(f"budget_mb: expected a positive number, got {budget_mb!r}")
         n = graph.num_nodes
@@ -106,7 +111,8 @@ class DistStore:
         # through scipy (CPU, load 8 on 2 cores); the same depths
         from .pibt_numba import AVAILABLE, bfs_fill
         self._bfs_fill = bfs_fill if AVAILABLE else None
-        self.dtype = self._choose_dtype()
+        self.dtype = share.dtype if share is not None else (
+            dtype if dtype is not None else self._choose_dtype())
         self.table_bytes = n * np.dtype(self.dtype).itemsize
         self.budget_bytes = int(budget_mb * 2**20)
         self.capacity = max(1, self.budget_bytes // self.table_bytes)
@@ -114,15 +120,20 @@ class DistStore:
         self.slab: np.ndarray | None = None
         """With ``reserve``: every table is a row of this one 2-D array (``slot``), so a
         compiled step reads any robot's table by its row number (:mod:`.pibt_numba`)."""
-        if reserve is not None:
+        self._rows: _Rows | None = None
+        if share is not None:
+            if share.slab is None or share.num_nodes != n:
+                raise ValueError("share: a store with a slab over the same cells")
+            self.slab, self._rows = share.slab, share._rows
+        elif reserve is not None:
             # Rows for the cached tables and for one more table per robot (evicted but
             # still held): a robot holds one table, so the rows never run out (nor can
             # there be more tables than goal cells). np.empty only reserves the address
             # space; a row takes memory once a table is written into it.
-            rows = min(self.capacity + max(0, int(reserve)), max(1, len(self._free))) + 1
+            rows = min(stores * self.capacity + max(0, int(reserve)),
+                       stores * max(1, len(self._free))) + 1
             self.slab = np.empty((rows, n), dtype=self.dtype)
-            self._slots: list[int] = []  # rows given back
-            self._next_row = 0  # rows never used start here
+            self._rows = _Rows()
         self._cache: OrderedDict[int, np.ndarray] = OrderedDict()
         self._live: weakref.WeakValueDictionary[int, np.ndarray] = weakref.WeakValueDictionary()
         self.hits = 0
@@ -225,17 +236,18 @@ class DistStore:
     def _compute(self, goal: int) -> np.ndarray:
         far = _U16_FAR if self.dtype is np.uint16 else UNREACHABLE
         if self.slab is not None:
-            if self._slots:
-                row = self._slots.pop()
-            elif self._next_row < len(self.slab):
-                row = self._next_row
-                self._next_row += 1
+            rows = self._rows
+            if rows.slots:
+                row = rows.slots.pop()
+            elif rows.next_row < len(self.slab):
+                row = rows.next_row
+                rows.next_row += 1
             else:  # pragma: no cover - more tables held than robots reserved
                 raise RuntimeError("DistStore: every slab row is held (reserve too small)")
             table = self.slab[row]
             table.fill(far)
             # the row is free again once nobody (cache, robot) holds the table
-            weakref.finalize(table, self._slots.append, row)
+            weakref.finalize(table, rows.slots.append, row)
         else:
             table = np.full(self.num_nodes, far, dtype=self.dtype)
         if self._enterable[goal]:
@@ -250,7 +262,7 @@ class DistStore:
     @property
     def slab_rows_in_use(self) -> int:
         """Rows of :attr:`slab` holding a table (0 without a slab)."""
-        return 0 if self.slab is None else self._next_row - len(self._slots)
+        return 0 if self._rows is None else self._rows.next_row - len(self._rows.slots)
 
     def counters(self) -> dict[str, Any]:
         """Hits, misses (tables computed), revived, evictions, seconds of BFS, tables cached
@@ -262,3 +274,14 @@ class DistStore:
                 "cached_mb": len(self._cache) * self.table_bytes / 2**20,
                 "capacity_tables": self.capacity, "budget_mb": self.budget_bytes / 2**20,
                 "dtype": np.dtype(self.dtype).name}
+
+
+class _Rows:
+    """The rows of a slab: those given back and where never-used ones start (shared by
+    the stores that share the slab)."""
+
+    __slots__ = ("slots", "next_row")
+
+    def __init__(self) -> None:
+        self.slots: list[int] = []
+        self.next_row = 0

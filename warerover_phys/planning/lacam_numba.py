@@ -66,10 +66,10 @@ def _setup(f, i, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, nxt, goa
     here = config[i]
     keys = np.empty(5, dtype=np.float64)
     m = 0
-    for t in range(deg[here] + 1):
-        v = nbr[here, t] if t < deg[here] else here
+    for t in range(deg[0, here] + 1):
+        v = nbr[0, here, t] if t < deg[0, here] else here
         dv = _dist(tables, i, v, False, config, heading, cols)
-        if t < deg[here] and dv >= _UNR:
+        if t < deg[0, here] and dv >= _UNR:
             continue
         key = float(dv) + tie[v]
         j = m  # stable insertion: equal keys keep their order
@@ -169,7 +169,7 @@ def _push(root, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, occ_next,
 def _step(nbr, deg, config, goal, tables, order, tie, forced_who, forced_where, gkeys, gvals,
           cols):
     n = config.shape[0]
-    cells = nbr.shape[0]
+    cells = nbr.shape[1]
     occ_now = np.full(cells, -1, dtype=np.int64)
     occ_next = np.full(cells, -1, dtype=np.int64)
     nxt = np.full(n, -1, dtype=np.int64)
@@ -184,8 +184,8 @@ def _step(nbr, deg, config, goal, tables, order, tie, forced_who, forced_where, 
             return nxt, False
         if v != here:
             near = False
-            for t in range(deg[here]):
-                if nbr[here, t] == v:
+            for t in range(deg[0, here]):
+                if nbr[0, here, t] == v:
                     near = True
             if not near:
                 return nxt, False
@@ -218,6 +218,9 @@ def step(nbr: np.ndarray, deg: np.ndarray, config: np.ndarray, goal: np.ndarray,
     ``guide`` as :func:`guide_arrays`) compiled; ``tables``: :func:`.pibt_numba.robot_tables`,
     ``order``: :func:`.pibt_numba.priority_order`, ``tie``: float64 per cell. None where the
     reference returns None."""
-    nxt, ok = _step(nbr, deg, config, goal, tables, order, tie, forced_who, forced_where,
-                    gkeys, gvals, cols)
+    # the PIBT kernels read graphs by index (robots may move on graphs of their own): here
+    # every robot moves on the one graph
+    one = (tables[0], tables[1], np.zeros(len(config), dtype=np.int64))
+    nxt, ok = _step(nbr[None], deg[None], config, goal, one, order, tie, forced_who,
+                    forced_where, gkeys, gvals, cols)
     return nxt if ok else None

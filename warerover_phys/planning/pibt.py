@@ -56,7 +56,7 @@ def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndar
               prio: Sequence[float], tie: np.ndarray,
               forced: Sequence[tuple[int, int]] = (), goals: Sequence[int] | None = None,
               swap: bool = True, tables: Sequence[Sequence[tuple[int, ...]]] | None = None,
-              guide: Sequence[dict[int, int]] | None = None,
+              guide: Sequence[dict[int, int]] | None = None, acyclic: bool = False,
               ) -> list[int] | None:
     """Next configuration from ``config`` (one node per agent), or None if ``forced``
     moves (agent, node) contradict each other.
@@ -69,6 +69,9 @@ def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndar
     a cell from which its goal is unreachable. ``guide`` (one-shot instances,
     :mod:`~warerover_phys.planning.scatter`): ``guide[i][v]`` is the cell agent i tries first
     when it stands on ``v`` (the next cell of its guide path); its other cells keep their order.
+    ``acyclic``: no agent enters the cell of an agent up its push chain (one still deciding),
+    so the moves form no cycle (a rotation of agents into each other's cells, which an
+    action dependency graph cannot execute).
     """
     n = len(config)
     neighbors = graph.neighbors
@@ -148,7 +151,16 @@ def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndar
                 return k
         return -1
 
+    active: set[int] = set()
+
     def push(i: int, parent: int) -> bool:
+        active.add(i)
+        try:
+            return choose(i)
+        finally:
+            active.discard(i)
+
+    def choose(i: int) -> bool:
         here = config[i]
         d = dists[i]
         near = tables[i][here] if tables is not None else neighbors[here]
@@ -170,8 +182,9 @@ def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndar
             if v in occ_next:
                 continue
             k = occ_now.get(v)
-            if k is not None and k != i and nxt[k] == here:
-                continue  # would swap places with an agent already moving into our cell
+            if k is not None and k != i and (nxt[k] == here or (acyclic and k in active)):
+                continue  # would swap places with an agent moving into our cell, or close
+                # a cycle of moves (``acyclic``: k is still deciding, up our push chain)
             nxt[i] = v
             occ_next[v] = i
             if k is not None and k != i and nxt[k] == -1 and not push(k, i):

@@ -34,7 +34,7 @@ import numpy as np
 from .graph import UNREACHABLE as _UNREACHABLE
 from .pibt import in_priority_order
 
-__all__ = ["STEP", "heading_pibt_step", "turns_to_progress"]
+__all__ = ["STEP", "heading_pibt_step", "turns_to_progress", "Facing", "turn_first"]
 
 STEP = ((0, 1), (1, 0), (0, -1), (-1, 0))
 """Headings 0-3: east (+col), south (+row), west (-col), north (-row)."""
@@ -118,7 +118,7 @@ def heading_pibt_step(neighbors: Sequence[Sequence[int]], cols: int, config: Seq
                       heading: Sequence[int], dists: Sequence[np.ndarray],
                       prio: Sequence[float], tie: np.ndarray,
                       escaping: frozenset[int] = frozenset(),
-                      steps: tuple[list, list] | None = None,
+                      steps: tuple[list, list] | None = None, acyclic: bool = False,
                       ) -> tuple[list[int], list[int], list[str], frozenset[int]]:
     """Next cells, next headings and actions (``F`` forward, ``R`` clockwise, ``C``
     counter-clockwise, ``W`` wait) of every robot; see the module docstring.
@@ -170,9 +170,20 @@ def heading_pibt_step(neighbors: Sequence[Sequence[int]], cols: int, config: Seq
         out.sort(key=lambda o: o[0])
         return out
 
+    active: set[int] = set()
+
     def push(i: int, pusher: int) -> bool:
+        active.add(i)
+        try:
+            return choose(i, pusher)
+        finally:
+            active.discard(i)
+
+    def choose(i: int, pusher: int) -> bool:
         """Choose robot ``i``'s action; ``pusher``: the cell of the robot that wants ``i``'s
-        cell (-1: none), so ``i`` must move forward or fail."""
+        cell (-1: none), so ``i`` must move forward or fail. ``acyclic``: never into the
+        cell of a robot still deciding (the robots pushing, up the chain): that would close
+        a cycle of moves."""
         here = config[i]
         must_leave = pusher >= 0
         for _, act, v, h in options(i):
@@ -185,8 +196,8 @@ def heading_pibt_step(neighbors: Sequence[Sequence[int]], cols: int, config: Seq
             if v in occ_next:
                 continue
             k = occ_now.get(v)
-            if k is not None and nxt[k] == here:
-                continue  # would swap cells with a robot moving into ours
+            if k is not None and (nxt[k] == here or (acyclic and k in active)):
+                continue  # would swap cells with a robot moving into ours, or close a cycle
             nxt[i], nh[i], acts[i] = v, h, "F"
             occ_next[v] = i
             if k is not None and nxt[k] == -1 and not push(k, here):
@@ -226,3 +237,61 @@ def heading_pibt_step(neighbors: Sequence[Sequence[int]], cols: int, config: Seq
 
     in_priority_order(prio, nxt, push)
     return nxt, nh, acts, frozenset(escaped)
+
+
+# ------------------------------------------------------------------------- the turn-first rule
+
+
+class Facing:
+    """The ``turn-first`` rule's costs: a robot's distances to its goal plus, for the cells
+    next to it, the quarter turns it needs to face them (PIBT then prefers going on
+    straight ahead). Keyed ``(row + dr) * cols + col + dc``, which wraps at the map's side
+    columns (kept: the compiled step, :func:`~.pibt_numba.pibt_step_nb` with ``heading``,
+    reads the same)."""
+
+    __slots__ = ("d", "here", "extra")
+
+    def __init__(self, d, here: int, heading: int, cols: int) -> None:
+        self.d = d
+        self.here = here
+        r, c = divmod(here, cols)
+        self.extra = {}
+        for h, (dr, dc) in enumerate(STEP):
+            turns = (h - heading) % 4
+            self.extra[(r + dr) * cols + c + dc] = min(turns, 4 - turns)
+
+    def __getitem__(self, v: int) -> int:
+        return int(self.d[v]) + self.extra.get(v, 0)
+
+
+def turn_first(config: list[int], nxt: list[int], heading: list[int], acts: list[str],
+               cols: int) -> list[int]:
+    """PIBT's cells under the rotation model: a robot moves only forward; one whose cell lies
+    in another direction turns towards it and stays, and whoever was to enter the cell of a
+    robot that stays, stays too. Updates ``heading`` and ``acts``; returns the cells."""
+    n = len(config)
+    out = list(nxt)
+    for i in range(n):
+        if out[i] == config[i]:
+            continue
+        dr = out[i] // cols - config[i] // cols
+        dc = out[i] % cols - config[i] % cols
+        want = STEP.index((dr, dc))
+        if want != heading[i]:
+            diff = (want - heading[i]) % 4
+            acts[i] = "R" if diff in (1, 2) else "C"
+            heading[i] = (heading[i] + (1 if acts[i] == "R" else -1)) % 4
+            out[i] = config[i]
+    # Cascade: whoever enters a cell whose robot stays, stays.
+    stack = [i for i in range(n) if out[i] == config[i]]
+    entering: dict[int, int] = {out[i]: i for i in range(n) if out[i] != config[i]}
+    while stack:
+        i = stack.pop()
+        j = entering.pop(config[i], None)
+        if j is not None and out[j] != config[j]:
+            out[j] = config[j]
+            stack.append(j)
+    for i in range(n):
+        if out[i] != config[i] and acts[i] == "W":
+            acts[i] = "F"
+    return out

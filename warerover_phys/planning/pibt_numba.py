@@ -12,14 +12,14 @@ headings and actions; ``tests/planning/test_pibt_numba.py`` checks it on random 
 over whole lifelong runs. The Python steps stay the reference (and the fallback when numba
 is missing: :data:`AVAILABLE`).
 
-``facing=True`` is the ``turn-first`` rule's cost (``lorr._Facing``): a robot's distance
+``facing=True`` is the ``turn-first`` rule's cost (:class:`~.pibt_heading.Facing`): a robot's distance
 plus the quarter turns to face each of the four cells next to it, keyed as that class keys
 them (``(row + dr) * cols + col + dc``, which wraps at the map's side columns; kept so that
 plans stay the same).
 
 Compile time: the first call in a process without numba's cache compiles (seconds); with
 ``cache=True`` later processes load the machine code from ``__pycache__``
-(:func:`warm_up` does either, and ``run_lifelong`` reports it in ``setup_s``).
+(:func:`warm_up` does either).
 """
 
 from __future__ import annotations
@@ -113,7 +113,7 @@ def robot_tables(tables: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
 @njit(cache=True, inline="always")
 def _dist(tables, i, v, facing, config, heading, cols):
     """Robot ``i``'s cost of cell ``v``: its table, plus (``facing``) the turns to face the
-    cell as ``lorr._Facing`` counts them."""
+    cell as :class:`~.pibt_heading.Facing` counts them."""
     d = np.int64(tables[0][tables[1][i], v])
     if facing:
         here = config[i]
@@ -143,11 +143,12 @@ def _free_branches(v, came_from, agent, tables, nbr, deg, occ_now, goal, facing,
                    heading, cols):
     count = 0
     last = -1
-    for t in range(deg[v]):
-        u = nbr[v, t]
+    g = tables[2][agent]
+    for t in range(deg[g, v]):
+        u = nbr[g, v, t]
         a = occ_now[u]
         if u == came_from or _dist(tables, agent, u, facing, config, heading, cols) >= _UNR \
-                or (deg[u] == 1 and a >= 0 and goal[a] == u):
+                or (deg[0, u] == 1 and a >= 0 and goal[a] == u):
             continue
         count += 1
         last = u
@@ -202,8 +203,9 @@ def _swap_partner(i, best, tables, nbr, deg, occ_now, nxt, goal, facing, config,
         return j
     d_here = _dist(tables, i, here, facing, config, heading, cols)
     d_best = _dist(tables, i, best, facing, config, heading, cols)
-    for t in range(deg[here]):
-        u = nbr[here, t]
+    g = tables[2][i]
+    for t in range(deg[g, here]):
+        u = nbr[g, here, t]
         k = occ_now[u]
         if k < 0 or best == config[k]:
             continue
@@ -226,10 +228,12 @@ def _setup(f, i, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, nxt, goa
     here = config[i]
     keys = np.empty(5, dtype=np.float64)
     m = 0
-    for t in range(deg[here] + 1):
-        v = nbr[here, t] if t < deg[here] else here
+    g = tables[2][i]
+    m_here = deg[g, here]
+    for t in range(m_here + 1):
+        v = nbr[g, here, t] if t < m_here else here
         dv = _dist(tables, i, v, facing, config, heading, cols)
-        if t < deg[here] and dv >= _UNR:
+        if t < m_here and dv >= _UNR:
             continue
         key = float(dv) + tie[v]
         j = m  # stable insertion: equal keys keep their order
@@ -253,13 +257,15 @@ def _setup(f, i, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, nxt, goa
 
 @njit(cache=True)
 def _push(root, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, occ_next, nxt, goal,
-          tie, facing, config, heading, cols):
+          tie, facing, config, heading, cols, instack, acyclic):
     """The reference's recursive ``push(root, -1)`` run on an explicit stack (numba cannot
     cache recursive functions): a frame per robot asked to move, its next candidate in
-    ``idx``; a child's answer resumes its parent at that candidate."""
+    ``idx``; a child's answer resumes its parent at that candidate. ``acyclic``: no robot
+    enters the cell of a robot on the stack (that would close a cycle of moves)."""
     f = 0
     _setup(0, root, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, nxt, goal, tie,
            facing, config, heading, cols)
+    instack[root] = True
     ret = False
     resume = False
     while f >= 0:
@@ -273,6 +279,7 @@ def _push(root, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, occ_next,
                 if q == 0 and partner >= 0 and nxt[partner] == -1 and occ_next[here] < 0:
                     nxt[partner] = here  # pull the partner along behind us
                     occ_next[here] = partner
+                instack[i] = False
                 f -= 1
                 resume = True
                 continue
@@ -285,7 +292,7 @@ def _push(root, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, occ_next,
                 idx[f] += 1
                 continue
             k = occ_now[v]
-            if k >= 0 and k != i and nxt[k] == here:
+            if k >= 0 and k != i and (nxt[k] == here or (acyclic and instack[k])):
                 idx[f] += 1
                 continue
             nxt[i] = v
@@ -294,6 +301,7 @@ def _push(root, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, occ_next,
                 f += 1
                 _setup(f, k, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, nxt, goal,
                        tie, facing, config, heading, cols)
+                instack[k] = True
                 descended = True
                 break
             partner = part[f]
@@ -301,6 +309,7 @@ def _push(root, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, occ_next,
                 nxt[partner] = here
                 occ_next[here] = partner
             ret = True
+            instack[i] = False
             f -= 1
             resume = True
             descended = True
@@ -310,15 +319,18 @@ def _push(root, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, occ_next,
         nxt[i] = here
         occ_next[here] = i
         ret = False
+        instack[i] = False
         f -= 1
         resume = True
     return ret
 
 
 @njit(cache=True)
-def _pibt_kernel(nbr, deg, config, goal, tables, order, tie, facing, heading, cols):
+def _pibt_kernel(nbr, deg, config, goal, tables, order, tie, facing, heading, cols, held,
+                 acyclic):
     n = config.shape[0]
-    cells = nbr.shape[0]
+    cells = nbr.shape[1]
+    instack = np.zeros(n, dtype=np.bool_)
     occ_now = np.full(cells, -1, dtype=np.int64)
     occ_next = np.full(cells, -1, dtype=np.int64)
     nxt = np.full(n, -1, dtype=np.int64)
@@ -329,11 +341,15 @@ def _pibt_kernel(nbr, deg, config, goal, tables, order, tie, facing, heading, co
     idx = np.empty(n, dtype=np.int64)
     for i in range(n):
         occ_now[config[i]] = i
+    for i in range(n):  # held robots stay (the reference's forced moves onto their cells)
+        if held[i]:
+            nxt[i] = config[i]
+            occ_next[config[i]] = i
     for r in range(n):
         i = order[r]
         if nxt[i] == -1:
             _push(i, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, occ_next, nxt, goal,
-                  tie, facing, config, heading, cols)
+                  tie, facing, config, heading, cols, instack, acyclic)
     return nxt
 
 
@@ -344,17 +360,35 @@ def priority_order(prio) -> np.ndarray:
 
 
 def pibt_step_nb(st: StepTables, config: np.ndarray, goal: np.ndarray, tables, order: np.ndarray,
-                 tie: np.ndarray, heading: np.ndarray | None = None) -> np.ndarray:
+                 tie: np.ndarray, heading: np.ndarray | None = None,
+                 held: np.ndarray | None = None,
+                 moves: tuple[tuple[StepTables, ...], np.ndarray] | None = None,
+                 acyclic: bool = False) -> np.ndarray:
     """:func:`~.pibt.pibt_step` (``goals=goal``, swaps on) compiled: the next cell of every
     robot. ``tables``: :func:`robot_tables`; ``order``: :func:`priority_order` of the
     priorities; ``tie``: the tie-break per cell (float64). With ``heading``, the costs of
-    the ``turn-first`` rule (see the module docstring)."""
+    the ``turn-first`` rule (see the module docstring). ``held``: a bool per robot, True
+    for robots that must stay (the reference's ``forced`` moves onto their own cells).
+    ``moves``: robots that move on graphs of their own (the reference's ``tables``, e.g.
+    loaded AGVs on the loaded graph): the graphs' step tables (the first is ``st``, whose
+    degrees decide dead ends) and each robot's graph index. ``acyclic``: no cycle of moves
+    (robots rotating into each other's cells, which an action dependency graph cannot
+    run; the reference's ``acyclic``)."""
     facing = heading is not None
     hd = np.asarray(heading if facing else np.zeros(1), dtype=np.int64)
-    return _pibt_kernel(st.nbr, st.deg, np.asarray(config, dtype=np.int64),
-                        np.asarray(goal, dtype=np.int64), tables,
-                        np.asarray(order, dtype=np.int64), np.asarray(tie, dtype=np.float64),
-                        facing, hd, st.cols)
+    config = np.asarray(config, dtype=np.int64)
+    held = np.zeros(len(config), dtype=np.bool_) if held is None else \
+        np.asarray(held, dtype=np.bool_)
+    if moves is None:
+        nbr, deg, gi = st.nbr[None], st.deg[None], np.zeros(len(config), dtype=np.int64)
+    else:
+        nbr = np.stack([t.nbr for t in moves[0]])
+        deg = np.stack([t.deg for t in moves[0]])
+        gi = np.asarray(moves[1], dtype=np.int64)
+    return _pibt_kernel(nbr, deg, config, np.asarray(goal, dtype=np.int64),
+                        (tables[0], tables[1], gi), np.asarray(order, dtype=np.int64),
+                        np.asarray(tie, dtype=np.float64), facing, hd, st.cols, held,
+                        bool(acyclic))
 
 
 # ------------------------------------------------------------------------- heading PIBT
@@ -450,11 +484,13 @@ def _hsetup(f, i, pusher, ag, pus, kinds, cells, heads, nopt, idx, tables, nbr, 
 
 @njit(cache=True)
 def _hpush(root, ag, pus, kinds, cells, heads, nopt, idx, tables, nbr, deg, nbr_dir, ahead_of,
-           turns, occ_now, occ_next, nxt, nh, acts, escaping, escaped, tie, config, heading):
+           turns, occ_now, occ_next, nxt, nh, acts, escaping, escaped, tie, config, heading,
+           instack, acyclic):
     """The reference's recursive ``push(root, -1)`` on an explicit stack (see ``_push``)."""
     f = 0
     _hsetup(0, root, -1, ag, pus, kinds, cells, heads, nopt, idx, tables, nbr, deg, nbr_dir,
             ahead_of, turns, escaping, tie, config, heading)
+    instack[root] = True
     ret = False
     resume = False
     while f >= 0:
@@ -464,6 +500,7 @@ def _hpush(root, ag, pus, kinds, cells, heads, nopt, idx, tables, nbr, deg, nbr_
         if resume:
             resume = False
             if ret:
+                instack[i] = False
                 f -= 1
                 resume = True
                 continue
@@ -491,7 +528,7 @@ def _hpush(root, ag, pus, kinds, cells, heads, nopt, idx, tables, nbr, deg, nbr_
                 idx[f] += 1
                 continue
             k = occ_now[v]
-            if k >= 0 and nxt[k] == here:
+            if k >= 0 and (nxt[k] == here or (acyclic and instack[k])):
                 idx[f] += 1
                 continue
             nxt[i] = v
@@ -502,6 +539,7 @@ def _hpush(root, ag, pus, kinds, cells, heads, nopt, idx, tables, nbr, deg, nbr_
                 f += 1
                 _hsetup(f, k, here, ag, pus, kinds, cells, heads, nopt, idx, tables, nbr, deg,
                         nbr_dir, ahead_of, turns, escaping, tie, config, heading)
+                instack[k] = True
                 break
             ret = True
             descended = True
@@ -526,10 +564,12 @@ def _hpush(root, ag, pus, kinds, cells, heads, nopt, idx, tables, nbr, deg, nbr_
                         acts[i] = 67
                     escaped[i] = True
             ret = False
+            instack[i] = False
             f -= 1
             resume = True
             continue
         if descended:  # answered: back to the parent
+            instack[i] = False
             f -= 1
             resume = True
     return ret
@@ -537,7 +577,7 @@ def _hpush(root, ag, pus, kinds, cells, heads, nopt, idx, tables, nbr, deg, nbr_
 
 @njit(cache=True)
 def _heading_kernel(nbr, deg, nbr_dir, ahead_of, turns, config, heading, tables, order, tie,
-                    escaping):
+                    escaping, held, acyclic):
     n = config.shape[0]
     cells = nbr.shape[0]
     occ_now = np.full(cells, -1, dtype=np.int64)
@@ -546,6 +586,7 @@ def _heading_kernel(nbr, deg, nbr_dir, ahead_of, turns, config, heading, tables,
     nh = heading.copy()
     acts = np.full(n, 87, dtype=np.uint8)
     escaped = np.zeros(n, dtype=np.bool_)
+    instack = np.zeros(n, dtype=np.bool_)
     ag = np.empty(n, dtype=np.int64)
     pus = np.empty(n, dtype=np.int64)
     kinds = np.empty((n, 4), dtype=np.int64)
@@ -555,26 +596,33 @@ def _heading_kernel(nbr, deg, nbr_dir, ahead_of, turns, config, heading, tables,
     idx = np.empty(n, dtype=np.int64)
     for i in range(n):
         occ_now[config[i]] = i
+    for i in range(n):  # held robots wait where they are
+        if held[i]:
+            nxt[i] = config[i]
+            occ_next[config[i]] = i
     for r in range(n):
         i = order[r]
         if nxt[i] == -1:
             _hpush(i, ag, pus, kinds, cells_, heads, nopt, idx, tables, nbr, deg, nbr_dir,
                    ahead_of, turns, occ_now, occ_next, nxt, nh, acts, escaping, escaped, tie,
-                   config, heading)
+                   config, heading, instack, acyclic)
     return nxt, nh, acts, escaped
 
 
 def heading_step_nb(st: StepTables, config: np.ndarray, heading: np.ndarray, tables,
-                    order: np.ndarray, tie: np.ndarray, escaping: np.ndarray
+                    order: np.ndarray, tie: np.ndarray, escaping: np.ndarray,
+                    held: np.ndarray | None = None, acyclic: bool = False
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`~.pibt_heading.heading_pibt_step` compiled: next cells, next headings, actions
     (``uint8`` ASCII codes of ``F`` / ``R`` / ``C`` / ``W``) and the robots that turned to make
-    way (a bool array: next timestep's ``escaping``)."""
-    return _heading_kernel(st.nbr, st.deg, st.nbr_dir, st.ahead, st.turns,
-                           np.asarray(config, dtype=np.int64),
+    way (a bool array: next timestep's ``escaping``). ``held``: robots that must wait."""
+    config = np.asarray(config, dtype=np.int64)
+    held = np.zeros(len(config), dtype=np.bool_) if held is None else \
+        np.asarray(held, dtype=np.bool_)
+    return _heading_kernel(st.nbr, st.deg, st.nbr_dir, st.ahead, st.turns, config,
                            np.asarray(heading, dtype=np.int64), tables,
                            np.asarray(order, dtype=np.int64), np.asarray(tie, dtype=np.float64),
-                           np.asarray(escaping, dtype=np.bool_))
+                           np.asarray(escaping, dtype=np.bool_), held, bool(acyclic))
 
 
 @njit(cache=True)
@@ -628,7 +676,7 @@ def _turn_first_kernel(config, nxt, heading, cols, cells):
 
 def turn_first_nb(config: np.ndarray, nxt: np.ndarray, heading: np.ndarray, cols: int,
                   cells: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``lorr._turn_first`` compiled: (cells, headings, action codes) of PIBT's next cells
+    """:func:`~.pibt_heading.turn_first` compiled: (cells, headings, action codes) of PIBT's next cells
     ``nxt`` under the rotation model."""
     return _turn_first_kernel(np.asarray(config, dtype=np.int64),
                               np.asarray(nxt, dtype=np.int64),

@@ -159,16 +159,32 @@ class PIBTPlanner:
     replans_all = True
     """The loop must send every AGV every tick."""
 
-    def __init__(self, swap: bool = True, rotation: str = "cascade", **_: object) -> None:
+    def __init__(self, swap: bool = True, rotation: str = "cascade", engine: str = "numba",
+                 budget_mb: float = 1024.0, **_: object) -> None:
+        from .pibt_compiled import CompiledStep
+
         self.swap = swap
         self.rotation = rotation
-        """How rotation-aware AGVs take part in a step (``footprint_step``'s ``rotation``)."""
+        """How rotation-aware AGVs take part in a step: ``cascade`` (``footprint_step``'s),
+        or a Robot Runners rule, ``actions`` or ``turn-first`` (:mod:`.pibt_compiled`)."""
+        self._compiled = CompiledStep(budget_mb=budget_mb, engine=engine)
+        """1x1 fleets (:func:`.pibt_compiled.eligible`): the compiled step (``engine``
+        ``numba``) or its Python references (``python``, for tests)."""
 
     def plan(self, request: PlanRequest) -> PlanResult:
+        from .pibt_compiled import RULES, eligible
+
         agents: list[AgentRequest] = sorted(request.agents, key=lambda a: a.agv)
         result = PlanResult()
         if not agents:
             return result
+        if self.swap and eligible(agents, self.rotation) and (
+                self._compiled.engine == "numba" or agents[0].turn_ticks is not None):
+            return self._compiled.plan(request, agents, self.rotation)
+        if self.rotation in RULES and any(a.turn_ticks is not None for a in agents):
+            raise ValueError(f"planner.rotation_rule {self.rotation!r} plans 1x1 AGVs that "
+                             "move a cell and turn a quarter in one tick each, unloaded; this "
+                             "request has others (use rotation_rule 'cascade')")
         if not uniform_fleet(agents):
             return self._plan_footprints(request, agents)
         graphs = request.graphs
@@ -183,7 +199,7 @@ class PIBTPlanner:
         rng = request.rng if request.rng is not None else np.random.default_rng(0)
         tie = rng.random(unloaded.num_nodes) * 0.5
         nxt = pibt_step(unloaded, config, dists, prio, tie, forced=held, goals=goals,
-                        swap=self.swap, tables=tables)
+                        swap=self.swap, tables=tables, acyclic=request.acyclic)
         if nxt is None:  # cannot happen with holds only (they never contradict); be safe
             nxt = list(config)
         res = request.reservations

@@ -155,6 +155,15 @@ class ReservationTable:
         new.sizes = dict(self.sizes)
         return new
 
+    def snapshot(self) -> ReservationTable:
+        """A copy made when first read (:meth:`copy` then): a planner that never reads its
+        request's reservations (the compiled lifelong PIBT) costs no copy (12 ms a tick at
+        5,000 AGVs). Read it before this table changes again (the loop changes its own
+        only after the planner has answered)."""
+        lazy = _LazyTable.__new__(_LazyTable)
+        object.__setattr__(lazy, "_source", self)
+        return lazy
+
     def release(self, agv: int) -> None:
         """Forget the committed path of ``agv`` (if any)."""
         for cell, t in self._keys.pop(agv, ()):
@@ -203,3 +212,15 @@ class ReservationTable:
     def resting_at(self, cell: int) -> int | None:
         rest = self._rest.get(cell)
         return None if rest is None else rest[1]
+
+
+class _LazyTable(ReservationTable):
+    """:meth:`ReservationTable.snapshot`: its state is copied from the source on first
+    use."""
+
+    def __getattr__(self, name: str):  # only for attributes not set yet
+        if name.startswith("__") or "_source" not in self.__dict__:
+            raise AttributeError(name)
+        src = self.__dict__.pop("_source")
+        self.__dict__.update(src.copy().__dict__)
+        return getattr(self, name)

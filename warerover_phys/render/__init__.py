@@ -9,6 +9,7 @@ a file); the simulation never imports it, so runs without ``--video`` do not nee
 """
 
 from .frame import PALETTE, Geometry, Scene, Snapshot, Style, draw_frame, frame_geometry, status_of
+from .plans import PathSet, PlanIndex, PlanProgress
 from .trajectory import (
     Recording,
     ghost_poses,
@@ -17,11 +18,21 @@ from .trajectory import (
     recording_from_episode,
     recording_with_ghosts,
 )
-from .video import SIZES, VideoWriter, auto_speed, frame_times, parse_size, render_video, write_png
+from .video import (
+    SIZES,
+    FrameRate,
+    VideoWriter,
+    auto_speed,
+    draw_frames,
+    frame_times,
+    parse_size,
+    render_video,
+    write_png,
+)
 
 __all__ = ["PALETTE", "Geometry", "Scene", "Snapshot", "Style", "draw_frame", "frame_geometry",
            "status_of",
            "Recording", "grid_trajectory", "load_trajectory", "recording_from_episode",
            "ghost_poses", "recording_with_ghosts",
            "SIZES", "VideoWriter", "auto_speed", "frame_times", "parse_size", "render_video",
-           "write_png"]
+           "write_png", "draw_frames", "FrameRate", "PathSet", "PlanIndex", "PlanProgress"]

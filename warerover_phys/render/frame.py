@@ -1,14 +1,20 @@
 """One frame of an episode: a pure function from a state snapshot to a BGR image.
 
 :func:`draw_frame` draws, in this order: the floor (cell types: shelves, stations, parking,
-obstacles; grid lines when cells are big enough), the open safety corridors (translucent zone
-and outline), the planned path ahead of each AGV (optional), each AGV's planned pose as an outlined
-ghost (optional, ``Style.ghosts``: the open-loop gap's video), the AGVs as rotated rectangles
-of their true size coloured by status (idle, moving, loaded, failed) with a heading mark, a
-cargo marker, a cross when failed and the id, then a heads-up line (simulated time, orders
-done / total, throughput, active failures) and a legend. Colours are the Okabe-Ito palette
-(distinct for the common colour-vision deficiencies); status is also shown by shape (cargo
-square, failure cross), so it does not rest on colour alone.
+obstacles; grid lines when cells are big enough; drawn once per style and copied), the open
+safety corridors (translucent zone and outline), the path still ahead of each AGV from its
+own progress in its plan (optional), each AGV's planned pose as an outlined ghost (optional,
+``Style.ghosts``), the AGVs as rotated rectangles of their true size coloured by what they
+are doing (the recording's ``exec_state``: driving, turning, waiting on a dependency,
+held by an injected delay, failed, finished, working, standing; recordings without it: by
+task status, idle / moving / loaded / failed) with a heading mark, a cargo marker, a cross
+when failed and the id, a thin arrow from each AGV waiting on a dependency to its blocker,
+then a heads-up line and a legend. The heads-up line of a plan execution gives the time,
+AGVs finished / total, planned vs executed makespan so far and the AGV-seconds lost so far;
+a run with orders gives orders done / total and throughput. Colours are the Okabe-Ito
+palette (distinct for the common colour-vision deficiencies); failure and cargo are also
+shown by shape (cross, square), so they do not rest on colour alone. The per-frame layers
+are drawn in batches (:mod:`.layers`, bodies in one compiled pass: :mod:`.raster`).
 
 Large layouts: the map is scaled to fit the frame (or the ``viewport`` cells); details drop
 out below a pixel size (ids below ``label_min_px``, heading marks, outlines and cargo below
@@ -33,8 +39,21 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from ..executors.recording import EXEC_STATES, FAILED, WAITING
+from .layers import (
+    SHIFT,
+    corridor_key,
+    corridor_layer,
+    draw_arrows,
+    draw_bodies,
+    draw_ghosts,
+    draw_paths,
+)
+from .plans import PathSet, PlanProgress
+from .raster import draw_lines
+
 __all__ = ["Scene", "Snapshot", "Style", "draw_frame", "PALETTE", "status_of", "Geometry",
-           "frame_geometry"]
+           "frame_geometry", "EXEC_LABELS"]
 
 
 def _bgr(hex_rgb: str) -> tuple[int, int, int]:
@@ -65,6 +84,15 @@ PALETTE: dict[str, tuple[int, int, int]] = {
     "failed": OKABE_ITO["vermillion"],
     "corridor": OKABE_ITO["purple"],
     "ghost": OKABE_ITO["green"],
+    # what an AGV is doing (the recording's exec_state)
+    "standing": OKABE_ITO["black"],
+    "driving": OKABE_ITO["blue"],
+    "turning": OKABE_ITO["sky"],
+    "waiting": OKABE_ITO["orange"],
+    "delayed": OKABE_ITO["purple"],
+    "finished": (190, 190, 190),
+    "working": _bgr("B89B00"),
+    "arrow": _bgr("8C3C14"),
     "outline": (30, 30, 30),
     "hud_bg": (38, 38, 38),
     "hud_text": (245, 245, 245),
@@ -72,18 +100,23 @@ PALETTE: dict[str, tuple[int, int, int]] = {
     "legend_text": (20, 20, 20),
 }
 """Colours (BGR) by role; cells use ``floor``/``obstacle``/``shelf``/``station``/``parking``,
-AGVs their status (``idle``, ``moving``, ``loaded``, ``failed``)."""
+AGVs what they are doing (``EXEC_STATES``: ``driving``, ``turning``, ``waiting``,
+``delayed``, ``failed``, ``finished``, ``working``, ``standing``; finished ones fade into the
+floor so the busy ones stand out) or, in recordings without it, their status (``idle``,
+``moving``, ``loaded``, ``failed``); ``arrow`` points from a waiting AGV to its blocker."""
 
 STATUS_NAMES = ("idle", "moving", "loaded", "failed")
-_STATUS_BGR = np.array([PALETTE[s] for s in STATUS_NAMES], dtype=np.int32)
-_INK = (PALETTE["outline"], (255, 255, 255), PALETTE["outline"], (255, 255, 255))
-"""Colour of marks drawn on a body of each status (dark on light bodies, white on dark)."""
+_STATUS_BGR = np.array([PALETTE[s] for s in STATUS_NAMES], dtype=np.uint8)
+_EXEC_BGR = np.array([PALETTE[s] for s in EXEC_STATES], dtype=np.uint8)
+EXEC_LABELS = {"standing": "standing", "driving": "driving", "turning": "turning",
+               "waiting": "waiting on another AGV", "delayed": "injected delay",
+               "failed": "failed", "finished": "finished", "working": "working in place"}
+"""Legend text of each ``exec_state``."""
 _CELL_BGR = np.array([PALETTE["floor"], PALETTE["obstacle"], PALETTE["shelf"],
                       PALETTE["station"], PALETTE["parking"]], dtype=np.uint8)
 """Indexed by ``CellType`` (FLOOR, OBSTACLE, SHELF, STATION, PARKING)."""
+_CELL_NAMES = ("floor", "obstacle", "shelf", "station", "parking")
 FAILED_STATE = 7
-SHIFT = 4
-"""Sub-pixel bits for OpenCV drawing (coordinates are multiplied by 16)."""
 _FONT = cv2.FONT_HERSHEY_SIMPLEX
 _AA = cv2.LINE_AA
 
@@ -97,7 +130,8 @@ def status_of(state: np.ndarray, loaded: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class Scene:
-    """What stays the same in every frame: the layout and the fleet's bodies."""
+    """What stays the same in every frame: the layout, the fleet's bodies and what the
+    legend lists."""
 
     grid: np.ndarray
     """``(rows, cols)`` ``CellType`` codes."""
@@ -105,6 +139,11 @@ class Scene:
     body_m: np.ndarray
     """``(N, 2)`` body length (along the heading) and width, metres."""
     footprint: np.ndarray
+    states: tuple[int, ...] | None = None
+    """The ``exec_state`` codes the legend lists (those the recording has); None: the
+    recording has none, AGVs are coloured by task status."""
+    corridors: bool = True
+    """The legend lists the safety corridor."""
     _cache: dict = field(default_factory=dict, repr=False)
     """Style -> (geometry, background image); filled on first use."""
 
@@ -126,11 +165,18 @@ class Snapshot:
     """Open corridors: ``{"id", "agv", "zone": [[[x, y], ...], ...], ...}`` (metres)."""
     orders_done: int | None = None
     orders_total: int | None = None
-    paths: list[np.ndarray | None] | None = None
-    """Per AGV, ``(K, 2)`` points (metres) of the path ahead, or None."""
+    paths: PathSet | list[np.ndarray | None] | None = None
+    """The path ahead of each AGV: a :class:`~.plans.PathSet`, or per AGV ``(K, 2)`` points
+    (metres) or None."""
     ghosts: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
     """Per AGV, the planned pose ``(x, y, heading)`` at this time (metres, radians; NaN:
     none), drawn as an outlined ghost when ``Style.ghosts`` is on."""
+    exec_state: np.ndarray | None = None
+    """What each AGV is doing (``EXEC_STATES`` codes); None: colour by task status."""
+    blocker: np.ndarray | None = None
+    """The AGV each waiting AGV waits for (-1: none)."""
+    progress: PlanProgress | None = None
+    """A plan execution's figures for the heads-up line (None: not a plan execution)."""
 
 
 @dataclass(frozen=True)
@@ -158,6 +204,8 @@ class Style:
     ghosts: bool = False
     """Draw each AGV's planned pose (``Snapshot.ghosts``) as an outlined ghost, with a line
     to the real body when they are apart (and a legend entry)."""
+    arrows: bool = True
+    """Draw an arrow from each AGV waiting on a dependency to its blocker."""
 
     def __post_init__(self) -> None:
         w, h = self.size
@@ -186,6 +234,10 @@ class Geometry:
     font: float
     hud_h: int
     legend_h: int
+    map_w: int = 0
+    map_h: int = 0
+    """Size of the map's rectangle (pixels) at ``ox``, ``oy`` in the band; what is drawn
+    outside it (AGVs beyond a viewport) is wiped."""
 
     def to_px(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Frame pixel coordinates (float) of world points."""
@@ -212,7 +264,8 @@ def _geometry(scene: Scene, style: Style) -> tuple[Geometry, tuple[int, int, int
     ox = round((w - vw * scale) / 2)
     oy = round((band - vh * scale) / 2)
     return (Geometry(scale=scale, x0_m=c0 * scene.cell_m, y0_m=r0 * scene.cell_m, ox=ox, oy=oy,
-                     top=hud_h, bottom=h - legend_h, font=font, hud_h=hud_h, legend_h=legend_h),
+                     top=hud_h, bottom=h - legend_h, font=font, hud_h=hud_h, legend_h=legend_h,
+                     map_w=int(round(vw * scale)), map_h=int(round(vh * scale))),
             (r0, c0, r1, c1))
 
 
@@ -265,53 +318,71 @@ def _background(scene: Scene, style: Style) -> tuple[Geometry, np.ndarray]:
     if style.show_hud:
         img[:geo.top] = PALETTE["hud_bg"]
     if style.show_legend:
-        _legend(img, geo, style)
+        _legend(img, geo, scene, style)
     scene._cache[style] = (geo, img)
     return geo, img
 
 
-def _legend(img: np.ndarray, geo: Geometry, style: Style) -> None:
-    items = [("idle", "idle"), ("moving", "moving"), ("loaded", "loaded"), ("failed", "failed"),
-             ("shelf", "shelf"), ("station", "station"), ("parking", "parking"),
-             ("obstacle", "obstacle"), ("corridor", "safety corridor")]
+def _legend_items(scene: Scene, style: Style) -> list[tuple[str, str]]:
+    if scene.states is None:
+        items = [(s, s) for s in STATUS_NAMES]
+    else:
+        items = [(EXEC_STATES[c], EXEC_LABELS[EXEC_STATES[c]]) for c in scene.states]
+        if style.arrows and WAITING in scene.states:
+            items.append(("arrow", "to blocker"))
+    present = set(np.unique(scene.grid).tolist())
+    items += [(name, name) for code, name in enumerate(_CELL_NAMES) if code and code in present]
+    if scene.corridors:
+        items.append(("corridor", "safety corridor"))
     if style.show_paths:
-        items.append(("path", "planned path"))
+        items.append(("path", "path ahead"))
     if style.ghosts:
         items.append(("ghost", "planned pose (ghost)"))
+    return items
+
+
+def _legend(img: np.ndarray, geo: Geometry, scene: Scene, style: Style) -> None:
+    items = _legend_items(scene, style)
     w = style.size[0]
     font = geo.font * 0.9
-    for _ in range(6):
+    for _ in range(8):
         box = int(round(geo.legend_h * 0.5))
-        widths = [box + 6 + cv2.getTextSize(t, _FONT, font, 1)[0][0] + 16 for _, t in items]
+        widths = [box + 6 + cv2.getTextSize(t, _FONT, font, 1)[0][0] + 14 for _, t in items]
         if sum(widths) <= w - 16 or font < 0.3:
             break
-        font *= 0.85
+        font *= 0.88
     x = 8
     yc = geo.bottom + geo.legend_h // 2
     for (key, text), width in zip(items, widths, strict=True):
-        y0 = yc - box // 2
-        if key == "path":
-            cv2.line(img, (x, yc), (x + box, yc), PALETTE["moving"], 2, _AA)
-        elif key == "ghost":
-            cv2.rectangle(img, (x + 1, y0 + 1), (x + box - 1, y0 + box - 1), PALETTE["ghost"], 2)
-        elif key == "corridor":
-            cv2.rectangle(img, (x, y0), (x + box, y0 + box),
-                          _blend(PALETTE["floor"], PALETTE["corridor"], style.corridor_alpha), -1)
-            cv2.rectangle(img, (x, y0), (x + box, y0 + box), PALETTE["corridor"], 2)
-        else:
-            cv2.rectangle(img, (x, y0), (x + box, y0 + box), PALETTE[key], -1)
-            cv2.rectangle(img, (x, y0), (x + box, y0 + box), PALETTE["outline"], 1)
-            if key == "loaded":
-                q = box // 4
-                cv2.rectangle(img, (x + q, y0 + q), (x + box - q, y0 + box - q),
-                              PALETTE["shelf"], -1)
-            elif key == "failed":
-                cv2.line(img, (x + 2, y0 + 2), (x + box - 2, y0 + box - 2), (255, 255, 255), 1, _AA)
-                cv2.line(img, (x + 2, y0 + box - 2), (x + box - 2, y0 + 2), (255, 255, 255), 1, _AA)
+        _legend_mark(img, key, x, yc, box, style)
         th = cv2.getTextSize(text, _FONT, font, 1)[0][1]
         cv2.putText(img, text, (x + box + 6, yc + th // 2), _FONT, font, PALETTE["legend_text"],
                     1, _AA)
         x += width
+
+
+def _legend_mark(img: np.ndarray, key: str, x: int, yc: int, box: int, style: Style) -> None:
+    y0 = yc - box // 2
+    if key == "path":
+        cv2.line(img, (x, yc), (x + box, yc), PALETTE["driving"], 2, _AA)
+    elif key == "arrow":
+        cv2.arrowedLine(img, (x, yc), (x + box, yc), PALETTE["arrow"], 1, _AA, 0, 0.4)
+    elif key == "ghost":
+        cv2.rectangle(img, (x + 1, y0 + 1), (x + box - 1, y0 + box - 1), PALETTE["ghost"], 2)
+    elif key == "corridor":
+        cv2.rectangle(img, (x, y0), (x + box, y0 + box),
+                      _blend(PALETTE["floor"], PALETTE["corridor"], style.corridor_alpha), -1)
+        cv2.rectangle(img, (x, y0), (x + box, y0 + box), PALETTE["corridor"], 2)
+    else:
+        cv2.rectangle(img, (x, y0), (x + box, y0 + box), PALETTE[key], -1)
+        cv2.rectangle(img, (x, y0), (x + box, y0 + box), PALETTE["outline"], 1)
+        if key == "loaded":
+            q = box // 4
+            cv2.rectangle(img, (x + q, y0 + q), (x + box - q, y0 + box - q),
+                          PALETTE["shelf"], -1)
+        elif key == "failed":
+            cv2.line(img, (x + 2, y0 + 2), (x + box - 2, y0 + box - 2), (255, 255, 255), 1, _AA)
+            cv2.line(img, (x + 2, y0 + box - 2), (x + box - 2, y0 + 2), (255, 255, 255), 1, _AA)
 
 
 def _blend(under: tuple[int, int, int], over: tuple[int, int, int],
@@ -319,191 +390,162 @@ def _blend(under: tuple[int, int, int], over: tuple[int, int, int],
     return tuple(int(round(u * (1 - alpha) + o * alpha)) for u, o in zip(under, over, strict=True))  # type: ignore[return-value]
 
 
-def _fixed(px: np.ndarray) -> np.ndarray:
-    """Pixel coordinates as OpenCV fixed-point integers (``SHIFT`` fractional bits)."""
-    return np.round(px * (1 << SHIFT)).astype(np.int32)
+def _tinted(scene: Scene, style: Style, band: np.ndarray) -> np.ndarray:
+    """The floor band as seen through a corridor (the corridor colour blended over it at
+    ``corridor_alpha``), made once per style."""
+    key = ("tint", style)
+    hit = scene._cache.get(key)
+    if hit is None:
+        solid = np.empty_like(band)
+        solid[:] = PALETTE["corridor"]
+        hit = scene._cache[key] = cv2.addWeighted(band, 1 - style.corridor_alpha, solid,
+                                                  style.corridor_alpha, 0)
+    return hit
 
 
-def _corridors(band: np.ndarray, geo: Geometry, corridors: tuple[dict, ...],
-               style: Style) -> None:
-    color = PALETTE["corridor"]
-    thick = max(1, int(round(geo.scale * 0.06)))
-    bh, bw = band.shape[:2]
-    for c in corridors:
-        rings = [np.asarray(r, dtype=np.float64) for r in c.get("zone") or c.get("polygon") or []
-                 if len(r) >= 3]
-        if not rings:
-            continue
-        pts = [np.stack([geo.ox + (r[:, 0] - geo.x0_m) * geo.scale,
-                         geo.oy + (r[:, 1] - geo.y0_m) * geo.scale], axis=1) for r in rings]
-        allp = np.vstack(pts)
-        x0, y0 = np.floor(allp.min(axis=0)).astype(int) - 2
-        x1, y1 = np.ceil(allp.max(axis=0)).astype(int) + 2
-        x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, bw), min(y1, bh)
-        if x1 <= x0 or y1 <= y0:
-            continue
-        roi = band[y0:y1, x0:x1]
-        overlay = roi.copy()
-        local = [_fixed(p - (x0, y0)) for p in pts]
-        for poly in local:
-            cv2.fillPoly(overlay, [poly], color, _AA, SHIFT)
-        cv2.addWeighted(overlay, style.corridor_alpha, roi, 1 - style.corridor_alpha, 0, dst=roi)
-        cv2.polylines(roi, local, True, color, thick, _AA, SHIFT)
-
-
-def _paths(band: np.ndarray, geo: Geometry, snap: Snapshot, status: np.ndarray,
-           style: Style) -> None:
-    """Planned paths ahead, one polyline call per status colour; a dot at each end."""
-    paths = snap.paths or []
-    keep = [i for i, p in enumerate(paths) if p is not None and len(p) >= 2 and status[i] != 3]
-    if not keep:
+def _corridors(band: np.ndarray, geo: Geometry, snap: Snapshot, style: Style) -> None:
+    """Every open corridor's zone: the tinted floor copied through the zones' mask and the
+    outlines drawn in one call. Corridors are the first layer over the floor."""
+    rings = [np.asarray(r, dtype=np.float64) for c in snap.corridors
+             for r in (c.get("zone") or c.get("polygon") or []) if len(r) >= 3]
+    if not rings:
         return
+    cache, digest = snap.scene._cache, corridor_key(rings)
+    hit = cache.get(("corridors", style))
+    if hit is None or hit[0] != digest:      # corridors stay open for many frames
+        pts = np.vstack(rings)
+        pts = np.stack(_to_band(geo, pts[:, 0], pts[:, 1]), axis=1)
+        hit = cache[("corridors", style)] = (digest, corridor_layer(
+            band.shape, pts, [len(r) for r in rings], max(1, int(round(geo.scale * 0.06)))))
+    layer = hit[1]
+    if layer is None:
+        return
+    y0, y1, x0, x1, mask, outlines = layer
+    roi = band[y0:y1, x0:x1]
+    cv2.copyTo(_tinted(snap.scene, style, band)[y0:y1, x0:x1], mask, roi)
+    if isinstance(outlines, list):
+        cv2.polylines(roi, outlines, True, PALETTE["corridor"],
+                      max(1, int(round(geo.scale * 0.06))), _AA, SHIFT)
+    else:
+        draw_lines(band, outlines, np.broadcast_to(np.array(PALETTE["corridor"], np.uint8),
+                                                   (len(outlines), 3)))
+
+
+def _colors(snap: Snapshot) -> tuple[np.ndarray, np.ndarray]:
+    """Each AGV's body colour (N, 3 BGR) and whether it is failed."""
+    if snap.exec_state is not None:
+        code = np.clip(np.asarray(snap.exec_state, dtype=np.int64), 0, len(EXEC_STATES) - 1)
+        return _EXEC_BGR[code], code == FAILED
+    status = status_of(snap.state, snap.loaded)
+    return _STATUS_BGR[status], status == 3
+
+
+def _path_layer(band: np.ndarray, geo: Geometry, snap: Snapshot, colors: np.ndarray,
+                failed: np.ndarray, style: Style) -> None:
+    paths = snap.paths
+    if paths is None:
+        return
+    if not isinstance(paths, PathSet):     # per AGV (K, 2) arrays or None
+        rows = [(i, np.asarray(p, dtype=np.float64)) for i, p in enumerate(paths)
+                if p is not None and len(p) >= 2]
+        width = max((len(p) for _, p in rows), default=0)
+        pts = np.array([np.concatenate([p, np.repeat(p[-1:], width - len(p), axis=0)])
+                        for _, p in rows]).reshape(-1, max(width, 2), 2)
+        paths = PathSet(np.array([i for i, _ in rows], dtype=np.int64), pts)
+    keep = ~failed[paths.agv]
+    agv, pts = paths.agv[keep], paths.points[keep]
+    if len(agv) == 0:
+        return
+    px = np.empty_like(pts)
+    px[..., 0], px[..., 1] = _to_band(geo, pts[..., 0], pts[..., 1])
     thick = max(1, int(round(geo.scale * 0.07)))
-    lengths = [len(paths[i]) for i in keep]
-    allp = np.concatenate([paths[i] for i in keep])
-    px = np.empty_like(allp)
-    px[:, 0] = geo.ox + (allp[:, 0] - geo.x0_m) * geo.scale
-    px[:, 1] = geo.oy + (allp[:, 1] - geo.y0_m) * geo.scale
-    fixed = np.split(_fixed(px), np.cumsum(lengths)[:-1])
-    groups: dict[int, list[np.ndarray]] = {}
-    for i, poly in zip(keep, fixed, strict=True):
-        groups.setdefault(int(status[i]), []).append(poly)
-    dots = geo.scale * float(scene_min_body(snap)) >= style.detail_min_px
-    radius = int(round(max(2.0, thick * 1.6) * (1 << SHIFT)))
-    for st, polys in groups.items():
-        color = PALETTE[STATUS_NAMES[st]]
-        cv2.polylines(band, polys, False, color, thick, _AA, SHIFT)
-        if dots:
-            for poly in polys:
-                end = poly[-1]
-                cv2.circle(band, (int(end[0]), int(end[1])), radius, color, -1, _AA, SHIFT)
+    dots = geo.scale * _min_body(snap.scene) >= style.detail_min_px
+    draw_paths(band, px, colors[agv], thick, dots)
 
 
-def scene_min_body(snap: Snapshot) -> float:
+def _min_body(scene: Scene) -> float:
     """The smallest body side in the fleet (metres)."""
-    cache = snap.scene._cache
+    cache = scene._cache
     if "min_body" not in cache:
-        cache["min_body"] = float(snap.scene.body_m.min()) if len(snap.scene.body_m) else 0.0
+        cache["min_body"] = float(scene.body_m.min()) if len(scene.body_m) else 0.0
     return cache["min_body"]
 
 
-def _agvs(band: np.ndarray, geo: Geometry, snap: Snapshot, style: Style,
-          status: np.ndarray) -> None:
-    scene = snap.scene
-    n = len(snap.x)
-    if n == 0:
-        return
-    s = geo.scale
-    half = np.maximum(scene.body_m * s, style.min_agv_px) / 2          # (N, 2) px
-    cx = geo.ox + (snap.x - geo.x0_m) * s
-    cy = geo.oy + (snap.y - geo.y0_m) * s
-    bh, bw = band.shape[:2]
-    reach = half.max(axis=1) * 1.5
-    visible = np.flatnonzero((cx + reach >= 0) & (cx - reach < bw) &
-                             (cy + reach >= 0) & (cy - reach < bh))
-    if len(visible) == 0:
-        return
-    c, si = np.cos(snap.heading), np.sin(snap.heading)
-    ux = np.stack([c, si], axis=1)                                      # forward
-    uy = np.stack([-si, c], axis=1)                                     # left-hand side (y down)
-    centre = np.stack([cx, cy], axis=1)
-    sx = np.array([1, -1, -1, 1])[None, :, None]
-    sy = np.array([1, 1, -1, -1])[None, :, None]
-    corners = (centre[:, None, :] + sx * half[:, None, 0:1] * ux[:, None, :]
-               + sy * half[:, None, 1:2] * uy[:, None, :])              # (N, 4, 2)
-    fixed = _fixed(corners)
-    size_px = 2 * half.min(axis=1)
-    detail = (size_px >= style.detail_min_px).tolist()
-    labels = (size_px >= style.label_min_px).tolist()
-    colors = [tuple(c) for c in _STATUS_BGR[status].tolist()]
-    st_list = status.tolist()
-    outline = PALETTE["outline"]
-    # Marks, all AGVs at once: heading triangle, cargo square, failure cross.
-    c3 = centre[:, None, :]
-    f3, l3 = (ux * half[:, 0:1])[:, None, :], (uy * half[:, 1:2])[:, None, :]
-    nose = _fixed(c3 + f3 * np.array([0.92, 0.58, 0.58])[None, :, None]
-                  + l3 * np.array([0.0, 0.3, -0.3])[None, :, None])
-    cargo = _fixed(corners * 0.5 + c3 * 0.5)
-    down = np.flatnonzero(status == 3)
-    cross = dict(zip(down.tolist(), _fixed(corners[down] * 0.8 + c3[down] * 0.2).tolist(),
-                     strict=True))
-    cross_t = np.maximum(1, np.round(size_px / 14)).astype(int).tolist()
-    shelf = PALETTE["shelf"]
-    for i in visible.tolist():
-        cv2.fillConvexPoly(band, fixed[i], colors[i], _AA, SHIFT)
-        if not detail[i]:
-            continue
-        st = st_list[i]
-        ink = _INK[st]
-        cv2.polylines(band, [fixed[i]], True, outline, 1, _AA, SHIFT)
-        if st == 2:           # cargo: a shelf-coloured square in the middle
-            cv2.fillConvexPoly(band, cargo[i], shelf, _AA, SHIFT)
-            cv2.polylines(band, [cargo[i]], True, outline, 1, _AA, SHIFT)
-        elif st == 3:         # failed: a cross corner to corner
-            k = cross[i]
-            cv2.line(band, k[0], k[2], ink, cross_t[i], _AA, SHIFT)
-            cv2.line(band, k[1], k[3], ink, cross_t[i], _AA, SHIFT)
-        cv2.fillConvexPoly(band, nose[i], ink, _AA, SHIFT)
-        if labels[i]:
-            text = str(i)
-            fs = min(1.2, float(size_px[i]) / 60)
-            th = 1 if fs < 0.7 else 2
-            (tw, tht), _ = cv2.getTextSize(text, _FONT, fs, th)
-            fit = 0.6 * float(size_px[i]) / tw    # keep clear of the heading mark
-            if fit < 1:
-                fs *= fit
-                (tw, tht), _ = cv2.getTextSize(text, _FONT, fs, th)
-            if fs < 0.28:
-                continue
-            cx_i, cy_i = float(cx[i]), float(cy[i])
-            cv2.putText(band, text, (int(cx_i - tw / 2), int(cy_i + tht / 2)), _FONT, fs,
-                        outline if st in (0, 2) else (255, 255, 255), th, _AA)
+def _to_band(geo: Geometry, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel coordinates inside the map band (frame y minus the heads-up line)."""
+    return (geo.ox + (np.asarray(x) - geo.x0_m) * geo.scale,
+            geo.oy + (np.asarray(y) - geo.y0_m) * geo.scale)
 
 
-def _ghosts(band: np.ndarray, geo: Geometry, snap: Snapshot, style: Style) -> None:
-    """Each AGV's planned pose as an outline of its body in the ``ghost`` colour, and a
-    line from it to the real body's centre when they are more than a body apart / 4."""
-    gx, gy, gh = (np.asarray(a, dtype=np.float64) for a in snap.ghosts)
-    body = snap.scene.body_m
-    keep = np.flatnonzero(np.isfinite(gx) & np.isfinite(gy) & np.isfinite(gh))
-    if len(keep) == 0:
+def _half_px(scene: Scene, geo: Geometry, style: Style) -> np.ndarray:
+    """(N, 2) half body sizes on screen (pixels), at least ``min_agv_px`` wide."""
+    key = ("half", geo.scale, style.min_agv_px)
+    hit = scene._cache.get(key)
+    if hit is None:
+        hit = scene._cache[key] = np.maximum(scene.body_m * geo.scale, style.min_agv_px) / 2
+    return hit
+
+
+def _arrow_layer(band: np.ndarray, geo: Geometry, snap: Snapshot, cx: np.ndarray,
+                 cy: np.ndarray, half: np.ndarray) -> None:
+    b = np.asarray(snap.blocker)
+    n = len(cx)
+    who = np.flatnonzero((b >= 0) & (b < n) & (b != np.arange(n)))
+    if len(who) == 0:
         return
-    s = geo.scale
-    half = np.maximum(body[keep] * s, style.min_agv_px) / 2
-    cx = geo.ox + (gx[keep] - geo.x0_m) * s
-    cy = geo.oy + (gy[keep] - geo.y0_m) * s
-    c, si = np.cos(gh[keep]), np.sin(gh[keep])
-    ux, uy = np.stack([c, si], axis=1), np.stack([-si, c], axis=1)
-    centre = np.stack([cx, cy], axis=1)
-    sx = np.array([1, -1, -1, 1])[None, :, None]
-    sy = np.array([1, 1, -1, -1])[None, :, None]
-    corners = (centre[:, None, :] + sx * half[:, None, 0:1] * ux[:, None, :]
-               + sy * half[:, None, 1:2] * uy[:, None, :])
-    color = PALETTE["ghost"]
-    thick = max(2, int(round(float(half.min()) * 0.2)))
-    cv2.polylines(band, list(_fixed(corners)), True, color, thick, _AA, SHIFT)
-    rx = geo.ox + (np.asarray(snap.x, dtype=np.float64)[keep] - geo.x0_m) * s
-    ry = geo.oy + (np.asarray(snap.y, dtype=np.float64)[keep] - geo.y0_m) * s
-    apart = np.hypot(rx - cx, ry - cy) > half.min(axis=1) / 2
-    for j in np.flatnonzero(apart).tolist():
-        a = _fixed(np.array([cx[j], cy[j]]))
-        b = _fixed(np.array([rx[j], ry[j]]))
-        cv2.line(band, (int(a[0]), int(a[1])), (int(b[0]), int(b[1])), color,
-                 max(1, thick // 2), _AA, SHIFT)
+    to = b[who]
+    start = np.stack([cx[who], cy[who]], axis=1)
+    end = np.stack([cx[to], cy[to]], axis=1)
+    head = max(3.0, 0.3 * geo.scale * snap.scene.cell_m)
+    draw_arrows(band, start, end, half[to].max(axis=1), PALETTE["arrow"], head)
+
+
+def _wipe_margins(band: np.ndarray, floor: np.ndarray, geo: Geometry) -> None:
+    """Put the floor image back outside the map's rectangle (and its outline)."""
+    x0, y0 = max(int(geo.ox) - 1, 0), max(int(geo.oy) - 1, 0)
+    x1, y1 = int(geo.ox) + geo.map_w + 1, int(geo.oy) + geo.map_h + 1
+    band[:y0] = floor[:y0]
+    band[y1:] = floor[y1:]
+    band[y0:y1, :x0] = floor[y0:y1, :x0]
+    band[y0:y1, x1:] = floor[y0:y1, x1:]
+
+
+def _hud_text(snap: Snapshot, failures: int) -> str:
+    tick = snap.time_s / snap.tick_s if snap.tick_s > 0 else 0.0
+    parts = [f"t {snap.time_s:.1f} s"]
+    p = snap.progress
+    if p is not None:
+        ex = f"{p.executed_makespan_s:.0f} s" + (
+            f" ({p.executed_makespan_s / p.planned_makespan_s:.2f}x)"
+            if p.done and p.planned_makespan_s > 0 else "+")
+        parts += [f"finished {p.finished}/{p.agvs}",
+                  f"makespan planned {p.planned_makespan_s:.0f} s, executed {ex}",
+                  f"lost {p.lost_s:,.0f} AGV-s"]
+    else:
+        parts.append(f"tick {int(math.floor(tick + 1e-9))}")
+        if snap.orders_total:
+            tp = (snap.orders_done or 0) / tick if tick > 0 else 0.0
+            parts += [f"orders {snap.orders_done}/{snap.orders_total}", f"TP {tp:.3f}/tick"]
+    if snap.exec_state is not None:
+        counts = np.bincount(np.clip(np.asarray(snap.exec_state, dtype=np.int64), 0,
+                                     len(EXEC_STATES) - 1), minlength=len(EXEC_STATES))
+        parts.append(f"waiting {counts[WAITING]}")
+    parts += [f"failures {failures}", f"AGVs {len(snap.x)}"]
+    return "   ".join(parts)
 
 
 def _hud(img: np.ndarray, geo: Geometry, snap: Snapshot, style: Style, failures: int) -> None:
-    tick = snap.time_s / snap.tick_s if snap.tick_s > 0 else 0.0
-    parts = [f"t {snap.time_s:.1f} s", f"tick {int(math.floor(tick + 1e-9))}"]
-    if snap.orders_done is not None:
-        tp = snap.orders_done / tick if tick > 0 else 0.0
-        parts += [f"orders {snap.orders_done}/{snap.orders_total}", f"TP {tp:.3f}/tick"]
-    parts += [f"failures {failures}", f"AGVs {len(snap.x)}"]
-    text = "   ".join(parts)
-    th = max(1, int(round(geo.font * 1.6)))
-    (_, h), _ = cv2.getTextSize(text, _FONT, geo.font, th)
+    text = _hud_text(snap, failures)
+    font = geo.font
+    th = max(1, int(round(font * 1.6)))
+    room = style.size[0] - 20 - (cv2.getTextSize(style.title, _FONT, font, 1)[0][0] + 20
+                                 if style.title else 0)
+    (tw, h), _ = cv2.getTextSize(text, _FONT, font, th)
+    if tw > room:                        # shrink to fit rather than run off the frame
+        font *= max(0.5, room / tw)
+        (tw, h), _ = cv2.getTextSize(text, _FONT, font, th)
     y = geo.hud_h // 2 + h // 2
-    cv2.putText(img, text, (10, y), _FONT, geo.font, PALETTE["hud_text"], th, _AA)
+    cv2.putText(img, text, (10, y), _FONT, font, PALETTE["hud_text"], th, _AA)
     if style.title:
         (tw, _), _ = cv2.getTextSize(style.title, _FONT, geo.font, 1)
         cv2.putText(img, style.title, (style.size[0] - tw - 10, y), _FONT, geo.font,
@@ -513,17 +555,29 @@ def _hud(img: np.ndarray, geo: Geometry, snap: Snapshot, style: Style, failures:
 def draw_frame(snapshot: Snapshot, style: Style | None = None) -> np.ndarray:
     """Draw ``snapshot`` as a ``(height, width, 3)`` BGR uint8 image (a new array)."""
     style = style or Style()
-    geo, background = _background(snapshot.scene, style)
+    scene = snapshot.scene
+    geo, background = _background(scene, style)
     img = background.copy()
     band = img[geo.top:geo.bottom]
-    status = status_of(snapshot.state, snapshot.loaded)
+    colors, failed = _colors(snapshot)
     if snapshot.corridors:
-        _corridors(band, geo, snapshot.corridors, style)
-    if style.show_paths and snapshot.paths:
-        _paths(band, geo, snapshot, status, style)
+        _corridors(band, geo, snapshot, style)
+    if style.show_paths and snapshot.paths is not None:
+        _path_layer(band, geo, snapshot, colors, failed, style)
+    cx, cy = _to_band(geo, snapshot.x, snapshot.y)
+    half = _half_px(scene, geo, style)
     if style.ghosts and snapshot.ghosts is not None:
-        _ghosts(band, geo, snapshot, style)
-    _agvs(band, geo, snapshot, style, status)
+        gx, gy, gh = (np.asarray(a, dtype=np.float64) for a in snapshot.ghosts)
+        keep = np.flatnonzero(np.isfinite(gx) & np.isfinite(gy) & np.isfinite(gh))
+        gpx, gpy = _to_band(geo, gx[keep], gy[keep])
+        draw_ghosts(band, gpx, gpy, gh[keep], half[keep], cx[keep], cy[keep], PALETTE["ghost"])
+    draw_bodies(band, cx, cy, np.asarray(snapshot.heading, dtype=np.float64), half, colors,
+                failed=failed, loaded=np.asarray(snapshot.loaded, dtype=bool),
+                detail_px=style.detail_min_px, label_px=style.label_min_px,
+                outline=PALETTE["outline"], cargo=PALETTE["shelf"])
+    if style.arrows and snapshot.blocker is not None:
+        _arrow_layer(band, geo, snapshot, cx, cy, half)
+    _wipe_margins(band, background[geo.top:geo.bottom], geo)
     if style.show_hud:
-        _hud(img, geo, snapshot, style, int((status == 3).sum()))
+        _hud(img, geo, snapshot, style, int(failed.sum()))
     return img

@@ -3,11 +3,14 @@ grid-executor :class:`~warerover_phys.sim.EpisodeResult`, and sample them at any
 
 A :class:`Recording` holds the trajectory arrays (the dict of
 ``PhysicsExecutor.trajectory``: ``t`` (T,), ``x``, ``y``, ``heading``, ``state``, ``loaded``
-(T, N), ``footprint``, ``body_m``, ``cell_m``, ``tick_s``, ``grid``, ``corridors_json``) plus
-what the heads-up line and the planned paths need: order arrival and completion ticks (from
-the episode's events) and the committed plans. :meth:`Recording.at` interpolates a snapshot
-at any simulated time (positions linear, headings along the shorter arc), so the video frame
-rate is independent of the physics step and of the recording rate.
+(T, N), ``footprint``, ``body_m``, ``cell_m``, ``tick_s``, ``grid``, ``corridors_json``, and,
+in recordings made since issue 36, ``exec_state``, ``blocker``, ``plan_tick`` (T, N): what each
+AGV was doing, see :mod:`warerover_phys.executors.recording`) plus what the heads-up line
+and the planned paths need: order arrival and completion ticks (from the episode's events)
+and the committed plans. :meth:`Recording.at` interpolates a snapshot at any simulated time
+(positions linear, headings along the shorter arc), so the video frame rate is independent
+of the physics step and of the recording rate. The path ahead of each AGV starts from its
+recorded progress in its plan (:mod:`.plans`), never from the clock.
 
 No OpenCV here: this module is numpy only.
 """
@@ -25,7 +28,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import WareroverError
+from ..executors.recording import EXEC_FIELDS, EXEC_STATES
 from ..poses import _centres, states_poses
+from .plans import PlanIndex, finish_times, plan_progress
 
 if TYPE_CHECKING:
     from ..sim import EpisodeResult
@@ -68,9 +73,17 @@ class Recording:
     """AGV -> committed plans ``(start tick, (L, 2) centre points in metres)``, by tick."""
     ghost: dict[str, np.ndarray] | None = None
     """Planned poses drawn as ghosts: ``t`` (G,) seconds, ``x``, ``y``, ``heading`` (G, N)
-    (:func:`ghost_poses`); None: none."""
+    (:func:`ghost_poses`); None: taken from :attr:`plans` when ghosts are asked for."""
+    exec_state: np.ndarray | None = None
+    """(T, N) what each AGV was doing (``EXEC_STATES`` codes); None: not recorded."""
+    blocker: np.ndarray | None = None
+    """(T, N) the AGV a waiting AGV waits for (-1: none)."""
+    plan_tick: np.ndarray | None = None
+    """(T, N) each AGV's progress in its plan (plan ticks; -1: at its plan's start)."""
     _scene: list = field(default_factory=list, repr=False)
     _plan_index: list = field(default_factory=list, repr=False)
+    _run: dict = field(default_factory=dict, repr=False)
+    """What :meth:`at` computes once: finish times and the planned makespan."""
 
     @property
     def num_agvs(self) -> int:
@@ -94,13 +107,40 @@ class Recording:
         if not self._scene:
             from .frame import Scene
 
+            states = None
+            if self.exec_state is not None:
+                seen = np.zeros(len(EXEC_STATES), dtype=bool)
+                for r in range(0, len(self.exec_state), 2048):   # memory maps: in blocks
+                    block = np.asarray(self.exec_state[r:r + 2048]).ravel()
+                    seen |= np.bincount(np.clip(block, 0, len(seen) - 1).astype(np.int64),
+                                        minlength=len(seen)) > 0
+                states = tuple(np.flatnonzero(seen).tolist())
             self._scene.append(Scene(grid=self.grid, cell_m=self.cell_m, body_m=self.body_m,
-                                     footprint=self.footprint))
+                                     footprint=self.footprint, states=states,
+                                     corridors=bool(self.corridors)))
         return self._scene[0]
 
-    def at(self, time_s: float, path_ticks: int = 0) -> Snapshot:
+    @property
+    def plan_execution(self) -> bool:
+        """A fixed plan executed (``warerover execute``, the open-loop gap): no orders, one
+        plan per AGV from tick 0, and what each AGV did recorded."""
+        if "plan_execution" not in self._run:
+            self._run["plan_execution"] = self.exec_state is not None and bool(self.plans) and (
+                self.order_created is None or not len(self.order_created)) and all(
+                len(p) == 1 and p[0][0] == 0 for p in self.plans.values())
+        return self._run["plan_execution"]
+
+    def plan_index(self) -> PlanIndex:
+        """The committed plans as flat arrays (built once)."""
+        if not self._plan_index:
+            self._plan_index.append(PlanIndex(self.plans, self.num_agvs))
+        return self._plan_index[0]
+
+    def at(self, time_s: float, path_ticks: int = 0, ghosts: bool = False) -> Snapshot:
         """The state at simulated time ``time_s`` (clamped to the recording): poses
-        interpolated between the two samples around it, discrete fields from the earlier."""
+        interpolated between the two samples around it, discrete fields from the earlier.
+        ``path_ticks``: the planned steps ahead of each AGV to include; planned poses come
+        from :attr:`ghost`, or, with ``ghosts``, from the plans at that time."""
         from .frame import Snapshot
 
         t = self.t
@@ -124,40 +164,33 @@ class Recording:
         if self.order_created is not None and self.order_done is not None:
             total = int(np.searchsorted(self.order_created, tick, side="right"))
             done = int(np.searchsorted(self.order_done, tick, side="right"))
-        paths = self._paths_ahead(tick, x, y, path_ticks) if path_ticks > 0 else None
-        ghosts = _sample(self.ghost, q) if self.ghost is not None else None
+        ex = {name: None if arr is None else np.asarray(arr[k]) for name, arr in
+              (("exec_state", self.exec_state), ("blocker", self.blocker),
+               ("plan_tick", self.plan_tick))}
+        paths = progress = None
+        if self.plans and (path_ticks > 0 or self.plan_execution):
+            index = self.plan_index()
+            entry = index.select(tick)
+            rel = index.progress_index(entry, ex["plan_tick"], x, y)
+            if path_ticks > 0:
+                paths = index.ahead(entry, rel, ex["exec_state"], x, y, path_ticks)
+            if self.plan_execution:
+                progress = plan_progress(index, entry, rel, ex["exec_state"], q, self.tick_s,
+                                         *self._run_figures(index))
+        ghost = _sample(self.ghost, q) if self.ghost is not None else \
+            self.plan_index().pose_at(tick) if ghosts and self.plans else None
         return Snapshot(scene=self.scene(), time_s=q, tick_s=self.tick_s, x=x, y=y,
                         heading=heading, state=state, loaded=loaded, corridors=corridors,
-                        orders_done=done, orders_total=total, paths=paths, ghosts=ghosts)
+                        orders_done=done, orders_total=total, paths=paths, ghosts=ghost,
+                        exec_state=ex["exec_state"], blocker=ex["blocker"], progress=progress)
 
-    def _paths_ahead(self, tick: float, x: np.ndarray, y: np.ndarray,
-                     horizon: int) -> list[np.ndarray | None]:
-        """For each AGV, its current position followed by the next ``horizon`` points of the
-        latest plan committed by ``tick`` (from the plan point nearest to where it is)."""
-        if not self._plan_index:
-            self._plan_index.append({aid: np.array([p[0] for p in plans], dtype=np.float64)
-                                     for aid, plans in self.plans.items() if plans})
-        index = self._plan_index[0]
-        out: list[np.ndarray | None] = [None] * self.num_agvs
-        now = int(tick)
-        for aid, starts in index.items():
-            if aid >= self.num_agvs:
-                continue
-            n = int(starts.searchsorted(tick, side="right")) - 1
-            if n < 0:
-                continue
-            start, points = self.plans[aid][n]
-            lo = max(0, min(now - start - 2, len(points) - 1))
-            window = points[lo:lo + horizon + 4]
-            hx, hy = x[aid], y[aid]
-            near = lo + int(((window[:, 0] - hx) ** 2 + (window[:, 1] - hy) ** 2).argmin())
-            ahead = points[near + 1:near + 1 + horizon]
-            if len(ahead):
-                pts = np.empty((len(ahead) + 1, 2))
-                pts[0] = hx, hy
-                pts[1:] = ahead
-                out[aid] = pts
-        return out
+    def _run_figures(self, index: PlanIndex) -> tuple[np.ndarray, float]:
+        """Each AGV's finish time and the planned makespan (seconds), computed once."""
+        if "finish" not in self._run:
+            planned = index.finish_tick(index.select(0.0))
+            self._run["finish"] = finish_times(self.t, self.exec_state)
+            self._run["planned"] = float(planned.max(initial=0)) * self.tick_s
+        return self._run["finish"], self._run["planned"]
 
 
 def _sample(g: dict[str, np.ndarray], q: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -197,12 +230,14 @@ def _facing(pos: np.ndarray, heading: np.ndarray) -> np.ndarray:
 
 
 def recording_with_ghosts(trajectory: dict, ghost: dict[str, np.ndarray],
-                          source: str = "open loop") -> Recording:
+                          source: str = "open loop",
+                          planned: list[dict] | None = None) -> Recording:
     """A :class:`Recording` of an executor's ``trajectory`` dict with ``ghost`` poses
-    (:func:`ghost_poses`) to draw beside the bodies (``Style(ghosts=True)``)."""
+    (:func:`ghost_poses`) to draw beside the bodies (``Style(ghosts=True)``) and the
+    ``planned`` paths (``{"agv", "tick", "states"}``, as ``EpisodeResult.planned``)."""
     import dataclasses
 
-    rec = _from_dict(trajectory, None, None, source)
+    rec = _from_dict(trajectory, None, planned, source)
     n = rec.num_agvs
     for key in ("x", "y", "heading"):
         if np.asarray(ghost[key]).shape != (len(ghost["t"]), n):
@@ -277,7 +312,7 @@ def _build(traj: dict, events: list[dict] | None, planned: list[dict] | None,
             raise bad(key, f"expected numbers (got {a.dtype})")
         if dtype is np.float64 and not np.isfinite(a).all():
             raise bad(key, "values must be finite")
-        arrays[key] = a.astype(dtype)
+        arrays[key] = a.astype(dtype, copy=False)
     n = arrays["x"].shape[1]
     if any(a.shape[1] != n for a in arrays.values()):
         raise bad("x", "arrays disagree on the number of AGVs")
@@ -313,11 +348,36 @@ def _build(traj: dict, events: list[dict] | None, planned: list[dict] | None,
     except (ValueError, TypeError, KeyError, IndexError, OverflowError) as err:
         why = str(err).splitlines()[0] if str(err) else type(err).__name__
         raise WareroverError(f"{plans_source}: planned: not valid plans ({why})") from None
+    execution = _execution_fields(traj, len(t), n, bad)
     return Recording(
         t=t, x=arrays["x"], y=arrays["y"], heading=arrays["heading"], state=arrays["state"],
         loaded=arrays["loaded"], footprint=footprint, body_m=body_m.astype(np.float64),
         cell_m=cell_m, tick_s=tick_s, grid=grid, corridors=corridors, order_created=created,
-        order_done=done, plans=plans)
+        order_done=done, plans=plans, **execution)
+
+
+def _execution_fields(traj: dict, t: int, n: int, bad) -> dict[str, np.ndarray | None]:
+    """``exec_state``, ``blocker``, ``plan_tick`` when the recording has them (all or
+    none), checked; ``bad(field, why)`` makes the error."""
+    have = [k for k in EXEC_FIELDS if k in traj]
+    if not have:
+        return dict.fromkeys(EXEC_FIELDS)
+    if len(have) != len(EXEC_FIELDS):
+        missing = sorted(set(EXEC_FIELDS) - set(have))
+        raise bad(missing[0], "missing (the execution fields come together)")
+    out = {}
+    for key in EXEC_FIELDS:
+        a = np.asarray(traj[key])
+        if a.shape != (t, n) or a.dtype.kind not in "iu":
+            raise bad(key, f"expected integers of shape ({t}, {n}) (got {a.dtype} {a.shape})")
+        out[key] = a
+    state = out["exec_state"]
+    if len(state) and (int(state.min()) < 0 or int(state.max()) >= len(EXEC_STATES)):
+        raise bad("exec_state", f"codes must be 0..{len(EXEC_STATES) - 1}")
+    blocker = out["blocker"]
+    if len(blocker) and (int(blocker.min()) < -1 or int(blocker.max()) >= n):
+        raise bad("blocker", f"must be -1 or an AGV id below {n}")
+    return out
 
 
 def _read_json(path: Path, lines: bool) -> object:
@@ -385,7 +445,10 @@ def load_trajectory(path: str | Path) -> Recording:
 def grid_trajectory(result: EpisodeResult) -> dict[str, np.ndarray]:
     """The ``trajectories.npz`` arrays of a grid-executor episode: one sample per tick, body
     centres of the executed states (see :func:`states_poses`), task states and cargo from
-    the events."""
+    the events, and what each AGV was doing (:func:`~warerover_phys.executors.grid_record.
+    grid_execution`)."""
+    from ..executors.grid_record import grid_execution, state_array
+
     world = result.world
     lay = world.layout
     cols, cell_m = lay.cols, float(lay.cell_m)
@@ -417,10 +480,13 @@ def grid_trajectory(result: EpisodeResult) -> dict[str, np.ndarray]:
             state[tick:, aid] = FAILED
         else:
             state[tick:, aid] = before.pop(aid, IDLE)
+    execution = grid_execution(state_array(result.actual, n, ticks),
+                               [(p["agv"], p["tick"], p["states"]) for p in result.planned],
+                               footprint, cols, lay.rows, state)
     return {
         "t": np.arange(ticks, dtype=np.float64) * float(world.scenario.tick_s),
         "x": pos[..., 0], "y": pos[..., 1], "heading": heading, "state": state,
-        "loaded": loaded, "footprint": footprint,
+        "loaded": loaded, "footprint": footprint, **execution,
         "body_m": np.array([a.spec.body_m for a in agvs], dtype=np.float64),
         "cell_m": np.array(cell_m), "tick_s": np.array(float(world.scenario.tick_s)),
         "grid": np.asarray(lay.grid).copy(),

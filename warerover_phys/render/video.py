@@ -3,11 +3,15 @@
 :class:`VideoWriter` takes BGR frames of one size. With PyAV (``av``) it writes H.264
 (``libx264``, ``yuv420p``, ``movflags=+faststart``: plays in browsers, starts before it has
 fully loaded). Without PyAV it falls back to OpenCV's ``mp4v`` (MPEG-4 Part 2) with a warning:
-that file plays in VLC/ffmpeg but not in Chrome or Firefox.
+that file plays in VLC/ffmpeg but not in Chrome or Firefox. With ``threaded=True`` the colour
+conversion (OpenCV, BGR to I420) and the encoding run in a thread of their own, beside the
+drawing (both release the GIL): a bounded queue hands the frames over.
 
 :func:`render_video` samples a :class:`~.trajectory.Recording` at the video's own frame times:
 frame ``k`` shows simulated time ``start + k * speed / fps``, so the frame rate and playback
-speed are independent of the physics step and of the recording rate.
+speed are independent of the physics step and of the recording rate. With ``workers > 1``
+the frames are cut into that many runs, each drawn and encoded by a process of its own, and
+the pieces are joined into one H.264 file without re-encoding (:mod:`.parallel`).
 
 Videos and images are written to a temporary file beside the target and renamed into place
 when complete: a killed or failed render leaves an existing file as it was.
@@ -17,8 +21,11 @@ from __future__ import annotations
 
 import logging
 import math
+import queue
+import threading
+import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -32,7 +39,7 @@ if TYPE_CHECKING:
     from .trajectory import Recording
 
 __all__ = ["VideoWriter", "render_video", "write_png", "frame_times", "auto_speed",
-           "parse_size", "SIZES"]
+           "parse_size", "SIZES", "draw_frames", "FrameRate"]
 
 log = logging.getLogger(__name__)
 
@@ -64,7 +71,8 @@ class VideoWriter:
     """
 
     def __init__(self, path: str | Path, fps: float, size: tuple[int, int], *,
-                 codec: str = "h264", preset: str = "superfast", crf: int = 23) -> None:
+                 codec: str = "h264", preset: str = "superfast", crf: int = 23,
+                 threaded: bool = False, threads: int = 0) -> None:
         if fps <= 0:
             raise ValueError(f"fps must be positive (got {fps})")
         self.path = Path(path)
@@ -75,6 +83,11 @@ class VideoWriter:
         self.frames = 0
         self._av = None
         self._cv = None
+        self._queue: queue.Queue | None = None
+        self._thread: threading.Thread | None = None
+        self._error: BaseException | None = None
+        self.threads = int(threads)
+        """libx264 threads (0: its own choice)."""
         if codec == "h264":
             try:
                 import av
@@ -84,6 +97,11 @@ class VideoWriter:
                 codec = "mp4v"
             else:
                 self._open_av(av, preset, crf)
+        if threaded:
+            self._queue = queue.Queue(maxsize=8)
+            self._thread = threading.Thread(target=self._drain, name="video-encoder",
+                                            daemon=True)
+            self._thread.start()
         if codec == "mp4v":
             self.codec = "mp4v"
             self._cv = cv2.VideoWriter(str(self.path), cv2.VideoWriter_fourcc(*"mp4v"),
@@ -103,28 +121,66 @@ class VideoWriter:
         stream = self._container.add_stream("libx264", rate=rate)
         stream.width, stream.height = self.enc_size
         stream.pix_fmt = "yuv420p"
-        stream.options = {"preset": preset, "crf": str(crf)}
+        stream.options = {"preset": preset, "crf": str(crf),
+                          **({"threads": str(self.threads)} if self.threads > 0 else {})}
         self._stream = stream
         self._av = av
 
     def write(self, frame: np.ndarray) -> None:
-        """Append one ``(height, width, 3)`` BGR uint8 frame of the writer's size."""
+        """Append one ``(height, width, 3)`` BGR uint8 frame of the writer's size (threaded:
+        the writer keeps it; do not change it afterwards)."""
         h, w = frame.shape[:2]
         if (w, h) != self.size or frame.ndim != 3 or frame.dtype != np.uint8:
             raise ValueError(f"frame must be {self.size[1]}x{self.size[0]}x3 uint8 "
                              f"(got {frame.shape} {frame.dtype})")
+        if self._queue is None:
+            self._encode(frame)
+            return
+        while True:                       # wait for room, but not on a dead encoder
+            if self._error is not None:
+                raise OSError(f"{self.path}: encoding failed ({self._error})")
+            try:
+                self._queue.put(frame, timeout=0.5)
+                return
+            except queue.Full:
+                continue
+
+    def _encode(self, frame: np.ndarray) -> None:
+        h, w = frame.shape[:2]
         if self.enc_size != self.size:
             frame = cv2.copyMakeBorder(frame, 0, self.enc_size[1] - h, 0, self.enc_size[0] - w,
                                        cv2.BORDER_REPLICATE)
         if self._av is not None:
-            vf = self._av.VideoFrame.from_ndarray(frame, format="bgr24")
+            # OpenCV's conversion (BT.601, limited range, as libswscale's) is quicker than
+            # PyAV's and lets go of the GIL.
+            yuv = cv2.cvtColor(frame, cv2.COLOR_BGR2YUV_I420)
+            vf = self._av.VideoFrame.from_ndarray(yuv, format="yuv420p")
             for packet in self._stream.encode(vf):
                 self._container.mux(packet)
         else:
             self._cv.write(frame)
         self.frames += 1
 
+    def _drain(self) -> None:
+        """The encoder thread: encode queued frames until the None that ends them."""
+        while True:
+            frame = self._queue.get()
+            if frame is None:
+                return
+            if self._error is None:
+                try:
+                    self._encode(frame)
+                except BaseException as err:  # noqa: BLE001 - re-raised in write/close
+                    self._error = err
+
     def close(self) -> None:
+        if self._thread is not None:
+            self._queue.put(None)
+            self._thread.join()
+            self._thread = None
+            if self._error is not None:
+                self._abandon()
+                raise OSError(f"{self.path}: encoding failed ({self._error})")
         if self._av is not None:
             for packet in self._stream.encode():
                 self._container.mux(packet)
@@ -134,11 +190,31 @@ class VideoWriter:
             self._cv.release()
             self._cv = None
 
+    def _abandon(self) -> None:
+        """Close the file without flushing (after a failure)."""
+        if self._av is not None:
+            try:
+                self._container.close()
+            except Exception:  # noqa: BLE001 - the first error is the one reported
+                pass
+            self._av = None
+
     def __enter__(self) -> VideoWriter:
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, exc_type, *exc) -> None:
+        if exc_type is None:
+            self.close()
+            return
+        if self._thread is not None:           # an error while drawing: stop the encoder
+            self._error = self._error or RuntimeError("stopped")
+            self._queue.put(None)
+            self._thread.join()
+            self._thread = None
+        self._abandon()
+        if self._cv is not None:
+            self._cv.release()
+            self._cv = None
 
 
 def auto_speed(duration_s: float) -> float:
@@ -163,32 +239,85 @@ def frame_times(start_s: float, end_s: float, fps: float, speed: float,
     return start_s + np.arange(max(n, 1)) * (speed / fps)
 
 
+def draw_frames(recording: Recording, times: np.ndarray, style: Style) -> Iterator[np.ndarray]:
+    """The frames of ``recording`` at simulated ``times`` (seconds), drawn in ``style``."""
+    horizon = style.path_ticks if style.show_paths and recording.plans else 0
+    for t in times:
+        yield draw_frame(recording.at(float(t), horizon, ghosts=style.ghosts), style)
+
+
+class FrameRate:
+    """Frames per second and time left of a render, for a progress line:
+    ``FrameRate()(done, total)`` -> ``"41.7 fps, ETA 0:12"``."""
+
+    def __init__(self) -> None:
+        self.t0 = time.perf_counter()
+
+    def __call__(self, done: int, total: int) -> str:
+        dt = time.perf_counter() - self.t0
+        if done <= 0 or dt <= 0:
+            return ""
+        rate = done / dt
+        left = int(round((total - done) / rate))
+        return f"{rate:.1f} fps, ETA {left // 60}:{left % 60:02d}"
+
+
 def render_video(recording: Recording, path: str | Path, *, fps: float = 30.0,
                  speed: float | None = None, style: Style | None = None,
                  start_s: float | None = None, end_s: float | None = None,
                  max_frames: int | None = None, codec: str = "h264",
-                 preset: str = "superfast",
+                 preset: str = "superfast", workers: int = 1,
                  progress: Callable[[int, int], None] | None = None) -> dict:
     """Render ``recording`` to an MP4 at ``fps`` frames per video second, ``speed`` simulated
-    seconds per video second (None: :func:`auto_speed`). ``progress(frames_done, frames)``
-    is called after every frame. Returns what was written."""
+    seconds per video second (None: :func:`auto_speed`). The encoder runs in a thread of its
+    own; ``workers > 1`` (H.264 only) draws and encodes that many runs of frames in
+    processes of their own and joins them without re-encoding. ``progress(frames_done,
+    frames)`` is called as frames are done. Returns what was written."""
     style = style or Style()
     start = recording.start_s if start_s is None else max(start_s, recording.start_s)
     end = recording.end_s if end_s is None else min(end_s, recording.end_s)
     if speed is None:
         speed = auto_speed(end - start)
+    if workers < 1:
+        raise ValueError(f"workers must be at least 1 (got {workers})")
     times = frame_times(start, end, fps, speed, max_frames)
-    horizon = style.path_ticks if style.show_paths and recording.plans else 0
-    with replacing(path) as tmp, \
-            VideoWriter(tmp, fps, style.size, codec=codec, preset=preset) as writer:
-        for i, t in enumerate(times):   # ``path`` is replaced only once the video is whole
-            writer.write(draw_frame(recording.at(float(t), horizon), style))
+    from .parallel import can_fork, render_parallel
+
+    with replacing(path) as tmp:    # ``path`` is replaced only once the video is whole
+        if workers > 1 and codec == "h264" and len(times) >= 2 * workers and can_fork() \
+                and _has_av():
+            frames, used = render_parallel(recording, tmp, times, fps, style, preset, workers,
+                                           progress, draw=draw_frames,
+                                           writer_type=VideoWriter), "h264"
+        else:
+            frames, used = _render_serial(recording, tmp, times, fps, style, codec, preset,
+                                          progress)
+            workers = 1
+    log.info("wrote %s: %d frames, %s", path, frames, used)
+    return {"path": str(path), "frames": int(frames), "fps": fps, "speed": speed,
+            "codec": used, "size": list(style.size), "start_s": float(times[0]),
+            "end_s": float(times[-1]), "workers": workers}
+
+
+def _has_av() -> bool:
+    try:
+        import av  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _render_serial(recording: Recording, path: Path, times: np.ndarray, fps: float,
+                   style: Style, codec: str, preset: str,
+                   progress: Callable[[int, int], None] | None) -> tuple[int, str]:
+    """Draw here, encode in the writer's thread; (frames written, codec)."""
+    with VideoWriter(path, fps, style.size, codec=codec, preset=preset,
+                     threaded=True) as writer:
+        for i, img in enumerate(draw_frames(recording, times, style)):
+            writer.write(img)
             if progress is not None:
                 progress(i + 1, len(times))
-    log.info("wrote %s: %d frames, %s", path, writer.frames, writer.codec)
-    return {"path": str(path), "frames": int(writer.frames), "fps": fps, "speed": speed,
-            "codec": writer.codec, "size": list(style.size), "start_s": float(times[0]),
-            "end_s": float(times[-1])}
+    return writer.frames, writer.codec
 
 
 def write_png(recording: Recording, path: str | Path, tick: float,
@@ -197,8 +326,7 @@ def write_png(recording: Recording, path: str | Path, tick: float,
     style = style or Style()
     if not 0 <= tick <= recording.end_s / recording.tick_s + 1e-9:
         raise ValueError(f"tick {tick} is outside the recording (0..{recording.ticks})")
-    horizon = style.path_ticks if style.show_paths and recording.plans else 0
-    img = draw_frame(recording.at(tick * recording.tick_s, horizon), style)
+    img = next(draw_frames(recording, np.array([tick * recording.tick_s]), style))
     out = Path(path)
     with replacing(out) as tmp:
         try:

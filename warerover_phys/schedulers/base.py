@@ -13,6 +13,7 @@ if TYPE_CHECKING:
     from ..layout import Layout
     from ..orders import Order
     from ..world import Agv, World
+    from .costs import TripCosts
 
 __all__ = ["Assignment", "Scheduler", "SchedulerView"]
 
@@ -68,6 +69,13 @@ class SchedulerView:
         """Shelf id -> id of the trip that uses it."""
         return MappingProxyType(self._world.shelf_busy)
 
+    @property
+    def errand_rule(self) -> str | None:
+        """With errand tasks (``orders.pattern: errands``), the rule that assigns them
+        (``orders.errands.assign``: ``roundrobin``, ``greedy`` or ``pool``); else None."""
+        w = self._world
+        return w.scenario.orders.errands.assign if w.errands else None
+
     def pending_orders(self) -> list[Order]:
         """Pending orders, by id."""
         return self._world.pending_orders()
@@ -78,6 +86,17 @@ class SchedulerView:
     def free_shelves_for(self, sku: int, agv: Agv) -> list[int]:
         """Shelves holding ``sku`` that ``agv`` can carry and nobody is using."""
         return self._world.free_shelves_for(sku, agv)
+
+    def usable_shelves(self) -> np.ndarray:
+        """Bool per shelf id: :meth:`free_shelves_for` may list it (nobody is using it, or
+        any shelf with ``orders.requeue_after_ticks``); carrying is checked apart."""
+        return self._world.usable_shelves()
+
+    def trip_costs(self) -> TripCosts:
+        """Trip lengths as arrays, for many AGVs and shelves at once
+        (:class:`~warerover_phys.schedulers.costs.TripCosts`: the same lengths as
+        :meth:`trip_distance`, kept per motion-graph set)."""
+        return self._world.trip_costs()
 
     def cell(self, node: int) -> tuple[int, int]:
         return self._world.cell(node)

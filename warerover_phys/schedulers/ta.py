@@ -2,7 +2,11 @@
 costed by true path distances (AGV -> shelf unloaded, shelf -> stations loaded), and the
 Hungarian method (scipy's ``linear_sum_assignment``) picks the cheapest matching. A trip
 then also serves other pending orders whose SKUs sit on the same shelf, up to
-``max_orders_per_trip``."""
+``max_orders_per_trip``.
+
+The costs of all idle AGVs x candidate shelves come from cached distance tables in one numpy
+pass (:mod:`.costs`): 1,000 idle AGVs x 200 pending orders on the 1,680-shelf industrial
+floor in milliseconds, where costing each pair in Python took seconds."""
 
 from __future__ import annotations
 
@@ -18,6 +22,7 @@ if TYPE_CHECKING:
     from ..orders import Order
     from ..world import Agv
     from .base import SchedulerView
+    from .costs import OptionTable
 
 __all__ = ["TaskAssignment"]
 
@@ -40,59 +45,53 @@ class TaskAssignment:
             groups.setdefault(order.sku, []).append(order)
         skus = sorted(groups)
         cap = self.spec.max_orders_per_trip
-        cost = np.full((len(idle), len(skus)), INFEASIBLE)
-        best: dict[tuple[int, int], list[tuple[int, int]]] = {}
-        for i, agv in enumerate(idle):
-            for j, sku in enumerate(skus):
-                options = self._shelf_options(world, agv, sku, groups[sku][:cap])
-                if options:
-                    best[(i, j)] = options
-                    # Cheaper per order served: a trip for 3 orders beats one for 1.
-                    cost[i, j] = options[0][0] if self.spec.ta_cost == "trip" else \
-                        options[0][0] / min(len(groups[sku]), cap)
+        stations = [tuple(sorted({o.station for o in groups[sku][:cap]})) for sku in skus]
+        # Per (AGV, SKU): the nearest candidate shelves by Manhattan distance, costed by
+        # their trips (AGV -> shelf unloaded, shelf -> the group's stations loaded).
+        table = world.trip_costs().options(idle, skus, stations, world.usable_shelves(),
+                                           self.spec.candidate_shelves)
+        if self.spec.ta_cost == "trip":
+            per = table.best.astype(np.float64)
+        else:  # cheaper per order served: a trip for 3 orders beats one for 1
+            per = table.best / np.minimum([len(groups[sku]) for sku in skus], cap)[None, :]
+        cost = np.where(table.best < UNREACHABLE, per, INFEASIBLE)
         from scipy.optimize import linear_sum_assignment  # slow to import
 
         rows, cols = linear_sum_assignment(cost)
+        return self._commit(world, idle, pending, groups, skus, cost, table,
+                            sorted(zip(rows.tolist(), cols.tolist(), strict=True),
+                                   key=lambda ij: (cost[ij], ij)))
+
+    def _commit(self, world: SchedulerView, idle: list[Agv], pending: list[Order],
+                groups: dict[int, list[Order]], skus: list[int], cost: np.ndarray,
+                table: OptionTable, pairs: list[tuple[int, int]]) -> list[Assignment]:
+        """Trips for the matched pairs, cheapest first: the first option shelf nobody took,
+        the SKU's orders, then other pending orders whose SKUs sit on that shelf (by id)."""
+        cap = self.spec.max_orders_per_trip
         out: list[Assignment] = []
         taken_orders: set[int] = set()
         taken_shelves: set[int] = set()
-        for i, j in sorted(zip(rows.tolist(), cols.tolist(), strict=True),
-                           key=lambda ij: (cost[ij], ij)):
+        options = table.ranked([ij for ij in pairs if cost[ij] < INFEASIBLE])
+        for i, j in pairs:
             if cost[i, j] >= INFEASIBLE:
                 continue
-            shelf = next((s for _, s in best[(i, j)] if s not in taken_shelves), None)
+            shelf = next((s for s in options[(i, j)] if s not in taken_shelves), None)
             if shelf is None:
                 continue
             orders = [o.id for o in groups[skus[j]] if o.id not in taken_orders][:cap]
             if not orders:
                 continue
-            on_shelf = set(world.layout.shelves[shelf].skus)
-            for order in pending:  # by id
-                if len(orders) >= cap:
-                    break
-                if order.sku in on_shelf and order.id not in taken_orders \
-                        and order.id not in orders:
-                    orders.append(order.id)
+            if len(orders) < cap:
+                chosen = set(orders)
+                on_shelf = sorted(o.id for sku in set(world.layout.shelves[shelf].skus)
+                                   for o in groups.get(sku, ()))
+                for oid in on_shelf:  # the pending orders of the shelf's SKUs, by id
+                    if len(orders) >= cap:
+                        break
+                    if oid not in taken_orders and oid not in chosen:
+                        orders.append(oid)
+                        chosen.add(oid)
             taken_orders.update(orders)
             taken_shelves.add(shelf)
             out.append(Assignment(idle[i].id, shelf, tuple(orders)))
         return out
-
-    def _shelf_options(self, world: SchedulerView, agv: Agv, sku: int,
-                       orders: list[Order]) -> list[tuple[int, int]]:
-        """(trip length, shelf) for the nearest free shelves holding ``sku``, best first."""
-        shelves = world.free_shelves_for(sku, agv)
-        if not shelves:
-            return []
-        r, c = world.cell(agv.node)
-        layout = world.layout
-        shelves.sort(key=lambda s: (abs(layout.shelves[s].anchor[0] - r)
-                                    + abs(layout.shelves[s].anchor[1] - c), s))
-        stations = sorted({o.station for o in orders})
-        options = []
-        for sid in shelves[: self.spec.candidate_shelves]:
-            d = world.trip_distance(agv, sid, stations)
-            if d < UNREACHABLE:
-                options.append((d, sid))
-        options.sort()
-        return options
