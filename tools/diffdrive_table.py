@@ -94,12 +94,12 @@ def plan_run(job: tuple) -> dict:
     """Execute one plan file with no-slip drive or the default model (in a worker)."""
     from diffdrive_checks import check_npz
 
-    from warerover_phys.config import AgvTypeSpec, diffdrive_preset
     from warerover_phys.execute import (
         DEFAULT_TYPE,
         execute_plan,
         load_floor,
         repair_cycles,
+        robot_model,
         validate_plan,
     )
     from warerover_phys.plans import read_plan
@@ -110,14 +110,14 @@ def plan_run(job: tuple) -> dict:
     sizes = [1] * plan.num_agents
     validate_plan(plan, layout, sizes)
     plan, repairs = repair_cycles(plan, layout, sizes)
-    spec = DEFAULT_TYPE
-    if no_slip:  # robot: diffdrive's wheel limits for the default type
-        raw = diffdrive_preset({"fleet": {"types": {"t": DEFAULT_TYPE.model_dump()}}})
-        spec = AgvTypeSpec.model_validate(raw["fleet"]["types"]["t"])
+    # robot: diffdrive as `warerover execute --set robot=diffdrive` has it (no_slip and
+    # the wheel limits of the default type); the default model unchanged
+    options, types = robot_model({"robot": "diffdrive" if no_slip else "default"},
+                                 [DEFAULT_TYPE] * plan.num_agents)
+    assert not no_slip or types[0].max_wheel_speed_mps is not None
     t0, c0 = time.perf_counter(), time.process_time()
-    res = execute_plan(plan, layout, [spec] * plan.num_agents, executor="physics", seed=0,
-                       repairs=repairs, dt_s=dt_s, trajectory_hz=10.0,
-                       options={"no_slip": no_slip})
+    res = execute_plan(plan, layout, types, executor="physics", seed=0, repairs=repairs,
+                       dt_s=dt_s, trajectory_hz=10.0, options=options)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     m = res.metrics
     d = {k: np.asarray(v) for k, v in res.trajectory.items()}

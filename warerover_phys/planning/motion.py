@@ -29,7 +29,7 @@ With ``executor.no_slip`` (or ``robot: diffdrive``) the physics executor drives 
 body itself, the velocity stays along the heading), and the wheel limits
 (``wheel_base_m``, ``max_wheel_speed_mps``) are validated to allow the top speed straight
 and the turn rate in place, so the durations here are those of both drives (measured:
-``tools/README.md``, issue 37).
+``docs/results/diffdrive.md``).
 
 Times are continuous (seconds). The executor ends turns and runs at their exact times inside
 a physics step, but decides for standing AGVs only every 0.1 s (``executors.follow.DECIDE_S``);
