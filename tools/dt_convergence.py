@@ -8,7 +8,7 @@ kinematic lag and contacts, with each makespan's relative difference from
 the finest step's; ``--json`` writes the rows.
 
     python tools/dt_convergence.py [--dt 0.01 0.02 0.05] [--seeds 0] [--max-ticks N] \\
-        [--json out.json] [layouts/paper_homogeneous.yaml ...]
+        [--set robot=diffdrive] [--json out.json] [layouts/paper_homogeneous.yaml ...]
 """
 
 from __future__ import annotations
@@ -25,11 +25,12 @@ KEYS = ("ticks", "success_rate", "orders_completed", "delay_dependency_wait_s",
         "limit_violations", "min_clearance_m")
 
 
-def run_one(path: Path, seed: int, dt: float, max_ticks: int | None) -> dict:
+def run_one(path: Path, seed: int, dt: float, max_ticks: int | None,
+            extra: list[tuple[str, object]] | None = None) -> dict:
     from warerover_phys import load_scenario
     from warerover_phys.sim import run_episode
 
-    sets = [("executor.name", "physics"), ("executor.dt_s", dt)]
+    sets = [("executor.name", "physics"), ("executor.dt_s", dt), *(extra or [])]
     if max_ticks is not None:
         sets.append(("max_ticks", max_ticks))
     sc = load_scenario(path, sets)
@@ -49,7 +50,13 @@ def main() -> int:
     ap.add_argument("--seeds", type=int, nargs="+", default=[0])
     ap.add_argument("--max-ticks", type=int, help="cap every episode (default: the file's)")
     ap.add_argument("--json", type=Path, help="write the rows here")
+    ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
+                    help="override a scenario field in every run (repeatable), e.g. "
+                         "robot=diffdrive")
     args = ap.parse_args()
+    from warerover_phys.config import parse_override
+
+    extra = [parse_override(text) for text in args.set]
     rows = []
     dts = sorted(args.dt)
     print("| scenario | seed | dt_s | makespan (ticks) | vs finest | SR | orders | dependency "
@@ -59,7 +66,7 @@ def main() -> int:
         for seed in args.seeds:
             base = None
             for dt in dts:
-                row = run_one(path, seed, dt, args.max_ticks)
+                row = run_one(path, seed, dt, args.max_ticks, extra)
                 base = row["ticks"] if base is None else base
                 row["makespan_diff"] = (row["ticks"] - base) / base if base else 0.0
                 rows.append(row)

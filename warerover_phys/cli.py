@@ -585,7 +585,9 @@ def execute(floor: Annotated[Path, typer.Argument(
                 "--set", help="Another executor option FIELD=VALUE (repeatable; YAML "
                               "values), as in a scenario's executor section: "
                               "no_slip=true, payload=true, comm_latency_s=0.2, "
-                              "shelf_contacts=true, park=false, adg=false ...")] = None,
+                              "shelf_contacts=true, park=false, adg=false ...; "
+                              "robot=diffdrive: no_slip and wheel limits, as a "
+                              "scenario's robot: diffdrive")] = None,
             reorder: ReorderOpt = None,
             ) -> None:
     """Execute a plan made elsewhere exactly as written (no scheduler, no replanning) on
@@ -602,6 +604,7 @@ def execute(floor: Annotated[Path, typer.Argument(
         load_floor,
         parse_delays,
         repair_cycles,
+        robot_model,
         validate_plan,
         write_execution,
     )
@@ -624,10 +627,12 @@ def execute(floor: Annotated[Path, typer.Argument(
         options = executor_options(sets)
         if reorder is not None:
             options["reorder"] = check_reorder(reorder)
+        robot = {k: options.pop(k) for k in ("robot",) if k in options}
         executor_spec(executor, dt_s=dt_s, delays=delay_spec, options=options)  # check early
         layout, types_by_name, kinds = load_floor(floor)
         the_plan = read_plan(plan, fmt, xy=not yx)
         types = load_fleet(fleet, the_plan.num_agents, types_by_name, kinds)
+        options, types = robot_model({**options, **robot}, types)
         sizes = [t.footprint for t in types]
         validate_plan(the_plan, layout, sizes, source=str(plan))
         if export is not None:  # can the export format hold this plan? (before the work)

@@ -37,7 +37,7 @@ __all__ = [
     "AgvTypeSpec", "AgvGroupSpec", "FleetSpec", "ShelfBlockSpec", "RectSpec", "InventorySpec",
     "GeneratorSpec", "LayoutSpec", "ErrandsSpec", "OrdersSpec", "SchedulerSpec", "PlannerSpec", "ExecutorSpec",
     "FaultsSpec", "TasksSpec", "Scenario", "load_scenario", "scenario_from_dict",
-    "apply_overrides", "parse_override",
+    "apply_overrides", "parse_override", "diffdrive_preset",
 ]
 
 MAX_COUNT = 1_000_000
@@ -140,6 +140,37 @@ class AgvTypeSpec(_Model):
     """Mass of the shelf it carries (kg). Physics with ``executor.payload: true``: a loaded
     AGV's acceleration limit is its drive force over the loaded mass,
     ``mass_kg x max_accel_mps2 / (mass_kg + payload_kg)``; 0 (default) = no change."""
+
+    wheel_base_m: PosFloat | None = None
+    """Differential drive: distance between the two drive wheels (metres), at most the body's
+    width. With ``max_wheel_speed_mps`` each wheel's speed ``|v +- omega x wheel_base_m / 2|``
+    is a limit of the no-slip drive (physics, ``executor.no_slip``). None: no wheel limit."""
+    max_wheel_speed_mps: PosFloat | None = None
+    """Differential drive: top speed of each drive wheel (m/s). It must allow the type's top
+    speed driving straight and its turn rate in place (at least ``max_speed_mps`` and
+    ``max_turn_rate_radps x wheel_base_m / 2``), so it binds only when the AGV turns while it
+    drives (steering back onto its path)."""
+
+    @model_validator(mode="after")
+    def _wheel_limits(self) -> AgvTypeSpec:
+        base, wheel = self.wheel_base_m, self.max_wheel_speed_mps
+        if (base is None) != (wheel is None):
+            raise ValueError("wheel_base_m and max_wheel_speed_mps go together: give both "
+                             "or neither")
+        if base is None or wheel is None:
+            return self
+        if self.drive == "omni":
+            raise ValueError("wheel_base_m / max_wheel_speed_mps are differential-drive "
+                             "limits (drive: diff)")
+        if base > self.body_m[1] + 1e-9:
+            raise ValueError(f"wheel_base_m {base:g} is wider than the body "
+                             f"(body_m width {self.body_m[1]:g})")
+        need = max(self.max_speed_mps, self.max_turn_rate_radps * base / 2)
+        if wheel < need - 1e-9:
+            raise ValueError(f"max_wheel_speed_mps {wheel:g} is below what driving straight "
+                             f"at max_speed_mps and turning in place at max_turn_rate_radps "
+                             f"need ({need:.4g}): lower those or raise it")
+        return self
 
     @property
     def loaded_accel_mps2(self) -> float:
@@ -610,9 +641,13 @@ class ExecutorSpec(_Model):
     grows by ``payload_kg``) while it carries a shelf; the command limiter, the braking
     profile and the measured-limit checks use the limit in force."""
     no_slip: Bool = False
-    """Physics: differential-drive AGVs cannot move sideways: the control law commands
-    velocity only along the body's heading and corrects lateral error by steering. Off: the
-    default controller also pulls sideways (``peak_lateral_speed_mps`` shows how much)."""
+    """Physics: differential-drive AGVs cannot move sideways: the unicycle law of
+    :mod:`~warerover_phys.executors.diffdrive` commands velocity only along the body's
+    heading, turns in place where the path turns, corrects lateral error by steering and
+    keeps speed, acceleration, turn rate and wheel speeds (``wheel_base_m``,
+    ``max_wheel_speed_mps``) within their limits at every step (``robot: diffdrive`` sets
+    it). Off: the default controller also pulls sideways (``peak_lateral_speed_mps`` shows
+    how much)."""
     comm_latency_s: NonNegFloat = 0.0
     """Physics with ``adg: true``: seconds before an AGV hears that another AGV's action it
     depends on is done (the dependency graph's messages arrive late): an action whose
@@ -753,10 +788,57 @@ def _orders_bound(orders: OrdersSpec, max_ticks: int) -> int:
 
 
 
+WHEEL_BASE_SHARE = 0.85
+"""``robot: diffdrive``: the wheel base it gives an AGV type, as a share of the body's width."""
+
+
+def diffdrive_preset(data: dict[str, Any]) -> dict[str, Any]:
+    """The raw scenario ``data`` with ``robot: diffdrive`` spelt out: ``executor.no_slip:
+    true`` and, for each differential-drive AGV type without wheel limits, ``wheel_base_m``
+    (:data:`WHEEL_BASE_SHARE` of its width) and ``max_wheel_speed_mps`` (the least that its
+    top speed and turn rate need). Values it cannot read are left for validation."""
+    out = dict(data)
+    executor = _as_dict(out.get("executor"))
+    if executor.get("no_slip") is False:
+        raise ScenarioError("robot: diffdrive drives without side slip; executor.no_slip: "
+                            "false contradicts it (drop one of them)",
+                            file=out.get("source"), field="executor.no_slip", value=False)
+    out["executor"] = {**executor, "no_slip": True}
+    fleet = out.get("fleet")
+    if not isinstance(fleet, dict):
+        return out
+    types = fleet.get("types", {"default": {}})
+    if not isinstance(types, dict):
+        return out
+    fields = AgvTypeSpec.model_fields
+    filled = {}
+    for name, spec in types.items():
+        if isinstance(spec, dict) and spec.get("drive", "diff") == "diff" and \
+                "wheel_base_m" not in spec and "max_wheel_speed_mps" not in spec:
+            body = spec.get("body_m", fields["body_m"].default)
+            speed = spec.get("max_speed_mps", fields["max_speed_mps"].default)
+            turn = spec.get("max_turn_rate_radps", fields["max_turn_rate_radps"].default)
+            try:
+                base = round(WHEEL_BASE_SHARE * float(body[1]), 6)
+                wheel = max(float(speed), float(turn) * base / 2)
+            except (TypeError, ValueError, IndexError, KeyError):
+                filled[name] = spec
+                continue
+            spec = {**spec, "wheel_base_m": base, "max_wheel_speed_mps": wheel}
+        filled[name] = spec
+    out["fleet"] = {**fleet, "types": filled}
+    return out
+
+
 class Scenario(_Model):
     """A whole episode: layout, fleet, orders, algorithms, seed and time."""
 
     name: str = "scenario"
+    robot: Literal["default", "diffdrive"] = "default"
+    """A robot-model preset. ``diffdrive``: differential drive without side slip, as real
+    warehouse AGVs drive (physics: :mod:`~warerover_phys.executors.diffdrive`):
+    ``executor.no_slip: true`` and wheel limits for the ``drive: diff`` types that give none
+    (:func:`diffdrive_preset`). It does not pick the executor: run it on ``physics``."""
     seed: Seed = 0
     max_ticks: Ticks = 2000
     tick_s: PosFloat = 1.0
@@ -775,6 +857,13 @@ class Scenario(_Model):
     @classmethod
     def _shorthand(cls, value: Any) -> Any:
         return _named(value)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _robot_preset(cls, data: Any) -> Any:
+        if isinstance(data, dict) and data.get("robot") == "diffdrive":
+            return diffdrive_preset(data)
+        return data
 
     @model_validator(mode="after")
     def _faults_name_real_agvs(self) -> Scenario:

@@ -53,7 +53,7 @@ from .layout import CellType, Layout
 from .planning.paths import State, TimedPath
 from .plans.model import Plan
 
-__all__ = ["PlanError", "Repair", "ExecutionResult", "load_floor", "load_fleet",
+__all__ = ["PlanError", "Repair", "ExecutionResult", "load_floor", "load_fleet", "robot_model",
            "validate_plan", "find_cycles", "repair_cycles", "plan_to_paths", "execute_plan"]
 
 DEFAULT_TYPE = AgvTypeSpec(body_m=(0.7, 0.7), max_speed_mps=1.0)
@@ -885,6 +885,39 @@ def check_reorder(mode: str) -> str:
     if mode not in REORDER_MODES:
         raise WareroverError(f"--reorder must be none, greedy or milp (got {mode!r})")
     return mode
+
+
+def robot_model(options: dict[str, Any], types: list[AgvTypeSpec]
+                ) -> tuple[dict[str, Any], list[AgvTypeSpec]]:
+    """``--set robot=diffdrive`` of ``warerover execute`` (a key of ``options`` from
+    :func:`executor_options`): the executor options and AGV types with the preset of a
+    scenario's ``robot: diffdrive`` (:func:`~warerover_phys.config.diffdrive_preset`:
+    ``no_slip`` on, wheel limits for differential-drive types that give none); ``robot``
+    is taken out of the options. ``default`` or no ``robot``: unchanged."""
+    from pydantic import ValidationError
+
+    from .config import diffdrive_preset
+
+    options = dict(options)
+    robot = options.pop("robot", "default")
+    if robot == "default":
+        return options, types
+    if robot != "diffdrive":
+        raise ScenarioError("expected default or diffdrive", file="<command line>",
+                            field="--set robot", value=robot)
+    if options.get("no_slip") is False:
+        raise ScenarioError("robot=diffdrive drives without side slip; no_slip=false "
+                            "contradicts it", file="<command line>", field="--set no_slip",
+                            value=False)
+    unique = {t: f"t{k}" for k, t in enumerate(dict.fromkeys(types))}  # (frozen: hashable)
+    raw = diffdrive_preset({"fleet": {"types": {name: t.model_dump(exclude_none=True)
+                                                for t, name in unique.items()}}})
+    try:
+        made = {k: AgvTypeSpec.model_validate(v) for k, v in raw["fleet"]["types"].items()}
+    except ValidationError as err:
+        raise ScenarioError(err.errors()[0]["msg"], file="<command line>",
+                            field="--set robot") from None
+    return {**options, "no_slip": True}, [made[unique[t]] for t in types]
 
 
 def parse_delays(text: str | None) -> DelaySpec:

@@ -24,9 +24,9 @@ reference up to float error. The command still goes through :func:`limit_command
 ``v_max``, at most ``a dt`` away from the body's present velocity): a body that was put off
 its reference (a contact, a blocked move) cannot exceed its limits catching up. Standing
 AGVs hold their cell centre (deadbeat within a few millimetres, on the braking curve farther
-out). With ``executor.no_slip`` a differential-drive body that is off its path gets velocity
-only along its heading and steers back onto the path line (:func:`_no_slip`); on the path
-the deadbeat command is projected onto the heading.
+out). With ``executor.no_slip`` the differential-drive rows get the unicycle law of
+:mod:`.diffdrive` instead (velocity along the heading only, every limit kept by
+construction).
 
 The numpy functions here are the reference. The executor runs the same arithmetic compiled
 (:mod:`.control_nb`, bit for bit the same numbers): :func:`steer` and the follower's event
@@ -41,11 +41,12 @@ import math
 
 import numpy as np
 
+from . import diffdrive
 from .control_nb import advance_rows, steer_rows
 from .fleet_state import DRIVE, TURN, FleetState
 
-__all__ = ["COMPILED", "ARRIVE_EPS_M", "TURN_EPS_RAD", "ALIGN_EPS_RAD", "OFF_REFERENCE_M", "LATERAL_GAIN", "ALONG_GAIN",
-           "HEADING_GAIN", "HOLD_SPEED", "limit_command", "run_references", "steer",
+__all__ = ["COMPILED", "ARRIVE_EPS_M", "TURN_EPS_RAD", "ALIGN_EPS_RAD", "OFF_REFERENCE_M",
+           "HOLD_SPEED", "limit_command", "run_references", "steer",
            "stop_speed", "wrap", "run_references_compiled", "steer_compiled", "steer_numpy"]
 
 ARRIVE_EPS_M = 0.02
@@ -64,24 +65,8 @@ limit until the body is back, and the executor reports it (``off_reference`` eve
 EVENT_EPS_S = 1e-9
 """An event this close after a step's end (seconds; float error) belongs to that step, so
 that an action that ends on a step boundary ends in the step before it, whatever ``dt``."""
-LATERAL_GAIN = 3.0
-"""1/s: no-slip drive, steering back onto the path line."""
-ALONG_GAIN = 4.0
-"""1/s: no-slip drive, pull towards the reference point along the path while steering."""
-HEADING_GAIN = 6.0
-"""1/s: no-slip drive, heading pull while steering."""
 HOLD_SPEED = 0.3
 """m/s: fastest approach of a standing body that is off its hold point."""
-MAX_STEER_RAD = 0.35
-"""No-slip drive (``executor.no_slip``): largest heading offset used to steer back onto the
-path line."""
-STEER_ACCEL_SHARE = 0.6
-"""No-slip drive: share of the acceleration limit the centripetal acceleration of a
-steering correction may take (the rest is left to speed changes)."""
-NO_SLIP_EXACT_MPS = 0.01
-"""No-slip drive: a deadbeat command whose sideways part (across the body's heading) is
-below this (m/s) is projected onto the heading; a larger one means the body is off its
-path, and it steers back."""
 
 
 def _numba_available() -> bool:
@@ -278,7 +263,7 @@ def steer_compiled(st: FleetState, pos: np.ndarray, ang: np.ndarray, v_now: np.n
                    ref0: np.ndarray, skip: np.ndarray | None = None
                    ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`steer_numpy` compiled (:func:`.control_nb.steer_rows`; the no-slip rows then
-    in numpy, :func:`_no_slip`): the same commands (zero on the rows ``skip``)."""
+    by :func:`.diffdrive.steer`): the same commands (zero on the rows ``skip``)."""
     n = st.n
     cmd = np.empty((n, 2))
     w = np.empty(n)
@@ -291,9 +276,7 @@ def steer_compiled(st: FleetState, pos: np.ndarray, ang: np.ndarray, v_now: np.n
                np.ascontiguousarray(v_now, dtype=np.float64),
                np.ascontiguousarray(ref0, dtype=np.float64), cmd, w, skip)
     if st.no_slip is not None and st.no_slip.any():
-        ns = np.flatnonzero(st.no_slip)
-        cmd[ns], w[ns] = _no_slip(st, ns, pos[ns], ang[ns], v_now[ns], cmd[ns], w[ns],
-                                  st.mode[ns] == DRIVE)
+        diffdrive.steer(st, pos, ang, v_now, cmd, w, skip)
     return cmd, w
 
 
@@ -317,73 +300,9 @@ def steer_numpy(st: FleetState, pos: np.ndarray, ang: np.ndarray, v_now: np.ndar
     vel = (target - pos) / dt
     if far.any():
         vel[far] = (target[far] - ref0[far]) / dt + err[far] * (cap[far] / dist[far])[:, None]
-    drive = ~hold
     want = np.where(st.mode == TURN, st.ang_ref, st.heading)
     w = np.clip(wrap(want - ang) / dt, -st.wmax, st.wmax)
     cmd = limit_command(vel, v_now, st.vmax, a, dt)
     if st.no_slip is not None and st.no_slip.any():
-        ns = np.flatnonzero(st.no_slip)
-        cmd[ns], w[ns] = _no_slip(st, ns, pos[ns], ang[ns], v_now[ns], cmd[ns], w[ns],
-                                  drive[ns])
+        diffdrive.steer(st, pos, ang, v_now, cmd, w)
     return cmd, w
-
-
-def _no_slip(st: FleetState, ns: np.ndarray, pos: np.ndarray, ang: np.ndarray,
-             v_now: np.ndarray, cmd: np.ndarray, w: np.ndarray, drive: np.ndarray
-             ) -> tuple[np.ndarray, np.ndarray]:
-    """Commands for bodies that cannot move sideways (rows ``ns``): a speed along the
-    heading only. A deadbeat command with less than :data:`NO_SLIP_EXACT_MPS` across the
-    heading (the body is on its path) is projected onto it. Otherwise, driving, the lateral
-    error is corrected by steering (a heading offset ``atan(-LATERAL_GAIN x lateral /
-    speed)``, at most :data:`MAX_STEER_RAD`), with the turn rate capped so that the
-    centripetal acceleration ``speed x turn rate`` takes at most :data:`STEER_ACCEL_SHARE`
-    of the acceleration limit; the speed then changes by at most what is left, so the
-    velocity vector changes by at most ``max_accel dt`` per step. The speed is also kept to
-    what still stops the *body* at the stop point. Standing or turning, the hold pull is
-    projected onto the heading."""
-    dt, a, vmax = st.dt, st.amax[ns], st.vmax[ns]
-    mid = ang + 0.5 * w * dt
-    hx, hy = np.cos(mid), np.sin(mid)
-    side = np.abs(-cmd[:, 0] * hy + cmd[:, 1] * hx)
-    u_cmd = cmd[:, 0] * hx + cmd[:, 1] * hy
-    exact = side < NO_SLIP_EXACT_MPS
-    steer_rows = drive & ~exact
-    u_now = v_now[:, 0] * np.cos(ang) + v_now[:, 1] * np.sin(ang)
-    u = u_cmd
-    if steer_rows.any():
-        rel = pos - st.origin[ns]
-        d = st.direction[ns]
-        lateral = rel[:, 0] * -d[:, 1] + rel[:, 1] * d[:, 0]
-        along = (rel * d).sum(axis=1)
-        ref = np.maximum(np.abs(st.speed[ns]), np.abs(u_now))
-        steer_off = np.clip(np.arctan2(-LATERAL_GAIN * lateral, np.maximum(ref, 0.2)),
-                            -MAX_STEER_RAD, MAX_STEER_RAD)
-        path = np.arctan2(d[:, 1], d[:, 0])
-        cap = np.minimum(st.wmax[ns], STEER_ACCEL_SHARE * a / np.maximum(np.abs(u_now), 1e-6))
-        w_drive = np.clip(HEADING_GAIN * wrap(path + steer_off - ang), -cap, cap)
-        w = np.where(steer_rows, w_drive, w)
-        stop = stop_speed(st.stop_s[ns] - along, a, dt, np.maximum(u_now, 0.0))
-        v_along = st.speed[ns] + np.clip(ALONG_GAIN * (st.s_ref[ns] - along), -0.2, 0.2)
-        u_want = np.minimum(v_along, stop)
-        room = np.sqrt(np.maximum(a * a - (u_now * w) ** 2, (0.1 * a) ** 2)) * dt
-        u_steer = np.clip(np.clip(u_want, u_now - room, u_now + room), -vmax, vmax)
-        u = np.where(steer_rows, u_steer, u)
-    rest = ~steer_rows
-    if rest.any():
-        # Every other row as when steering: the turn rate and the speed change share the
-        # acceleration limit (nothing changes for a body on its path at rest or driving
-        # straight; a body that still moves while it turns, or leaves a steering
-        # correction, turns its velocity no faster than the limit allows).
-        cap = np.minimum(st.wmax[ns], STEER_ACCEL_SHARE * a / np.maximum(np.abs(u_now), 1e-6))
-        w = np.where(rest, np.clip(w, -cap, cap), w)
-        room = np.sqrt(np.maximum(a * a - (u_now * w) ** 2, (0.1 * a) ** 2)) * dt
-        u = np.where(rest, np.clip(u, u_now - room, u_now + room), u)
-    mid = ang + 0.5 * w * dt
-    # The velocity vector (speed along the turning heading) at most a dt from the present
-    # one: the speed nearest the wanted one for which |u h - v_now| <= a dt.
-    hx, hy = np.cos(mid), np.sin(mid)
-    hv = v_now[:, 0] * hx + v_now[:, 1] * hy
-    disc = hv * hv - np.einsum("ij,ij->i", v_now, v_now) + (a * dt) ** 2
-    r = np.sqrt(np.maximum(disc, 0.0))
-    u = np.where(disc > 0, np.clip(u, hv - r, hv + r), hv)
-    return np.column_stack([u * hx, u * hy]), w

@@ -42,6 +42,9 @@ class FleetState:
     """Bodies that cannot move sideways (``executor.no_slip``, differential drive): the
     control law commands velocity only along their heading and steers onto the path.
     None: none."""
+    diff: object | None = None
+    """The no-slip law's per-AGV constants (:class:`.diffdrive.DiffParams`: half widths,
+    wheel limits) when ``no_slip`` is set; None: its defaults."""
     decide_every: int = 1
     """Physics steps between decisions for standing AGVs (``follow.DECIDE_S`` seconds)."""
     sim_s: float = 0.0

@@ -55,8 +55,10 @@ from .bodies import (
     unsolved_agv_contacts,
 )
 from .control import OFF_REFERENCE_M, steer, wrap
+from .diffdrive import DiffParams, WheelMonitor, sync_references
 from .fleet_state import HOLD, FleetState
 from .follow import DECIDE_S, PlanFollower
+from .measured import LIMIT_TOLERANCE
 from .step_kernels import settled, step_prelude
 
 if TYPE_CHECKING:
@@ -117,6 +119,8 @@ class PhysicsExecutor:
         self.rng = rng = setup.rng
         lo, hi = spec.speed_scale
         self.scale = rng.uniform(lo, hi, n) if hi > lo else np.full(n, lo)
+        no_slip = np.array([a.spec.drive != "omni" for a in agvs], dtype=bool) \
+            if getattr(spec, "no_slip", False) else None
         self.state = FleetState(
             cols=layout.cols, cell_m=layout.cell_m, tick_s=self.tick_s, dt=self.dt, k=k,
             vmax=np.array([a.spec.max_speed_mps for a in agvs]) * self.scale,
@@ -124,8 +128,7 @@ class PhysicsExecutor:
             wmax=np.array([a.spec.max_turn_rate_radps for a in agvs]),
             omni=np.array([a.spec.drive == "omni" for a in agvs]),
             origin=np.array([p[:2] for p in poses], dtype=float),
-            no_slip=np.array([a.spec.drive != "omni" for a in agvs], dtype=bool)
-            if getattr(spec, "no_slip", False) else None,
+            no_slip=no_slip, diff=None if no_slip is None else DiffParams.of(agvs),
             decide_every=max(1, round(DECIDE_S / self.dt)))
         sweeps = agv_sweeps([a.spec for a in agvs], layout.cell_m, layout)
         if not getattr(spec, "shelf_sweeps", False):
@@ -169,6 +172,10 @@ class PhysicsExecutor:
             self.dt * self.state.decide_every) + REACH_SLOP_M
         """Per AGV: how far (metres) beyond its box an obstacle keeps its drive joints in
         (twice the farthest it can move before the next look, plus the slop)."""
+        self._wheels = None if no_slip is None else WheelMonitor(self.state.diff, no_slip,
+                                                                 LIMIT_TOLERANCE)
+        """No-slip drive: the wheel speeds measured from the poses (AGVs with wheel
+        limits)."""
         self._bound = True
 
     def _contact(self, a: int, b: int, point: tuple[float, float]) -> None:
@@ -237,6 +244,8 @@ class PhysicsExecutor:
         st = self.state
         raw, raw_ang, v_now, w_now = self.io.read()
         t = st.sim_s
+        if st.no_slip is not None:  # no-slip drive: driving references start from the bodies
+            sync_references(st, raw, v_now)
         n = self.n
         injected, delayed, ref0 = self._step_bufs  # (used within the step only)
         off = np.empty(n, dtype=bool)  # (kept as _off until the next step)
@@ -262,6 +271,8 @@ class PhysicsExecutor:
         self.space.step(st.dt)
         st.sim_s = t + st.dt
         self.acc.after_step(raw, raw_ang, injected, t)
+        if self._wheels is not None:
+            self.acc.events.extend(self._wheels.measure(raw, raw_ang, t))
 
     def _keep_joints(self, pos: np.ndarray, ang: np.ndarray) -> None:
         """Drive joints in the space for the moving bodies that could touch an obstacle
@@ -331,7 +342,11 @@ class PhysicsExecutor:
                     PARK_SPEED, PARK_EPS_RAD, ids)
         long = st.sim_s - st.last_finish >= STATIC_AFTER_S - 1e-9
         left = False
+        ns = st.no_slip
+
         def hold_pose(i: int) -> tuple[float, float, float]:
+            if ns is not None and ns[i]:  # no-slip drive: parks where it stands (no sideways jump)
+                return float(pos[i, 0]), float(pos[i, 1]), float(ang[i])
             return (float(st.hold_xy[i, 0]), float(st.hold_xy[i, 1]),
                     float(ang[i] + wrap(st.heading[i] - ang[i])))
 
@@ -405,6 +420,10 @@ class PhysicsExecutor:
         })
         if self.follow.reorder is not None:
             out.update(self.follow.reorder.summary())
+        if self._wheels is not None and len(self._wheels.rows):
+            out["limit_violations"] += self._wheels.violations
+            out["wheel_speed_violations"] = self._wheels.violations
+            out["peak_wheel_speed_ratio"] = self._wheels.ratio()
         return out
 
     def cause_log(self):
@@ -427,4 +446,9 @@ class PhysicsExecutor:
         out["limit_accel_loaded_mps2"] = self._amax_loaded.copy()
         out["peak_accel_ratio"] = self.acc.limits.peak_ratio("accel")
         out["peak_lateral_speed_mps"] = self.acc.limits.lateral.copy()
+        if self._wheels is not None and len(self._wheels.rows):
+            d = self.state.diff
+            out["wheel_base_m"] = d.half_base * 2
+            out["limit_wheel_speed_mps"] = d.wheel_max.copy()
+            out["peak_wheel_speed_mps"] = self._wheels.peak.copy()
         return out

@@ -23,6 +23,14 @@ so that a plan timed with it is what that executor needs when nothing gets in th
   A quarter turn takes ``(pi / 2) / max_turn_rate_radps`` (:meth:`MotionModel.turn_s`).
   Omnidirectional AGVs never turn (``turn_s`` is 0).
 
+This is the differential-drive profile: turn in place, then accelerate along the heading.
+With ``executor.no_slip`` (or ``robot: diffdrive``) the physics executor drives exactly it
+(:mod:`warerover_phys.executors.diffdrive`: each driving body's reference starts from the
+body itself, the velocity stays along the heading), and the wheel limits
+(``wheel_base_m``, ``max_wheel_speed_mps``) are validated to allow the top speed straight
+and the turn rate in place, so the durations here are those of both drives (measured:
+``docs/results/diffdrive.md``).
+
 Times are continuous (seconds). The executor ends turns and runs at their exact times inside
 a physics step, but decides for standing AGVs only every 0.1 s (``executors.follow.DECIDE_S``);
 the model leaves that out (measured against physics: ``tests/planning/test_motion.py``).
