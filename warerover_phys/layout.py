@@ -274,7 +274,7 @@ def build_layout(spec: LayoutSpec, *, fleet_size: int = 0, file: str | None = No
         access = [(r, c) for r, line in enumerate(spec.grid) for c, ch in enumerate(line)
                   if ch == "A"]
     elif spec.map is not None:
-        from .movingai import read_map
+        from .problems.movingai import read_map
 
         if not Path(spec.map).is_file():
             raise ScenarioError("MovingAI map file not found", file=file, field="layout.map",

@@ -32,12 +32,12 @@ from .faults.model import FaultModel, close_failure, open_failure
 from .invoke import PlanClock, cut, plan_window, splice
 from .metrics import MetricsRecorder
 from .planning import make_planner
-from .planning.astar import nearest_free_anchor
 from .planning.base import AgentRequest, Planner, PlanRequest, PlanResult
 from .planning.paths import TimedPath, footprint_nodes, occupancy
 from .planning.rotation import agent_turn_ticks
+from .planning.search.astar import nearest_free_anchor
+from .planning.search.turning_astar import request_turn_fields
 from .planning.sweep import DIR_OF, EAST, BodyShape, TurnMasks, turn_fields
-from .planning.turns import request_turn_fields
 from .registry import check_plugins
 from .schedulers import make_scheduler
 from .schedulers.base import SchedulerView
@@ -232,7 +232,7 @@ class Simulation:
                                  collisions=report.collisions)
 
     def run(self, progress: Callable[[int, int, int], None] | None = None) -> EpisodeResult:
-        from .gc_tuning import long_loop
+        from .util.gc_tuning import long_loop
 
         with long_loop():  # (see gc_tuning)
             while not self.done:

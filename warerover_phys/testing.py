@@ -735,7 +735,7 @@ def _check_paths(world, agents: list, result, tick: int, ck: _Checker) -> None:
                 f"turns in place where it may not ({c})",
                 fixes[c.kind] + "; a turn is a move whose direction differs from the AGV's "
                 "heading (agent.heading, then its last move's); see "
-                "warerover_phys.planning.turns")
+                "warerover_phys.planning.search.turning_astar")
     ck.ok("turn sweeps")
 
 

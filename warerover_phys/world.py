@@ -7,7 +7,7 @@ methods here, so the order and AGV life cycles are in one place:
 - an AGV runs the task chain IDLE -> TO_SHELF -> PICKING -> TO_STATION -> HANDOVER
   (-> TO_STATION -> HANDOVER ...) -> RETURNING -> PLACING -> IDLE; an IDLE AGV drives to its
   home parking spot and may be given a new trip on the way;
-- with errand tasks (``orders.pattern: errands``, :mod:`warerover_phys.errands`) an order is a
+- with errand tasks (``orders.pattern: errands``, :mod:`warerover_phys.problems.errands`) an order is a
   list of cells, and its AGV runs IDLE -> ERRAND (one errand after the other, each done when
   it stands at rest on the errand's cell) -> IDLE; an IDLE AGV stays where it is (or drives
   home, ``orders.errands.idle``).
@@ -195,7 +195,7 @@ class World:
             raise err.with_file(src) if src else err from None
         rngs = make_rngs(scenario.seed)
         if scenario.orders.pattern == "errands":
-            from .errands import ErrandStream
+            from .problems.errands import ErrandStream
 
             stream = ErrandStream(scenario.orders.errands, layout.cols,
                                   graphs.get(1, False).valid.ravel(), len(agvs),

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from warerover_phys.planning.dist_store import DistStore
 from warerover_phys.planning.graph import UNREACHABLE
-from warerover_phys.planning.oneshot import grid_graph
+from warerover_phys.planning.oneshot.core import grid_graph
 
 
 @settings(max_examples=25, deadline=None)

@@ -1,4 +1,4 @@
-"""The compiled PIBT steps (:mod:`warerover_phys.planning.pibt_numba`) against the Python
+"""The compiled PIBT steps (:mod:`warerover_phys.planning.pibt.kernels`) against the Python
 reference steps: the same next cells, headings and actions on random grids (hypothesis), and
 the same output over whole lifelong runs of ``warehouse_small`` with 200 and 400 robots.
 Every step is also checked by an independent validator (no shared cells, no swaps, no
@@ -16,18 +16,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from warerover_phys.planning import pibt_numba as pn
 from warerover_phys.planning.dist_store import DistStore
-from warerover_phys.planning.oneshot import grid_graph
-from warerover_phys.planning.pibt import pibt_step
-from warerover_phys.planning.pibt_heading import (
+from warerover_phys.planning.oneshot.core import grid_graph
+from warerover_phys.planning.pibt import kernels as pn
+from warerover_phys.planning.pibt.heading import (
     STEP,
     Facing,
     heading_pibt_step,
     steps_of,
     turn_first,
 )
-from warerover_phys.planning.pibt_planner import PIBTPlanner
+from warerover_phys.planning.pibt.planner import PIBTPlanner
+from warerover_phys.planning.pibt.reference import pibt_step
 from warerover_phys.problems.robotrunners import output_json, problem_scenario, read_problem
 from warerover_phys.sim import Simulation
 

@@ -310,7 +310,7 @@ def load_trajectory_file(path: str | Path, shelves: bool = True) -> TimedPlan:
         p = p / "trajectories.npz"
     if not p.is_file():
         raise SpacetimeInputError("no such trajectory file", file=str(p))
-    from ..atomic import check_set
+    from ..util.atomic import check_set
 
     check_set(p.parent)  # a half-written or mixed run folder is refused
     try:

@@ -430,7 +430,7 @@ def heatmap(groups: Sequence[Group], path: str | Path, title: str = "") -> Path:
     ax.text(0.5, ly, "95% CI overlaps the best of its column (bold): not shown to differ",
             ha="left", va="center", fontsize=7)
     path = Path(path)
-    from ..atomic import replacing
+    from ..util.atomic import replacing
 
     with replacing(path) as tmp:      # a killed report never leaves half a PNG
         fig.savefig(tmp, format=path.suffix.lstrip(".") or "png")
