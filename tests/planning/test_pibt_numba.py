@@ -215,7 +215,7 @@ def test_steps_compiled_once_are_loaded_from_the_cache():
     the next process)."""
     pn.warm_up()
     cache = Path(pn.__file__).parent / "__pycache__"
-    assert any(p.name.startswith("pibt_numba._heading_kernel") and p.suffix == ".nbi"
+    assert any(p.name.startswith("heading_kernels._heading_kernel") and p.suffix == ".nbi"
                for p in cache.iterdir())
 
 
