@@ -25,6 +25,7 @@ def _turns_at(d, v, h, nbr, deg, nbr_dir, turns):
             mask |= 1 << nbr_dir[v, t]
     return turns[mask, h]
 
+
 @njit(cache=True)
 def _escape(i, pusher, tables, nbr, deg, nbr_dir, occ_now, occ_next, tie, config, heading):
     here = config[i]
@@ -48,6 +49,7 @@ def _escape(i, pusher, tables, nbr, deg, nbr_dir, occ_now, occ_next, tie, config
             key_b = b
             have = True
     return best
+
 
 @njit(cache=True)
 def _hsetup(f, i, pusher, ag, pus, kinds, cells, heads, nopt, idx, tables, nbr, deg, nbr_dir,
@@ -99,6 +101,7 @@ def _hsetup(f, i, pusher, ag, pus, kinds, cells, heads, nopt, idx, tables, nbr, 
     pus[f] = pusher
     nopt[f] = m
     idx[f] = 0
+
 
 @njit(cache=True)
 def _hpush(root, ag, pus, kinds, cells, heads, nopt, idx, tables, nbr, deg, nbr_dir, ahead_of,
@@ -192,6 +195,7 @@ def _hpush(root, ag, pus, kinds, cells, heads, nopt, idx, tables, nbr, deg, nbr_
             resume = True
     return ret
 
+
 @njit(cache=True)
 def _heading_kernel(nbr, deg, nbr_dir, ahead_of, turns, config, heading, tables, order, tie,
                     escaping, held, acyclic):
@@ -225,6 +229,7 @@ def _heading_kernel(nbr, deg, nbr_dir, ahead_of, turns, config, heading, tables,
                    config, heading, instack, acyclic)
     return nxt, nh, acts, escaped
 
+
 def heading_step_nb(st: StepTables, config: np.ndarray, heading: np.ndarray, tables,
                     order: np.ndarray, tie: np.ndarray, escaping: np.ndarray,
                     held: np.ndarray | None = None, acyclic: bool = False
@@ -239,6 +244,7 @@ def heading_step_nb(st: StepTables, config: np.ndarray, heading: np.ndarray, tab
                            np.asarray(heading, dtype=np.int64), tables,
                            np.asarray(order, dtype=np.int64), np.asarray(tie, dtype=np.float64),
                            np.asarray(escaping, dtype=np.bool_), held, bool(acyclic))
+
 
 @njit(cache=True)
 def _turn_first_kernel(config, nxt, heading, cols, cells):
@@ -287,6 +293,7 @@ def _turn_first_kernel(config, nxt, heading, cols, cells):
         if out[i] != config[i] and acts[i] == 87:
             acts[i] = 70  # F
     return out, hd, acts
+
 
 def turn_first_nb(config: np.ndarray, nxt: np.ndarray, heading: np.ndarray, cols: int,
                   cells: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

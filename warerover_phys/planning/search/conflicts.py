@@ -40,6 +40,7 @@ class PairConflict:
     turn: tuple[int, int] | None = None
     turn_j: tuple[int, int] | None = None
 
+
 def find_conflicts(paths: Sequence[TimedPath], sizes: Sequence[int], cols: int, t0: int,
                    t_end: int, limit: int = 1, turns: Sequence[AgentRequest] | None = None,
                    rows: int | None = None) -> tuple[list[PairConflict], int]:
@@ -55,6 +56,7 @@ def find_conflicts(paths: Sequence[TimedPath], sizes: Sequence[int], cols: int, 
         return found, count
     merged = sorted(found + more, key=lambda c: (c.tick, min(c.i, c.j), max(c.i, c.j)))
     return merged[:limit], count + n
+
 
 def _turn_conflicts(paths: Sequence[TimedPath], sizes: Sequence[int], cols: int,
                     rows: int | None, t0: int, t_end: int, agents: Sequence[AgentRequest],
@@ -110,6 +112,7 @@ def _turn_conflicts(paths: Sequence[TimedPath], sizes: Sequence[int], cols: int,
                                             turn_j=(other[0], t)))
     return out, len(out)
 
+
 def _cell_conflicts(paths: Sequence[TimedPath], sizes: Sequence[int], cols: int, t0: int,
                     t_end: int, limit: int = 1) -> tuple[list[PairConflict], int]:
     n = len(paths)
@@ -162,6 +165,7 @@ def _cell_conflicts(paths: Sequence[TimedPath], sizes: Sequence[int], cols: int,
                             (prev_state[p], states[p]), (prev_state[q], states[q]))))
         prev_owner, prev_occ, prev_state = owner, occ_t, states
     return found, count
+
 
 def path_fits(res: ReservationTable, path: TimedPath, k: int,
               agent: AgentRequest | None = None) -> bool:
