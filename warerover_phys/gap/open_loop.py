@@ -206,6 +206,34 @@ class _Progress:
 
 # ----------------------------------------------------------------------------- comparison
 
+def _blockers(log, n: int) -> dict[int, list[tuple[int, float]]]:
+    """Each AGV's blockers ``[(blocker, seconds), ...]``, most first."""
+    blockers: dict[int, list[tuple[int, float]]] = {i: [] for i in range(n)}
+    for (i, b), steps in log.blockers.items():
+        blockers[i].append((b, steps * log.dt_s))
+    for i in blockers:
+        blockers[i].sort(key=lambda x: (-x[1], x[0]))
+    return blockers
+
+
+def _action_parts(a, c, spt: int) -> dict[str, int]:
+    """One action's lost physics steps split into :data:`PARTS` (``c``: its cause counts);
+    their sum is the action's interval lost."""
+    p, d, w = a.ticks * spt, a.dwell * spt, a.wait * spt
+    drive = int(c[DRIVE_L])
+    ap = dict.fromkeys(PARTS, 0)
+    ap["accel_decel"] = max(0, drive - p)
+    ap["faster_than_plan"] = min(0, drive - p)
+    ap["dwell_overrun"] = int(c[DWELL]) - d
+    credit = w
+    for lab, name in _CREDIT:
+        used = min(credit, int(c[lab]))
+        ap[name] = int(c[lab]) - used
+        credit -= used
+    ap["plan_waits_skipped"] = -credit
+    return ap
+
+
 def compare(run: OpenLoopRun) -> tuple[list[dict], list[dict], dict[int, list[tuple]]]:
     """Per-AGV rows, per-action rows and per-AGV blockers ``[(blocker, seconds), ...]``
     (most first) of an open-loop run (see the module docstring for the parts)."""
@@ -220,11 +248,7 @@ def compare(run: OpenLoopRun) -> tuple[list[dict], list[dict], dict[int, list[tu
     by_agv: dict[int, list[int]] = {i: [] for i in range(n)}
     for r in order.tolist():
         by_agv[int(log.agv[r])].append(r)
-    blockers: dict[int, list[tuple[int, float]]] = {i: [] for i in range(n)}
-    for (i, b), steps in log.blockers.items():
-        blockers[i].append((b, steps * dt))
-    for i in blockers:
-        blockers[i].sort(key=lambda x: (-x[1], x[0]))
+    blockers = _blockers(log, n)
     agents, actions = [], []
     for i in range(n):
         acts = plan.actions(i)
@@ -235,18 +259,7 @@ def compare(run: OpenLoopRun) -> tuple[list[dict], list[dict], dict[int, list[tu
         for a, r in zip(acts, rows, strict=False):
             c = log.counts[r]
             fin = int(log.finish_step[r])
-            p, d, w = a.ticks * spt, a.dwell * spt, a.wait * spt
-            drive = int(c[DRIVE_L])
-            ap = dict.fromkeys(PARTS, 0)
-            ap["accel_decel"] = max(0, drive - p)
-            ap["faster_than_plan"] = min(0, drive - p)
-            ap["dwell_overrun"] = int(c[DWELL]) - d
-            credit = w
-            for lab, name in _CREDIT:
-                used = min(credit, int(c[lab]))
-                ap[name] = int(c[lab]) - used
-                credit -= used
-            ap["plan_waits_skipped"] = -credit
+            ap = _action_parts(a, c, spt)
             interval_lost = (fin - prev_exec) - (a.ticks + a.wait + a.dwell) * spt
             assert sum(ap.values()) == interval_lost, (i, a.seq, ap, interval_lost)
             for k, v in ap.items():

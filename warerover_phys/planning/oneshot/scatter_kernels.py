@@ -167,7 +167,12 @@ def _search(indptr, indices, count, head, link, after, end_head, end_link, end_l
             start, goal, dist, margin, best, best_stamp, parent, closed_stamp, heap, stamp,
             out):
     """``scatter._search``: writes the path into ``out`` and returns its length (0: none)
-    and the heap (grown when full)."""
+    and the heap (grown when full).
+
+    A compiled kernel, long on purpose: numba compiles one function into one loop nest, and
+    this one is the reference's A* step for step (open list, stamps, path read-back) so that
+    both give the same paths; split into calls it would pass its twenty arrays at every
+    expansion."""
     if start == goal:
         out[0] = start
         return 1, heap

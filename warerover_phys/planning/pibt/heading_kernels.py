@@ -107,7 +107,12 @@ def _hsetup(f, i, pusher, ag, pus, kinds, cells, heads, nopt, idx, tables, nbr, 
 def _hpush(root, ag, pus, kinds, cells, heads, nopt, idx, tables, nbr, deg, nbr_dir, ahead_of,
            turns, occ_now, occ_next, nxt, nh, acts, escaping, escaped, tie, config, heading,
            instack, acyclic):
-    """The reference's recursive ``push(root, -1)`` on an explicit stack (see ``_push``)."""
+    """The reference's recursive ``push(root, -1)`` on an explicit stack (see ``_push``).
+
+    A compiled kernel, long on purpose: the recursion of the reference step unrolled onto one
+    explicit stack (numba compiles no recursion with this many array arguments well); its
+    frames' branches follow the reference's order line by line, which is what keeps both
+    steps' results the same."""
     f = 0
     _hsetup(0, root, -1, ag, pus, kinds, cells, heads, nopt, idx, tables, nbr, deg, nbr_dir,
             ahead_of, turns, escaping, tie, config, heading)

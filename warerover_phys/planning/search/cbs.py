@@ -133,6 +133,21 @@ class Constraints:
 # ----------------------------------------------------------------------------- low level
 
 
+def _goal_free_tick(res: ReservationTable, me: int, goal_cells: tuple[int, ...],
+                    cons: Constraints) -> int | None:
+    """Earliest tick from which the AGV may stay at the goal for good: after every fixed
+    AGV's last use of the goal's cells, after every vertex constraint on them, and after its
+    own "finish after" constraint (None: never)."""
+    t_free = max((res.last_use(c, me) for c in goal_cells), default=-1) + 1
+    if t_free >= FOREVER:
+        return None
+    t_free = max(t_free, cons.finish_after + 1)
+    for t, cells in cons.vertex.items():
+        if t >= t_free and not cells.isdisjoint(goal_cells):
+            t_free = t + 1
+    return t_free
+
+
 def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest, t0: int,
                       constraints: Constraints | None = None,
                       avoid: tuple[dict[int, dict[int, int]], dict[int, int]] | None = None,
@@ -162,16 +177,9 @@ def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentReq
     goal_cells = fp(goal)
     if any(c in never for c in goal_cells):
         return None, 0  # it could not stay there for good
-    # Earliest tick from which the AGV may stay at the goal for good: after every fixed
-    # AGV's last use of the goal's cells, after every vertex constraint on them, and after
-    # its own "finish after" constraint.
-    t_free = max((res.last_use(c, me) for c in goal_cells), default=-1) + 1
-    if t_free >= FOREVER:
+    t_free = _goal_free_tick(res, me, goal_cells, cons)
+    if t_free is None:
         return None, 0
-    t_free = max(t_free, cons.finish_after + 1)
-    for t, cells in vertex.items():
-        if t >= t_free and not cells.isdisjoint(goal_cells):
-            t_free = t + 1
     h_table = graph.dist_to(graph.cell(goal))
     h0 = graph.distance(graph.cell(start), graph.cell(goal))
     t_max = cons.finish_by
@@ -298,6 +306,29 @@ def _avoidance_table(paths: Sequence[TimedPath], skip: int, sizes: Sequence[int]
         for c in occupancy(p.states[-1], k, cols):
             rest[c] = min(rest.get(c, FOREVER), p.end_tick)
     return cat, rest
+
+
+def _expand(node: _Node, child, out_of_work, stop_at: float) -> list[_Node]:
+    """The children of the first cardinal conflict among the node's first few (both children
+    cost more), else of the first semi-cardinal one, else of the earliest (Boyarski et al.
+    2015, found by building the children with ``child``). A child as cheap as its parent
+    with fewer conflicts is taken by the parent instead (bypass)."""
+    choice: tuple[int, list[_Node | None]] | None = None
+    for conflict in node.conflicts:
+        kids = [child(node, idx, adds) for idx, adds in _branches(conflict)]
+        for kid in kids:
+            if kid is not None and kid.soc == node.soc \
+                    and kid.n_conflicts < node.n_conflicts:
+                node.paths, node.conflicts = kid.paths, kid.conflicts
+                node.n_conflicts = kid.n_conflicts
+                return [node]
+        rises = sum(1 for kid in kids if kid is None or kid.soc > node.soc)
+        if choice is None or rises > choice[0]:
+            choice = (rises, kids)
+        if rises == len(kids) or out_of_work() or time.monotonic() > stop_at:
+            break
+    assert choice is not None
+    return [kid for kid in choice[1] if kid is not None]
 
 
 class CBSPlanner:
@@ -443,28 +474,6 @@ class CBSPlanner:
             return _Node(new_paths, node.soc - cost(node.paths[idx]) + cost(path), chain,
                          conflicts, count)
 
-        def expand(node: _Node) -> list[_Node]:
-            """The children of the first cardinal conflict among the node's first few (both
-            children cost more), else of the first semi-cardinal one, else of the earliest
-            (Boyarski et al. 2015, found by building the children). A child as cheap as its
-            parent with fewer conflicts is taken by the parent instead (bypass)."""
-            choice: tuple[int, list[_Node | None]] | None = None
-            for conflict in node.conflicts:
-                kids = [child(node, idx, adds) for idx, adds in _branches(conflict)]
-                for kid in kids:
-                    if kid is not None and kid.soc == node.soc \
-                            and kid.n_conflicts < node.n_conflicts:
-                        node.paths, node.conflicts = kid.paths, kid.conflicts
-                        node.n_conflicts = kid.n_conflicts
-                        return [node]
-                rises = sum(1 for kid in kids if kid is None or kid.soc > node.soc)
-                if choice is None or rises > choice[0]:
-                    choice = (rises, kids)
-                if rises == len(kids) or out_of_work() or time.monotonic() > stop_at:
-                    break
-            assert choice is not None
-            return [kid for kid in choice[1] if kid is not None]
-
         conflicts, n_conf = find_conflicts(paths, sizes, cols, t0, t_end, self.classify, turns,
                                            res.rows)
         root = _Node(paths, sum(cost(p) for p in paths), None, conflicts, n_conf)
@@ -483,7 +492,7 @@ class CBSPlanner:
                             "planner.max_nodes / planner.max_call_expansions)",
                             self.time_budget_s, t0)
                 return None, "budget"
-            for kid in expand(node):
+            for kid in _expand(node, child, out_of_work, stop_at):
                 generated += 1
                 counter += 1
                 heapq.heappush(open_list, (kid.soc, kid.n_conflicts, counter, kid))
