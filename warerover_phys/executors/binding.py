@@ -43,7 +43,7 @@ def _goal_now(world: World, agv: Agv) -> int | None:
 
 def apply_report(world: World, report: StepReport) -> None:
     """Write what the executor reports into the world (before the tick advances)."""
-    from .faults.intrusion_log import record_checks
+    from ..faults.intrusion_log import record_checks
 
     for i, state in report.states.items():
         world.agvs[i].pos = state

@@ -52,6 +52,103 @@ def in_priority_order(prio: Sequence[float], nxt: list, push: Callable[[int, int
         sys.setrecursionlimit(limit)
 
 
+class _SwapContext:
+    """What the swap rule of :func:`pibt_step` reads: the configuration, the agents'
+    distance tables and neighbour lists, who stands where now, and the goals."""
+
+    __slots__ = ("config", "dists", "tables", "neighbors", "occ_now", "goal_of")
+
+    def __init__(self, config, dists, tables, neighbors, occ_now, goal_of):
+        self.config, self.dists, self.tables = config, dists, tables
+        self.neighbors, self.occ_now, self.goal_of = neighbors, occ_now, goal_of
+
+
+def _free_branches(ctx: _SwapContext, v: int, came_from: int, agent: int) -> tuple[int, int]:
+    """Neighbours of v that ``agent`` could step aside into (its own moves, cells it can
+    still reach its goal from; not ``came_from``, not a dead end where an agent already
+    sits on its goal), and the last one seen."""
+    count, last = 0, -1
+    d = ctx.dists[agent]
+    neighbors, occ_now, goal_of = ctx.neighbors, ctx.occ_now, ctx.goal_of
+    near = ctx.tables[agent][v] if ctx.tables is not None else neighbors[v]
+    for u in near:
+        a = occ_now.get(u)
+        if u == came_from or d[u] >= UNREACHABLE or (
+                len(neighbors[u]) == 1 and a is not None and goal_of is not None
+                and goal_of[a] == u):
+            continue
+        count += 1
+        last = u
+    return count, last
+
+
+def _swap_required(ctx: _SwapContext, pusher: int, puller: int, v_pusher: int,
+                   v_puller: int) -> bool:
+    d_push = ctx.dists[pusher]
+    while d_push[v_puller] < d_push[v_pusher]:
+        count, nxt_v = _free_branches(ctx, v_puller, v_pusher, puller)
+        if count >= 2:
+            return False  # room to step aside: no swap needed
+        if count == 0:
+            break
+        v_pusher, v_puller = v_puller, nxt_v
+    d_pull = ctx.dists[puller]
+    return d_pull[v_pusher] < d_pull[v_puller] and (
+        d_push[v_pusher] == 0 or d_push[v_puller] < d_push[v_pusher])
+
+
+def _swap_possible(ctx: _SwapContext, agent: int, v_pusher: int, v_puller: int) -> bool:
+    """Can ``agent`` back away from ``v_pusher`` through ``v_puller`` into a branch?"""
+    origin = v_pusher
+    while v_puller != origin:
+        count, nxt_v = _free_branches(ctx, v_puller, v_pusher, agent)
+        if count >= 2:
+            return True
+        if count == 0:
+            return False
+        v_pusher, v_puller = v_puller, nxt_v
+    return False
+
+
+def _swap_partner(ctx: _SwapContext, nxt: list[int], i: int, best: int) -> int:
+    """The agent that ``i`` swaps places with to reach ``best`` (``-1``: none)."""
+    config, dists, tables, occ_now = ctx.config, ctx.dists, ctx.tables, ctx.occ_now
+    here = config[i]
+    if best == here:
+        return -1
+    j = occ_now.get(best)
+    if j is not None and nxt[j] == -1 and _swap_required(ctx, i, j, here, best) \
+            and _swap_possible(ctx, i, best, here):
+        return j
+    d = dists[i]
+    d_here, d_best = d[here], d[best]
+    for u in (tables[i][here] if tables is not None else ctx.neighbors[here]):
+        k = occ_now.get(u)
+        if k is None or best == config[k]:
+            continue
+        dk = dists[k]
+        if dk[best] >= dk[here] and d_here >= d_best:
+            continue  # what _swap_required(k, i, here, best) answers without a walk
+        if _swap_required(ctx, k, i, here, best) and _swap_possible(ctx, i, best, here):
+            return k
+    return -1
+
+
+def _force(forced: Sequence[tuple[int, int]], config: Sequence[int], neighbors, occ_now: dict,
+           nxt: list[int], occ_next: dict[int, int]) -> bool:
+    """Enter the ``forced`` moves (agent, node) into ``nxt`` / ``occ_next``; False if they
+    contradict each other (two on one cell, a swap, a move along no edge)."""
+    for i, v in forced:
+        if v in occ_next or (v != config[i] and v not in neighbors[config[i]]):
+            return False
+        k = occ_now.get(v)
+        if k is not None and k != i and nxt[k] == config[i]:
+            return False  # swap between two forced moves
+        nxt[i] = v
+        occ_next[v] = i
+    return True
+
+
 def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndarray],
               prio: Sequence[float], tie: np.ndarray,
               forced: Sequence[tuple[int, int]] = (), goals: Sequence[int] | None = None,
@@ -66,9 +163,8 @@ def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndar
     pass each other in a corridor swap places by backing one of them into a branch
     ("swap" of Okumura, AAMAS 2024), which plain PIBT cannot do. ``tables`` gives each agent
     its own neighbour lists (e.g. loaded AGVs keep to the aisles); an agent never steps onto
-    a cell from which its goal is unreachable. ``guide`` (one-shot instances,
-    :mod:`~warerover_phys.planning.oneshot.scatter`): ``guide[i][v]`` is the cell agent i tries first
-    when it stands on ``v`` (the next cell of its guide path); its other cells keep their order.
+    a cell from which its goal is unreachable. ``guide`` (one-shot instances, :mod:`~warerover_phys.planning.oneshot.scatter`):
+    ``guide[i][v]`` is the cell agent i tries first on ``v`` (its guide path's next cell).
     ``acyclic``: no agent enters the cell of an agent up its push chain (one still deciding),
     so the moves form no cycle (a rotation of agents into each other's cells, which an
     action dependency graph cannot execute).
@@ -78,79 +174,11 @@ def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndar
     nxt = [-1] * n
     occ_now = {v: i for i, v in enumerate(config)}
     occ_next: dict[int, int] = {}
-    for i, v in forced:
-        if v in occ_next or (v != config[i] and v not in neighbors[config[i]]):
-            return None
-        k = occ_now.get(v)
-        if k is not None and k != i and nxt[k] == config[i]:
-            return None  # swap between two forced moves
-        nxt[i] = v
-        occ_next[v] = i
+    if not _force(forced, config, neighbors, occ_now, nxt, occ_next):
+        return None
     goal_of = goals if goals is not None else None
 
-    def free_branches(v: int, came_from: int, agent: int) -> tuple[int, int]:
-        """Neighbours of v that ``agent`` could step aside into (its own moves, cells it can
-        still reach its goal from; not ``came_from``, not a dead end where an agent already
-        sits on its goal), and the last one seen."""
-        count, last = 0, -1
-        d = dists[agent]
-        near = tables[agent][v] if tables is not None else neighbors[v]
-        for u in near:
-            a = occ_now.get(u)
-            if u == came_from or d[u] >= UNREACHABLE or (
-                    len(neighbors[u]) == 1 and a is not None and goal_of is not None
-                    and goal_of[a] == u):
-                continue
-            count += 1
-            last = u
-        return count, last
-
-    def swap_required(pusher: int, puller: int, v_pusher: int, v_puller: int) -> bool:
-        d_push = dists[pusher]
-        while d_push[v_puller] < d_push[v_pusher]:
-            count, nxt_v = free_branches(v_puller, v_pusher, puller)
-            if count >= 2:
-                return False  # room to step aside: no swap needed
-            if count == 0:
-                break
-            v_pusher, v_puller = v_puller, nxt_v
-        d_pull = dists[puller]
-        return d_pull[v_pusher] < d_pull[v_puller] and (
-            d_push[v_pusher] == 0 or d_push[v_puller] < d_push[v_pusher])
-
-    def swap_possible(agent: int, v_pusher: int, v_puller: int) -> bool:
-        """Can ``agent`` back away from ``v_pusher`` through ``v_puller`` into a branch?"""
-        origin = v_pusher
-        while v_puller != origin:
-            count, nxt_v = free_branches(v_puller, v_pusher, agent)
-            if count >= 2:
-                return True
-            if count == 0:
-                return False
-            v_pusher, v_puller = v_puller, nxt_v
-        return False
-
-    def swap_partner(i: int, best: int) -> int:
-        here = config[i]
-        if best == here:
-            return -1
-        j = occ_now.get(best)
-        if j is not None and nxt[j] == -1 and swap_required(i, j, here, best) \
-                and swap_possible(i, best, here):
-            return j
-        d = dists[i]
-        d_here, d_best = d[here], d[best]
-        for u in (tables[i][here] if tables is not None else neighbors[here]):
-            k = occ_now.get(u)
-            if k is None or best == config[k]:
-                continue
-            dk = dists[k]
-            if dk[best] >= dk[here] and d_here >= d_best:
-                continue  # what swap_required(k, i, here, best) answers without a walk
-            if swap_required(k, i, here, best) and swap_possible(i, best, here):
-                return k
-        return -1
-
+    ctx = _SwapContext(config, dists, tables, neighbors, occ_now, goal_of)
     active: set[int] = set()
 
     def push(i: int, parent: int) -> bool:
@@ -175,7 +203,7 @@ def pibt_step(graph: MotionGraph, config: Sequence[int], dists: Sequence[np.ndar
                 cands.insert(0, first)
         partner = -1
         if swap and goal_of is not None:
-            partner = swap_partner(i, cands[0])
+            partner = _swap_partner(ctx, nxt, i, cands[0])
             if partner >= 0:
                 cands.reverse()
         for idx, v in enumerate(cands):
