@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
@@ -217,6 +218,41 @@ class SweepConflict:
                 f"while AGV {self.agvs[1]} holds {self.cell}")
 
 
+def _unloaded_at(loaded, agv: int, i: int) -> bool:
+    """Is ``agv`` without a shelf at its state ``i`` (``loaded``: see :func:`sweep_conflicts`)?"""
+    x = True if loaded is None else loaded.get(agv, True)
+    if isinstance(x, bool):
+        return not x
+    return not (bool(x[min(i, len(x) - 1)]) if len(x) else True)
+
+
+def _cells_at(trajectories, sizes, cols: int, agv: int, i: int) -> set[int]:
+    """The cells ``agv`` holds at its state ``i`` (both ends of a move; the last state holds)."""
+    states = trajectories[agv]
+    a, b = states[min(i, len(states) - 1)]
+    k = sizes.get(agv, 1)
+    out = set()
+    for node in {a, b}:
+        r, c = divmod(node, cols)
+        out.update((r + x) * cols + c + y for x in range(k) for y in range(k))
+    return out
+
+
+def _swept_hits(swept: set[int], agv: int, i: int, horizon: int, trajectories, cells_at,
+                skip=None):
+    """``(state index, other AGV, cells)`` for every other AGV (not ``skip(other, j)``) whose
+    cells meet ``swept`` at the turn's state ``i`` or the next."""
+    for j in (i, i + 1):
+        if j >= horizon:
+            continue
+        for other in sorted(trajectories):
+            if other == agv or (skip is not None and skip(other, j)):
+                continue
+            hit = swept & cells_at(other, j)
+            if hit:
+                yield j, other, hit
+
+
 def sweep_conflicts(trajectories: Mapping[int, Sequence[tuple[int, int]]], rows: int,
                     cols: int, sizes: Mapping[int, int], offsets: Mapping[int, Sequence],
                     *, start_tick: int = 0, headings: Mapping[int, tuple[int, int] | None]
@@ -241,25 +277,11 @@ def sweep_conflicts(trajectories: Mapping[int, Sequence[tuple[int, int]]], rows:
     headings = headings or {}
     shelf_offsets = shelf_offsets or {}
 
-    def loaded_at(agv: int, i: int) -> bool:
-        x = True if loaded is None else loaded.get(agv, True)
-        if isinstance(x, bool):
-            return x
-        return bool(x[min(i, len(x) - 1)]) if len(x) else True
-
     locks = locks or {}
     no_turn = no_turn or {}
     horizon = max((len(s) for s in trajectories.values()), default=0)
-
-    def cells_at(agv: int, i: int) -> set[int]:
-        states = trajectories[agv]
-        a, b = states[min(i, len(states) - 1)]
-        k = sizes.get(agv, 1)
-        out = set()
-        for node in {a, b}:
-            r, c = divmod(node, cols)
-            out.update((r + x) * cols + c + y for x in range(k) for y in range(k))
-        return out
+    cells_at = partial(_cells_at, trajectories, sizes, cols)
+    unloaded = partial(_unloaded_at, loaded)
 
     out: list[SweepConflict] = []
     turns_at: dict[int, list[tuple[int, int, set[tuple[int, int]]]]] = {}
@@ -280,29 +302,15 @@ def sweep_conflicts(trajectories: Mapping[int, Sequence[tuple[int, int]]], rows:
                     (agv, anchor, {(r + dr, c + dc) for dr, dc in lk}))
             if shelf_off:
                 shelf_swept = set(sweep_cells(anchor, shelf_off, rows, cols))
-                for j in (i, i + 1):
-                    if j >= horizon:
-                        continue
-                    for other in sorted(trajectories):
-                        if other == agv or not loaded_at(other, j):
-                            continue
-                        hit = shelf_swept & cells_at(other, j)
-                        if hit:
-                            out.append(SweepConflict(start_tick + j, (agv, other),
-                                                     divmod(min(hit), cols), "shelf_sweep"))
+                for j, other, hit in _swept_hits(shelf_swept, agv, i, horizon, trajectories,
+                                                 cells_at, unloaded):
+                    out.append(SweepConflict(start_tick + j, (agv, other),
+                                             divmod(min(hit), cols), "shelf_sweep"))
             if not off:
                 continue
             swept = set(sweep_cells(anchor, off, rows, cols))
-            for j in (i, i + 1):
-                if j >= horizon:
-                    continue
-                for other in sorted(trajectories):
-                    if other == agv:
-                        continue
-                    hit = swept & cells_at(other, j)
-                    if hit:
-                        out.append(SweepConflict(start_tick + j, (agv, other),
-                                                 divmod(min(hit), cols)))
+            for j, other, hit in _swept_hits(swept, agv, i, horizon, trajectories, cells_at):
+                out.append(SweepConflict(start_tick + j, (agv, other), divmod(min(hit), cols)))
     for i, turns in sorted(turns_at.items()):
         for x, (a, na, la) in enumerate(turns):
             for b, nb, lb in turns[x + 1:]:
