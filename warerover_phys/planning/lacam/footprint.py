@@ -24,6 +24,7 @@ import time
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -72,6 +73,40 @@ def update_footprint_priorities(prio: Sequence[float], movers: Sequence[Mover],
             for p, mv, c in zip(prio, movers, config, strict=True)]
 
 
+def _make_high(held_set: set[int], headings: Sequence[int] | None, cols: int, config: Config,
+               parent: _High | None, prio: list[float],
+               heads: tuple[int, ...] | None = None) -> _High:
+    """A high-level node: its agents in priority order (the held and the moving left out)
+    and, for turn-aware fleets, the headings its parent chain gives it."""
+    order = sorted((i for i in range(len(config)) if i not in held_set and config[i][2] == 0),
+                   key=lambda i: -prio[i])
+    if headings is not None and heads is None:
+        heads = tuple(headings) if parent is None else next_headings(
+            parent.headings, parent.config, config, cols)
+    return _High(config, parent, prio, order, heads)
+
+
+def _unsolvable(movers: Sequence[Mover], start: Config, headings: Sequence[int] | None,
+                held_set: set[int]) -> bool:
+    """Can some agent (not held) not reach its goal from its start pose and heading?"""
+    return any(_rot_unreachable(mv, start[i][1], headings[i]) if (
+        mv.rdist is not None and headings is not None and headings[i] < 4) else (
+        mv.dist[start[i][1]] >= UNREACHABLE or (
+            mv.tdist is not None and headings is not None
+            and (start[i][1], headings[i]) not in mv.tdist))
+        for i, mv in enumerate(movers) if i not in held_set)
+
+
+def _stop_reason(iterations: int, max_iterations: int | None, deadline: float) -> str | None:
+    """``"iterations"`` once the work budget is spent (deterministic), ``"time"`` once the
+    deadline passed (checked every 64 iterations), else None."""
+    if max_iterations is not None and iterations > max_iterations:
+        return "iterations"
+    if iterations % 64 == 0 and time.monotonic() > deadline:
+        return "time"
+    return None
+
+
 def footprint_lacam(movers: Sequence[Mover], starts: Sequence[Pose], cols: int,
                     deadline: float, rng: np.random.Generator, held: Sequence[int] = (),
                     prio: list[float] | None = None, max_iterations: int | None = None,
@@ -103,21 +138,8 @@ def footprint_lacam(movers: Sequence[Mover], starts: Sequence[Pose], cols: int,
 
     rotating = headings is not None and any(mv.rot is not None for mv in movers)
 
-    def make(config: Config, parent: _High | None, prio: list[float],
-             heads: tuple[int, ...] | None = None) -> _High:
-        order = sorted((i for i in range(len(config)) if i not in held_set and config[i][2] == 0),
-                       key=lambda i: -prio[i])
-        if headings is not None and heads is None:
-            heads = tuple(headings) if parent is None else next_headings(
-                parent.headings, parent.config, config, cols)
-        return _High(config, parent, prio, order, heads)
-
-    if any(_rot_unreachable(mv, start[i][1], headings[i]) if (
-            mv.rdist is not None and headings is not None and headings[i] < 4) else (
-            mv.dist[start[i][1]] >= UNREACHABLE or (
-                mv.tdist is not None and headings is not None
-                and (start[i][1], headings[i]) not in mv.tdist))
-           for i, mv in enumerate(movers) if i not in held_set):
+    make = partial(_make_high, held_set, headings, cols)
+    if _unsolvable(movers, start, headings, held_set):
         # An agent that cannot reach its goal: no configuration search can succeed.
         return None, {"iterations": 0, "explored": 0, "exhausted": True,
                       "stopped": "unreachable"}
@@ -127,12 +149,10 @@ def footprint_lacam(movers: Sequence[Mover], starts: Sequence[Pose], cols: int,
     iterations = 0
     while stack:
         iterations += 1
-        if max_iterations is not None and iterations > max_iterations:
+        stop = _stop_reason(iterations, max_iterations, deadline)
+        if stop is not None:
             return None, {"iterations": iterations, "explored": len(explored),
-                          "exhausted": False, "stopped": "iterations"}
-        if iterations % 64 == 0 and time.monotonic() > deadline:
-            return None, {"iterations": iterations, "explored": len(explored),
-                          "exhausted": False, "stopped": "time"}
+                          "exhausted": False, "stopped": stop}
         node = stack[-1]
         if node.config == goal:
             configs, heads = _unwind(node)

@@ -26,23 +26,10 @@ from .turning_astar import turning_astar
 __all__ = ["AStarPlanner", "space_time_astar", "goal_held", "nearest_free_anchor"]
 
 
-def space_time_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest,
-                     t0: int, max_expansions: int = 50_000,
-                     budget_per_move: int | None = 40) -> tuple[TimedPath | None, int]:
-    """Search one AGV's path from tick ``t0``. Returns (path or None, expansions).
-
-    A turn-aware AGV (:func:`~warerover_phys.planning.sweep.turn_aware`) is searched with
-    headings by :func:`~warerover_phys.planning.search.turning_astar.turning_astar`.
-
-    With ``budget_per_move`` the search also gives up after that many expansions per move
-    of the static shortest path (plus a margin): in the closed loop a search that needs far
-    more is usually blocked by AGVs that will move later, and retrying is cheaper.
-    """
-    if turn_aware(agent) or agent.turn_ticks is not None:
-        return turning_astar(graph, res, agent, t0, max_expansions=max_expansions,
-                             budget_per_move=budget_per_move)
-    cols, k, m, me = graph.cols, agent.k, agent.ticks_per_move, agent.agv
-    start, goal = agent.start, agent.goal
+def _cell_tests(res: ReservationTable, k: int, cols: int):
+    """``free(cell, t, me)`` (may AGV ``me`` hold ``cell`` at tick ``t``?) over the table's
+    raw dicts, and ``fp(node)`` (the cells of a ``k x k`` AGV anchored at ``node``): closures,
+    as the search calls them for every expansion."""
     occ, rest = res._occ, res._rest
 
     def free(cell: int, t: int, me: int) -> bool:
@@ -60,6 +47,27 @@ def space_time_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequ
     else:
         def fp(node: int) -> tuple[int, ...]:
             return footprint_nodes(node, k, cols)
+    return free, fp
+
+
+def space_time_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest,
+                     t0: int, max_expansions: int = 50_000,
+                     budget_per_move: int | None = 40) -> tuple[TimedPath | None, int]:
+    """Search one AGV's path from tick ``t0``. Returns (path or None, expansions).
+
+    A turn-aware AGV (:func:`~warerover_phys.planning.sweep.turn_aware`) is searched with
+    headings by :func:`~warerover_phys.planning.search.turning_astar.turning_astar`.
+
+    With ``budget_per_move`` the search also gives up after that many expansions per move
+    of the static shortest path (plus a margin): in the closed loop a search that needs far
+    more is usually blocked by AGVs that will move later, and retrying is cheaper.
+    """
+    if turn_aware(agent) or agent.turn_ticks is not None:
+        return turning_astar(graph, res, agent, t0, max_expansions=max_expansions,
+                             budget_per_move=budget_per_move)
+    cols, k, m, me = graph.cols, agent.k, agent.ticks_per_move, agent.agv
+    start, goal = agent.start, agent.goal
+    free, fp = _cell_tests(res, k, cols)
 
     # Earliest tick from which the AGV may stay at the goal for good.
     t_free = max((res.last_use(c, me) for c in fp(goal)), default=-1) + 1
