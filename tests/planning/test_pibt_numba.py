@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 
 from warerover_phys.planning.dist_store import DistStore
 from warerover_phys.planning.oneshot.core import grid_graph
+from warerover_phys.planning.pibt import heading_kernels as hk
 from warerover_phys.planning.pibt import kernels as pn
 from warerover_phys.planning.pibt.heading import (
     STEP,
@@ -98,7 +99,7 @@ def test_compiled_steps_match_the_python_steps_on_random_grids(inst):
     acts = ["W"] * n
     hd = list(heading)
     moved = turn_first(config, got, hd, acts, cols)
-    c_moved, c_hd, c_acts = pn.turn_first_nb(np.array(config), np.array(got), np.array(heading),
+    c_moved, c_hd, c_acts = hk.turn_first_nb(np.array(config), np.array(got), np.array(heading),
                                              cols, graph.num_nodes)
     assert (c_moved.tolist(), c_hd.tolist(), c_acts.tobytes().decode("ascii")) == (
         moved, hd, "".join(acts))
@@ -125,7 +126,7 @@ def test_compiled_steps_match_the_python_steps_on_random_grids(inst):
     w_nxt, w_nh, w_acts, w_esc = heading_pibt_step(
         graph.neighbors, cols, config, heading, views, prio, tie.tolist(),
         frozenset(np.flatnonzero(escaping).tolist()), steps_of(graph.neighbors, cols))
-    g_nxt, g_nh, g_acts, g_esc = pn.heading_step_nb(tab, np.array(config), np.array(heading),
+    g_nxt, g_nh, g_acts, g_esc = hk.heading_step_nb(tab, np.array(config), np.array(heading),
                                                     typed, order, tie, escaping)
     assert g_nxt.tolist() == w_nxt and g_nh.tolist() == w_nh
     assert g_acts.tobytes().decode("ascii") == "".join(w_acts)
@@ -137,7 +138,7 @@ def test_compiled_steps_match_the_python_steps_on_random_grids(inst):
         graph.neighbors, cols, config, heading, views, prio, tie.tolist(),
         frozenset(np.flatnonzero(escaping).tolist()), steps_of(graph.neighbors, cols),
         acyclic=True)
-    g_nxt, g_nh, g_acts, g_esc = pn.heading_step_nb(tab, np.array(config), np.array(heading),
+    g_nxt, g_nh, g_acts, g_esc = hk.heading_step_nb(tab, np.array(config), np.array(heading),
                                                     typed, order, tie, escaping, acyclic=True)
     assert g_nxt.tolist() == w_nxt and g_nh.tolist() == w_nh
     assert g_acts.tobytes().decode("ascii") == "".join(w_acts)
@@ -214,6 +215,7 @@ def test_steps_compiled_once_are_loaded_from_the_cache():
     """``cache=True``: numba keeps the compiled steps beside the module (no recompiling in
     the next process)."""
     pn.warm_up()
+    hk.warm_up()
     cache = Path(pn.__file__).parent / "__pycache__"
     assert any(p.name.startswith("heading_kernels._heading_kernel") and p.suffix == ".nbi"
                for p in cache.iterdir())

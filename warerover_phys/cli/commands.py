@@ -438,7 +438,7 @@ def check(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
     except WareroverError as err:
         _fail(err)
     lay = world.layout
-    from ..planning.sweep import check_fleet_sweeps, static_sweep_hits
+    from ..planning.sweep_checks import check_fleet_sweeps, static_sweep_hits
 
     starts: dict[str, list] = {}
     for agv in world.agvs:

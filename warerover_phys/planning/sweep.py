@@ -75,7 +75,7 @@ __all__ = ["turn_locks", "BodyShape", "SweepError", "disc_overlaps_rect", "discs
            "no_turn_anchors", "dead_ends", "move_dir", "DIR_OF", "turn_aware", "lock_keys",
            "turn_fields", "turn_dist", "TurnMasks", "SHELF_BOX", "carried_shelf_m"]
 # check_fleet_sweeps, static_sweep_hits, heading_after, SweepConflict and sweep_conflicts
-# live in .sweep_checks and are read from here too (__getattr__ below)
+# live in .sweep_checks
 
 EAST = (0, 1)
 """``(drow, dcol)`` an AGV faces when it is placed (heading 0 = +x)."""
@@ -460,17 +460,3 @@ def turn_sweeps(states: Sequence[tuple[int, int]], cols: int,
                 out.append((i - 1, a))
             prev = d
     return out
-
-
-_CHECKS = ("check_fleet_sweeps", "static_sweep_hits", "heading_after", "SweepConflict",
-           "sweep_conflicts")
-
-
-def __getattr__(name: str):
-    """The checks built on sweeps, in :mod:`.sweep_checks` (imported on first use: that
-    module reads this one)."""
-    if name in _CHECKS:
-        from . import sweep_checks
-
-        return getattr(sweep_checks, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

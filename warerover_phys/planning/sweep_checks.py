@@ -1,6 +1,6 @@
 """Checks built on turning sweeps: the static checks of a fleet on a layout (sweeps that fit,
 anchors where a turn hits a wall or a shelf) and the sweep conflicts of timed paths
-(:func:`sweep_conflicts`). :mod:`.sweep` still serves these names (loaded on first use)."""
+(:func:`sweep_conflicts`)."""
 
 from __future__ import annotations
 

@@ -6,8 +6,8 @@ with rotations (``planner.rotations``), turns a quarter in one tick under a Robo
 rule (``planner.rotation_rule``: ``actions`` or ``turn-first``). One step of
 :mod:`.pibt_numba` then moves every AGV: without rotations PIBT with swaps
 (:func:`~.pibt_numba.pibt_step_nb`, the reference :func:`~.pibt.pibt_step`); with rotations
-PIBT over forward / turn / wait (:func:`~.pibt_numba.heading_step_nb`) or PIBT on cells
-then turn first (:func:`~.pibt_numba.turn_first_nb`). AGVs that work in place (``hold``)
+PIBT over forward / turn / wait (:func:`~.heading_kernels.heading_step_nb`) or PIBT on cells
+then turn first (:func:`~.heading_kernels.turn_first_nb`). AGVs that work in place (``hold``)
 stay.
 
 Distance tables come from one :class:`~.dist_store.DistStore` per motion graph (one table
@@ -76,6 +76,7 @@ class CompiledStep:
         unloaded 1x1 graph, and on a floor with shelves the loaded one (a loaded 1x1 AGV
         keeps to the aisles; every shelf shares that graph), both tables in one slab."""
         from ..dist_store import DistStore
+        from . import heading_kernels as hk
         from . import kernels as pn
 
         graph = request.graphs.get(1, False)
@@ -99,6 +100,7 @@ class CompiledStep:
             self._rows = np.zeros(n_ids, dtype=np.int64)
             self._held_tables = [None] * n_ids
             pn.warm_up(self._store.dtype)
+            hk.warm_up(self._store.dtype)
         if len(self._goal) < n_ids:  # more AGVs than the store was made for
             grow = n_ids - len(self._goal)
             self._goal = np.concatenate([self._goal, np.full(grow, -1, dtype=np.int64)])
@@ -112,6 +114,7 @@ class CompiledStep:
     def plan(self, request: PlanRequest, agents: Sequence[AgentRequest], rule: str
              ) -> PlanResult:
         """One step for ``agents`` (sorted by AGV id; :func:`eligible`)."""
+        from . import heading_kernels as hk
         from . import kernels as pn
 
         ids = np.fromiter((a.agv for a in agents), dtype=np.int64, count=len(agents))
@@ -150,14 +153,14 @@ class CompiledStep:
                                   acyclic=request.acyclic)
             return _paths(agents, request.tick, config, nxt, None, None)
         if rule == "actions":
-            nxt, nh, _, esc = pn.heading_step_nb(st, config, heading, tabs, order, tie,
+            nxt, nh, _, esc = hk.heading_step_nb(st, config, heading, tabs, order, tie,
                                                  self._escaping[ids], held=held,
                                                  acyclic=request.acyclic)
             self._escaping[ids] = esc
         else:
             nxt = pn.pibt_step_nb(st, config, goal, tabs, order, tie, heading=heading,
                                   held=held, acyclic=request.acyclic)
-            nxt, nh, _ = pn.turn_first_nb(config, nxt, heading, st.cols, self._graph.num_nodes)
+            nxt, nh, _ = hk.turn_first_nb(config, nxt, heading, st.cols, self._graph.num_nodes)
         return _paths(agents, request.tick, config, nxt, heading, nh)
 
 

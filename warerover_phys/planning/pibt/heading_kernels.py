@@ -2,16 +2,15 @@
 (forward / turn / wait) and the ``turn-first`` rule (PIBT on cells, then turn to face the
 move) over the flat arrays of :mod:`.kernels`, with the same results as the Python reference.
 
-Split from :mod:`.kernels` (which re-exports :func:`heading_step_nb` and :func:`turn_first_nb`);
-see its docstring for the array layout and the cache."""
+See :mod:`.kernels` for the array layout and the cache; :func:`warm_up` compiles these steps."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from .kernels import _UNR, StepTables, njit
+from .kernels import _UNR, AVAILABLE, StepTables, njit, robot_tables, step_tables
 
-__all__ = ["heading_step_nb", "turn_first_nb"]
+__all__ = ["heading_step_nb", "turn_first_nb", "warm_up"]
 
 
 @njit(cache=True)
@@ -307,3 +306,15 @@ def turn_first_nb(config: np.ndarray, nxt: np.ndarray, heading: np.ndarray, cols
     return _turn_first_kernel(np.asarray(config, dtype=np.int64),
                               np.asarray(nxt, dtype=np.int64),
                               np.asarray(heading, dtype=np.int64), cols, cells)
+
+
+def warm_up(dtype=np.uint16) -> None:
+    """Compile (or load from numba's cache) the heading steps for tables of ``dtype`` on a
+    1 x 3 corridor."""
+    if not AVAILABLE:
+        return
+    st = step_tables([(1,), (0, 2), (1,)], 3)
+    tabs = robot_tables([np.array([2, 1, 0], dtype=dtype)])
+    one = np.zeros(1, dtype=np.int64)
+    turn_first_nb(one, one + 1, one, 3, 3)
+    heading_step_nb(st, one, one, tabs, one, np.zeros(3), np.zeros(1, dtype=bool))

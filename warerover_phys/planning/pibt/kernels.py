@@ -46,7 +46,7 @@ except ImportError:  # pragma: no cover - numba is a dependency; the Python step
 
 __all__ = ["AVAILABLE", "StepTables", "step_tables", "pibt_step_nb", "robot_tables", "warm_up",
            "ACT_CODES", "bfs_fill", "priority_order", "nearest_open"]
-# heading_step_nb and turn_first_nb (in .heading_kernels) are read from here too (__getattr__)
+# the heading steps (heading_step_nb, turn_first_nb) are in .heading_kernels
 
 ACT_CODES = {"F": ord("F"), "R": ord("R"), "C": ord("C"), "W": ord("W")}
 _F, _R, _C, _W = ord("F"), ord("R"), ord("C"), ord("W")
@@ -447,27 +447,13 @@ def bfs_fill(indptr, indices, free, source, table):  # pragma: no cover - compil
 
 
 def warm_up(dtype=np.uint16) -> None:
-    """Compile (or load from numba's cache) both steps for tables of ``dtype`` on a 1 x 3
-    corridor."""
+    """Compile (or load from numba's cache) the cell steps for tables of ``dtype`` on a 1 x 3
+    corridor (the heading steps: :func:`.heading_kernels.warm_up`)."""
     if not AVAILABLE:
         return
-    from .heading_kernels import heading_step_nb, turn_first_nb
-
     st = step_tables([(1,), (0, 2), (1,)], 3)
     tabs = robot_tables([np.array([2, 1, 0], dtype=dtype)])
     one = np.zeros(1, dtype=np.int64)
     pibt_step_nb(st, one, np.array([2]), tabs, one, np.zeros(3))
     pibt_step_nb(st, one, np.array([2]), tabs, one, np.zeros(3), heading=one)
-    turn_first_nb(one, one + 1, one, 3, 3)
     nearest_open(one, one, one, one)
-    heading_step_nb(st, one, one, tabs, one, np.zeros(3), np.zeros(1, dtype=bool))
-
-
-def __getattr__(name: str):
-    """The heading steps, compiled in :mod:`.heading_kernels` (imported on first use: that
-    module reads this one's tables)."""
-    if name in ("heading_step_nb", "turn_first_nb"):
-        from . import heading_kernels
-
-        return getattr(heading_kernels, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
