@@ -31,10 +31,10 @@ import numpy as np
 if not os.environ.get("PYTHONPATH"):  # PYTHONPATH picks the checkout to measure
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from warerover_phys.planning import refine as refine_mod  # noqa: E402
 from warerover_phys.planning.lacam.reference import _to_paths, lacam_nodes  # noqa: E402
 from warerover_phys.planning.oneshot import scatter  # noqa: E402
 from warerover_phys.planning.oneshot.core import grid_graph  # noqa: E402
+from warerover_phys.planning.refine import lns as refine_mod  # noqa: E402
 from warerover_phys.problems.movingai import read_map, read_scen  # noqa: E402
 from warerover_phys.validate import validate_states  # noqa: E402
 
