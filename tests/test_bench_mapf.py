@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from warerover_phys.planning.oneshot import OneShotResult, write_plan
+from warerover_phys.planning.oneshot.core import OneShotResult, write_plan
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -69,8 +69,8 @@ done
 def test_bench_runs_both_sides_and_validates(tmp_path):
     """Ours (the real CLI) beside a stand-in lacam3 that returns our own first plan: the
     bench validates both, recomputes the figures and prints ratios of 1."""
-    from warerover_phys.movingai import read_map, read_scen
-    from warerover_phys.planning.oneshot import solve
+    from warerover_phys.planning.oneshot.core import solve
+    from warerover_phys.problems.movingai import read_map, read_scen
 
     grid = read_map(bench.MAP_PATH)
     scen = read_scen(bench.scen_path(1), 12, grid)

@@ -30,6 +30,6 @@ def test_bench_refine_validates_and_repeats(tmp_path):
     assert a["lower_bound"] <= a["soc"] <= a["first_soc"]
     assert (a["first_soc"], a["soc"]) == (b["first_soc"], b["soc"])
     assert all(a[k] >= 0 for k in ("dist_cpu_s", "guide_cpu_s", "lacam_cpu_s", "lns_cpu_s"))
-    from warerover_phys.planning import refine
+    from warerover_phys.planning.refine import lns as refine
 
     assert refine.time.monotonic is __import__("time").monotonic  # the clock put back

@@ -23,9 +23,9 @@ from warerover_phys.execute import (
     repair_cycles,
     validate_plan,
 )
-from warerover_phys.movingai import read_map, read_scen
-from warerover_phys.planning.oneshot import solve
+from warerover_phys.planning.oneshot.core import solve
 from warerover_phys.plans import FORMATS, Plan, read_plan, write_plan
+from warerover_phys.problems.movingai import read_map, read_scen
 from warerover_phys.validate import validate_states
 
 DATA = Path(__file__).parent / "data"

@@ -18,8 +18,8 @@ import pytest
 
 from warerover_phys.config import AgvTypeSpec, ExecutorSpec
 from warerover_phys.execute import load_floor
-from warerover_phys.gap_open import PARTS, compare, execute_timed
-from warerover_phys.gap_plan import Failure, TimedPlan
+from warerover_phys.gap.ideal_plan import Failure, TimedPlan
+from warerover_phys.gap.open_loop import PARTS, compare, execute_timed
 from warerover_phys.planning.paths import TimedPath
 
 DT = 0.02

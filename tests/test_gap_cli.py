@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from hardening_helpers import REPO, assert_clean_error, run_cli
 
-from warerover_phys.gap_open import PARTS
-from warerover_phys.gap_plots import COLOURS, SIZES
-from warerover_phys.gap_stats import STAT_KEYS, parse_seeds
+from warerover_phys.gap.open_loop import PARTS
+from warerover_phys.gap.plots import COLOURS, SIZES
+from warerover_phys.gap.stats import STAT_KEYS, parse_seeds
 
 HOMO = REPO / "layouts" / "paper_homogeneous.yaml"
 DATA = REPO / "tests" / "data"

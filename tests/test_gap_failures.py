@@ -13,9 +13,9 @@ import pytest
 from warerover_phys import load_scenario
 from warerover_phys.config import AgvTypeSpec, ExecutorSpec
 from warerover_phys.execute import load_floor
-from warerover_phys.gap import open_loop_gap
-from warerover_phys.gap_open import PARTS, execute_timed, open_loop_report
-from warerover_phys.gap_plan import Failure, TimedPlan, record_grid_run
+from warerover_phys.gap.core import open_loop_gap
+from warerover_phys.gap.ideal_plan import Failure, TimedPlan, record_grid_run
+from warerover_phys.gap.open_loop import PARTS, execute_timed, open_loop_report
 from warerover_phys.planning.paths import TimedPath
 
 FAULT = "layouts/paper_fault.yaml"

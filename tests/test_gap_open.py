@@ -13,9 +13,9 @@ from hypothesis import strategies as st
 from warerover_phys import load_scenario
 from warerover_phys.config import AgvTypeSpec, DelaySpec, ExecutorSpec
 from warerover_phys.execute import load_floor
-from warerover_phys.gap import gap_report, open_loop_gap
-from warerover_phys.gap_open import PARTS, compare, execute_timed, open_loop_report
-from warerover_phys.gap_plan import Dwell, TimedPlan, record_grid_run
+from warerover_phys.gap.core import gap_report, open_loop_gap
+from warerover_phys.gap.ideal_plan import Dwell, TimedPlan, record_grid_run
+from warerover_phys.gap.open_loop import PARTS, compare, execute_timed, open_loop_report
 from warerover_phys.planning.paths import TimedPath
 
 HOMO = "layouts/paper_homogeneous.yaml"

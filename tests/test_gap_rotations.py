@@ -15,15 +15,15 @@ from warerover_phys import load_scenario
 from warerover_phys.config import AgvTypeSpec, ExecutorSpec
 from warerover_phys.execute import load_floor
 from warerover_phys.executors.adg import ADGCycleError, build
-from warerover_phys.gap import open_loop_gap
-from warerover_phys.gap_open import PARTS, execute_timed, open_loop_report
-from warerover_phys.gap_plan import (
+from warerover_phys.gap.core import open_loop_gap
+from warerover_phys.gap.ideal_plan import (
     Dwell,
     TimedPlan,
     _rotations,
     record_grid_run,
     repair_rotations,
 )
+from warerover_phys.gap.open_loop import PARTS, execute_timed, open_loop_report
 from warerover_phys.planning.paths import TimedPath
 from warerover_phys.validate import validate_states
 

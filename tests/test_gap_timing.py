@@ -13,7 +13,7 @@ from hardening_helpers import REPO, assert_clean_error, run_cli
 
 from warerover_phys import load_scenario
 from warerover_phys.errors import ScenarioError
-from warerover_phys.gap_stats import SCHEDULES_FORMAT
+from warerover_phys.gap.stats import SCHEDULES_FORMAT
 from warerover_phys.planning.timing import SCHEDULE_FORMAT
 
 HETERO = REPO / "layouts" / "paper_heterogeneous.yaml"
@@ -97,7 +97,7 @@ def test_many_seeds_write_every_schedule(tmp_path):
 @pytest.mark.slow
 def test_replayed_failures_are_in_the_schedule():
     """paper_fault seed 0 (nine failures of 40 ticks replayed on physics): 1.018 measured."""
-    from warerover_phys.gap import open_loop_gap
+    from warerover_phys.gap.core import open_loop_gap
 
     g = open_loop_gap(load_scenario(REPO / "layouts" / "paper_fault.yaml",
                                     [("planner.timing", "motion")]), 0)

@@ -1,10 +1,10 @@
-"""The collector thresholds of the long loops (warerover_phys.gc_tuning)."""
+"""The collector thresholds of the long loops (warerover_phys.util.gc_tuning)."""
 
 import gc
 
 import pytest
 
-from warerover_phys.gc_tuning import LOOP_THRESHOLDS, long_loop
+from warerover_phys.util.gc_tuning import LOOP_THRESHOLDS, long_loop
 
 
 def test_long_loop_raises_the_thresholds_and_restores_them():

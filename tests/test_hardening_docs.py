@@ -8,8 +8,8 @@ import importlib
 import pytest
 
 
-@pytest.mark.parametrize("module", ["warerover_phys.safe_yaml", "warerover_phys.atomic",
-                                    "warerover_phys.media", "warerover_phys.plugins",
+@pytest.mark.parametrize("module", ["warerover_phys.util.safe_yaml", "warerover_phys.util.atomic",
+                                    "warerover_phys.util.media", "warerover_phys.plugins",
                                     "warerover_phys.shipped"])
 def test_docstring_examples(module):
     result = doctest.testmod(importlib.import_module(module))

@@ -231,7 +231,7 @@ def mutate_text(data, text: str) -> str:
 @SETTINGS
 @given(st.data())
 def test_mutated_movingai_files(data):
-    from warerover_phys.movingai import read_map, read_scen
+    from warerover_phys.problems.movingai import read_map, read_scen
 
     mutate_map = data.draw(st.booleans())
     map_text = mutate_text(data, MAP_TEXT) if mutate_map else MAP_TEXT

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from hardening_helpers import LAYOUTS, cli_argv, cli_env, run_cli
 
-from warerover_phys.atomic import check_set
+from warerover_phys.util.atomic import check_set
 
 PAPER = LAYOUTS / "paper_homogeneous.yaml"
 

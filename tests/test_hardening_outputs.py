@@ -1,4 +1,4 @@
-"""Run outputs as one set (``warerover_phys.atomic.write_set``): a run folder is replaced
+"""Run outputs as one set (``warerover_phys.util.atomic.write_set``): a run folder is replaced
 whole; a folder that is more than a run folder is written in place behind an incomplete
 manifest; readers refuse anything that is not one whole set."""
 
@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 from hardening_helpers import LAYOUTS
 
-from warerover_phys.atomic import MANIFEST, check_set, write_set
 from warerover_phys.errors import WareroverError
+from warerover_phys.util.atomic import MANIFEST, check_set, write_set
 
 
 def writers(tag: str, with_npz: bool = True) -> dict:

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 from hardening_helpers import LAYOUTS, assert_clean_error, run_cli
 
-from warerover_phys.atomic import MANIFEST, check_set
 from warerover_phys.errors import WareroverError
 from warerover_phys.render import load_trajectory
+from warerover_phys.util.atomic import MANIFEST, check_set
 
 
 @pytest.fixture(scope="module")

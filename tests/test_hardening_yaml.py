@@ -6,9 +6,9 @@ import time
 
 import pytest
 
-from warerover_phys import safe_yaml
 from warerover_phys.config import load_scenario, parse_override
 from warerover_phys.errors import ScenarioError
+from warerover_phys.util import safe_yaml
 
 LAUGHS = "\n".join(
     ["a: &a [lol, lol, lol, lol, lol, lol, lol, lol, lol]"]

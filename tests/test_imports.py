@@ -108,7 +108,7 @@ def test_finder_sees_a_planted_cycle():
 def test_graph_reads_relative_and_lazy_imports():
     graph = import_graph()
     assert "warerover_phys.planning.paths" in graph["warerover_phys.planning.reservation"]
-    assert "warerover_phys.console" in graph["warerover_phys.sweep.cli"]
+    assert "warerover_phys.util.console" in graph["warerover_phys.cli.sweep"]
 
 
 def test_package_has_no_import_cycles():

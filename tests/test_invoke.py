@@ -20,8 +20,8 @@ from warerover_phys import load_scenario
 from warerover_phys.config import parse_override
 from warerover_phys.errors import ScenarioError
 from warerover_phys.invoke import cut, splice
-from warerover_phys.planning.astar import AStarPlanner
 from warerover_phys.planning.paths import TimedPath
+from warerover_phys.planning.search.astar import AStarPlanner
 from warerover_phys.sim import Simulation
 from warerover_phys.validate import validate_states
 

@@ -1,4 +1,4 @@
-"""Tests for warerover_phys.movingai: MovingAI .map / .scen readers."""
+"""Tests for warerover_phys.problems.movingai: MovingAI .map / .scen readers."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from warerover_phys.errors import ScenarioError
-from warerover_phys.movingai import MovingAIMap, ScenarioAgent, read_map, read_scen
+from warerover_phys.problems.movingai import MovingAIMap, ScenarioAgent, read_map, read_scen
 
 DATA = Path(__file__).parent / "data"
 WAREHOUSE_MAP = DATA / "warehouse-10-20-10-2-1.map"

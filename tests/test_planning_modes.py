@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from warerover_phys import load_scenario
-from warerover_phys.gap_open import MOTION_UNIT_KEYS
-from warerover_phys.gap_stats import seed_gap
+from warerover_phys.gap.open_loop import MOTION_UNIT_KEYS
+from warerover_phys.gap.stats import seed_gap
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -11,8 +11,8 @@ import pytest
 from rich.console import Console
 from typer.testing import CliRunner
 
-from warerover_phys import cli
 from warerover_phys.cli import app
+from warerover_phys.cli import commands as cli
 
 REPO = Path(__file__).resolve().parents[1]
 HOMO = str(REPO / "layouts" / "paper_homogeneous.yaml")

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from warerover_phys.solve_cli import parse_solve_args
+from warerover_phys.cli.solve import parse_solve_args
 
 REPO = Path(__file__).resolve().parent.parent
 DATA = REPO / "tests" / "data"
@@ -21,9 +21,9 @@ SCEN = DATA / "warehouse-10-20-10-2-1-random-1.scen"
 
 HEAVY = ("typer", "click", "rich", "pydantic", "pydantic_core", "yaml", "scipy",
          "pymunk", "shapely", "fcl", "trimesh", "pyarrow", "matplotlib", "PIL", "imageio",
-         "warerover_phys.cli", "warerover_phys.config", "warerover_phys.registry",
-         "warerover_phys.sim", "warerover_phys.world", "warerover_phys.planning.astar",
-         "warerover_phys.planning.cbs")
+         "warerover_phys.cli.commands", "warerover_phys.config", "warerover_phys.registry",
+         "warerover_phys.sim", "warerover_phys.world", "warerover_phys.planning.search.astar",
+         "warerover_phys.planning.search.cbs")
 """Modules ``solve`` must not load: the command line, the scenario models and the closed
 loop, scipy (0.4 s of CPU to import; the one-shot distance tables need only numpy),
 physics, geometry, media and storage."""
@@ -38,7 +38,7 @@ def test_solve_imports_only_what_it_needs(tmp_path):
     out = tmp_path / "plan.txt"
     probe = (
         "import json, sys\n"
-        "from warerover_phys.solve_cli import fast_main\n"
+        "from warerover_phys.cli.solve import fast_main\n"
         "try:\n"
         f"    fast_main(['solve', {str(MAP)!r}, {str(SCEN)!r}, '--agents', '5', '--json',\n"
         f"               '--out', {str(out)!r}])\n"
@@ -53,7 +53,7 @@ def test_solve_imports_only_what_it_needs(tmp_path):
     loaded = set(report["modules"])
     heavy = sorted(m for m in loaded if m in HEAVY or m.split(".")[0] in HEAVY)
     assert heavy == []
-    assert "numpy" in loaded and "warerover_phys.planning.lacam" in loaded  # it did solve
+    assert "numpy" in loaded and "warerover_phys.planning.lacam.reference" in loaded  # it did solve
 
 
 def test_the_console_script_takes_the_fast_path(tmp_path):
@@ -83,7 +83,7 @@ def test_the_console_script_takes_the_fast_path(tmp_path):
 
 
 TYPER_ONLY = ("import runpy, sys\n"
-              "import warerover_phys.solve_cli as fast\n"
+              "import warerover_phys.cli.solve as fast\n"
               "fast.fast_main = lambda argv: None  # never taken: the typer command answers\n"
               "sys.argv = ['-m', *sys.argv[1:]]\n"
               "runpy.run_module('warerover_phys', run_name='__main__', alter_sys=True)\n")
@@ -182,7 +182,7 @@ def test_goal_tables_equal_dist_to(rows, cols, density, seed, goals):
     repeated goals and more than 64 goals (several words)."""
     import numpy as np
 
-    from warerover_phys.planning.oneshot import goal_tables, grid_graph
+    from warerover_phys.planning.oneshot.core import goal_tables, grid_graph
 
     rng = np.random.default_rng(seed)
     obstacles = rng.random((rows, cols)) < density
@@ -199,8 +199,8 @@ def test_goal_tables_equal_dist_to(rows, cols, density, seed, goals):
 def test_goal_tables_on_the_warehouse_map():
     import numpy as np
 
-    from warerover_phys.movingai import read_map, read_scen
-    from warerover_phys.planning.oneshot import goal_tables, grid_graph
+    from warerover_phys.planning.oneshot.core import goal_tables, grid_graph
+    from warerover_phys.problems.movingai import read_map, read_scen
 
     grid = read_map(MAP)
     goals = [a.goal for a in read_scen(SCEN, 600, grid)]  # two chunks of goals

@@ -468,7 +468,7 @@ def test_agrees_with_the_discrete_validator_on_planner_plans(case):
     space-time conflict; an agent added that runs agent 0's path backwards meets agent 0
     (a vertex or swap) and both validators find exactly the same pairs."""
     from warerover_phys.errors import PlanningError
-    from warerover_phys.planning.oneshot import solve
+    from warerover_phys.planning.oneshot.core import solve
 
     obstacles, starts, goals, planner = case
     try:
@@ -634,7 +634,7 @@ def test_the_command_line_starts_without_the_validator():
 
     from hardening_helpers import REPO, cli_env
 
-    code = ("import sys, warerover_phys.cli; "
+    code = ("import sys, warerover_phys.cli.commands; "
             "print(sorted(m for m in ('fcl', 'trimesh', 'warerover_phys.spacetime.check', "
             "'warerover_phys.spacetime.motion') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO, env=cli_env(),

@@ -25,8 +25,8 @@ from pathlib import Path
 if not os.environ.get("PYTHONPATH"):  # PYTHONPATH picks the checkout to measure
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from warerover_phys.movingai import read_map, read_scen  # noqa: E402
-from warerover_phys.planning.oneshot import solve  # noqa: E402
+from warerover_phys.planning.oneshot.core import solve  # noqa: E402
+from warerover_phys.problems.movingai import read_map, read_scen  # noqa: E402
 
 DATA = Path(__file__).resolve().parent.parent / "tests" / "data"
 MAP = DATA / "warehouse-10-20-10-2-1.map"

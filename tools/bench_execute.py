@@ -64,8 +64,8 @@ def make_plan(n: int, lacam3: Path | None, out: Path, planner: str = "lacam") ->
                         "-t", "30", "-o", str(out), "-s", "0"], check=True,
                        capture_output=True)
         return "lacam3 (C++ reference)"
-    from warerover_phys.movingai import read_map, read_scen
-    from warerover_phys.planning.oneshot import solve, write_plan
+    from warerover_phys.planning.oneshot.core import solve, write_plan
+    from warerover_phys.problems.movingai import read_map, read_scen
 
     m = read_map(MAP)
     agents = read_scen(SCEN, n)

@@ -60,7 +60,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import shortest_path
 
-from warerover_phys.movingai import read_map, read_scen
+from warerover_phys.problems.movingai import read_map, read_scen
 from warerover_phys.validate import validate_states
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -413,11 +413,11 @@ def _jsonable(obj):
 
 
 WARM_UP = ("import sys\n"
-           "from warerover_phys.planning.scatter import NUMBA_MIN_AGENTS\n"
+           "from warerover_phys.planning.oneshot.scatter import NUMBA_MIN_AGENTS\n"
            "if int(sys.argv[1]) < NUMBA_MIN_AGENTS:\n"
            "    print('skipped')\n"
            "else:\n"
-           "    from warerover_phys.planning.oneshot import warm_up\n"
+           "    from warerover_phys.planning.oneshot.core import warm_up\n"
            "    print(warm_up())\n")
 """Compiles (cold cache) or loads our one-shot numba kernels where ``solve`` would use them
 for ``argv[1]`` agents (in the checkout measured: its own constant); prints the CPU seconds
@@ -441,10 +441,10 @@ cpu = time.process_time
 parts = {"interpreter": cpu()}
 c = cpu()
 import numpy as np
-from warerover_phys.movingai import read_map, read_scen
-from warerover_phys.planning import scatter
-from warerover_phys.planning.lacam import _to_paths, lacam_nodes
-from warerover_phys.planning.oneshot import OneShotResult, _costs, goal_tables, grid_graph, write_plan
+from warerover_phys.problems.movingai import read_map, read_scen
+from warerover_phys.planning.oneshot import scatter
+from warerover_phys.planning.lacam.reference import _to_paths, lacam_nodes
+from warerover_phys.planning.oneshot.core import OneShotResult, _costs, goal_tables, grid_graph, write_plan
 from warerover_phys.validate import validate_cell_paths
 parts["imports"] = cpu() - c
 map_file, scen_file, n, seed, engine, out = sys.argv[1:]
@@ -461,7 +461,7 @@ c = cpu()
 if engine == "auto":
     engine = "numba" if scatter.use_numba(n, None) else "python"
 if engine == "numba":
-    from warerover_phys.solve_cli import numba_without_blas_probe
+    from warerover_phys.cli.solve import numba_without_blas_probe
     numba_without_blas_probe()
 parts["numba import"] = cpu() - c
 goals = [a.goal for a in scen]

@@ -7,7 +7,7 @@ say little.
 
 Prints the CPU seconds (``time.process_time``) of the first solution's parts (distance
 tables, guide paths, LaCAM; ``--seed``, no time limit), then runs the LNS
-(:func:`warerover_phys.planning.refine.refine`, generator seeded as ``solve`` does) from that
+(:func:`warerover_phys.planning.refine.lns.refine`, generator seeded as ``solve`` does) from that
 first solution with its clock patched to CPU time, for ``--lns-cpu`` seconds (or exactly
 ``--iterations`` neighbourhoods: the same plan on any machine), validates the result with
 the per-tick validator and prints iterations, SoC and SoC / lower bound. Run it with
@@ -31,11 +31,11 @@ import numpy as np
 if not os.environ.get("PYTHONPATH"):  # PYTHONPATH picks the checkout to measure
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from warerover_phys.movingai import read_map, read_scen  # noqa: E402
-from warerover_phys.planning import refine as refine_mod  # noqa: E402
-from warerover_phys.planning import scatter  # noqa: E402
-from warerover_phys.planning.lacam import _to_paths, lacam_nodes  # noqa: E402
-from warerover_phys.planning.oneshot import grid_graph  # noqa: E402
+from warerover_phys.planning.lacam.reference import _to_paths, lacam_nodes  # noqa: E402
+from warerover_phys.planning.oneshot import scatter  # noqa: E402
+from warerover_phys.planning.oneshot.core import grid_graph  # noqa: E402
+from warerover_phys.planning.refine import lns as refine_mod  # noqa: E402
+from warerover_phys.problems.movingai import read_map, read_scen  # noqa: E402
 from warerover_phys.validate import validate_states  # noqa: E402
 
 DATA = Path(__file__).resolve().parent.parent / "tests" / "data"

@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-from warerover_phys.movingai import read_map
+from warerover_phys.problems.movingai import read_map
 from warerover_phys.render import (
     Recording,
     Style,

@@ -6,7 +6,7 @@ Plans (made once, kept in ``--plans``): the project's LaCAM (``warerover solve``
 with ``--refine`` (large-neighbourhood search until the time limit) and the reference C++
 lacam3 (``--lacam3 BIN``, run ``-t SECONDS --no-star``), for the first N agents of
 ``<map>-random-1.scen`` (``../shared/data/movingai``). Each run executes a plan as
-``warerover gap --plan`` does (:func:`warerover_phys.gap_open.execute_timed`, physics,
+``warerover gap --plan`` does (:func:`warerover_phys.gap.open_loop.execute_timed`, physics,
 dt 0.02 s) with delays ``MODEL:PROB`` (1-10 ticks, uniform) and seed ``s``; the same seed
 draws the same delays in every mode until the modes' executions part.
 
@@ -89,8 +89,8 @@ def run_one(job: dict) -> dict:
     from warerover_phys.config import ExecutorSpec
     from warerover_phys.execute import parse_delays
     from warerover_phys.executors.reorder import check_executed
-    from warerover_phys.gap_open import execute_timed, open_loop_report
-    from warerover_phys.gap_plan import plan_from_file
+    from warerover_phys.gap.ideal_plan import plan_from_file
+    from warerover_phys.gap.open_loop import execute_timed, open_loop_report
 
     plan, _ = plan_from_file(job["map_file"], job["plan_file"], None)
     spec = ExecutorSpec(name="physics", dt_s=job["dt_s"], delays=parse_delays(job["delays"]),

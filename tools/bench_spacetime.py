@@ -32,8 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from warerover_phys.movingai import read_map
 from warerover_phys.plans.model import HEADING_STEPS, Plan
+from warerover_phys.problems.movingai import read_map
 from warerover_phys.spacetime import from_plan, validate_spacetime
 from warerover_phys.spacetime.volumes import build_volumes
 from warerover_phys.validate import validate_states

@@ -23,7 +23,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from warerover_phys.gap_stats import _csv, _finite, summarise  # noqa: E402
+from warerover_phys.gap.stats import _csv, _finite, summarise  # noqa: E402
 
 HEADLINE = ("makespan_ratio", "sum_of_costs_ratio", "orders_makespan_ratio", "tp_ratio",
             "latency_ratio", "lost_s_per_agv_mean", "lost_dependency_s_per_agv_mean",
@@ -86,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
                "statistics_note": "over seeds: mean, median, p95 (95th percentile), min, max, "
                                   "std (n - 1), ci95_low / ci95_high: 95% Student-t "
                                   "confidence interval of the mean"}
-    from warerover_phys.atomic import write_set
+    from warerover_phys.util.atomic import write_set
 
     writers = {"summary.json": lambda p: p.write_text(
         json.dumps(_finite(summary), indent=2, sort_keys=True) + "\n", encoding="utf-8"),

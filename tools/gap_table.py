@@ -20,7 +20,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from warerover_phys.config import load_scenario  # noqa: E402
-from warerover_phys.gap_stats import parse_seeds, run_seeds, summarise, write_outputs  # noqa: E402
+from warerover_phys.gap.stats import parse_seeds, run_seeds, summarise, write_outputs  # noqa: E402
 
 ROWS = (
     ("makespan ratio (last AGV finish)", "makespan_ratio", "makespan_ratio"),

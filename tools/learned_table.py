@@ -3,7 +3,7 @@
 1. Paper scenarios (closed loop, grid executor): ``python -m warerover_phys run SCENARIO
    --planner X --json --seed S`` for each planner and seed; mean SR, TP (orders/tick) and CT
    (total scheduler + planner wall seconds per episode). ``learned`` runs as the plugin
-   ``warerover_phys.planning.learned:LearnedPlanner`` (the scenario schema does not list
+   ``warerover_phys.planning.learned.planner:LearnedPlanner`` (the scenario schema does not list
    the name ``learned`` yet).
 2. MovingAI one-shot instances (``random-32-32-10``, ``warehouse-10-20-10-2-1``; scenario
    ``random-1``, first N agents): ``oneshot.solve`` for lacam / pibt / astar (prioritized),
@@ -35,13 +35,13 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from warerover_phys.movingai import read_map, read_scen  # noqa: E402
-from warerover_phys.planning.learned import learned_oneshot  # noqa: E402
-from warerover_phys.planning.oneshot import grid_graph, solve  # noqa: E402
+from warerover_phys.planning.learned.planner import learned_oneshot  # noqa: E402
+from warerover_phys.planning.oneshot.core import grid_graph, solve  # noqa: E402
+from warerover_phys.problems.movingai import read_map, read_scen  # noqa: E402
 from warerover_phys.validate import validate_states  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-PLUGIN = "warerover_phys.planning.learned:LearnedPlanner"
+PLUGIN = "warerover_phys.planning.learned.planner:LearnedPlanner"
 DATA = Path("/work/shared/data/movingai")
 MAPS = ["random-32-32-10", "warehouse-10-20-10-2-1"]
 

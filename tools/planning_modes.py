@@ -49,8 +49,8 @@ import yaml
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from warerover_phys.config import load_scenario  # noqa: E402
-from warerover_phys.gap_open import MOTION_UNIT_KEYS  # noqa: E402
-from warerover_phys.gap_stats import parse_seeds, run_seeds  # noqa: E402
+from warerover_phys.gap.open_loop import MOTION_UNIT_KEYS  # noqa: E402
+from warerover_phys.gap.stats import parse_seeds, run_seeds  # noqa: E402
 from warerover_phys.sweep.report import mean_ci  # noqa: E402
 
 MODES = {

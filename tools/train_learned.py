@@ -22,11 +22,11 @@ the equivalent of ``--features 1 --dagger-rounds 1`` (not rerun with this versio
    reports on: random maps (16-40 cells a side, 5-30 % obstacles, largest connected part
    kept) and warehouse-like maps (blocks of shelves separated by 1-2 cell aisles), with
    8-128 agents on distinct random starts and goals.
-2. Expert: one-shot PIBT (with swap) of :mod:`warerover_phys.planning.pibt`; where PIBT
-   does not finish within its step limit, LaCAM (:mod:`warerover_phys.planning.lacam`).
+2. Expert: one-shot PIBT (with swap) of :mod:`warerover_phys.planning.pibt.reference`; where PIBT
+   does not finish within its step limit, LaCAM (:mod:`warerover_phys.planning.lacam.reference`).
    Instances neither solves are skipped (counted).
 3. Samples: at every step of the expert's solution, every agent's policy features
-   (:func:`warerover_phys.planning.policy.policy_features`, with PIBT's priorities replayed
+   (:func:`warerover_phys.planning.learned.policy.policy_features`, with PIBT's priorities replayed
    along the solution) labelled with the action the expert took;
    95 % of the "already on goal, waits" samples are dropped.
 4. Training: cross-entropy, Adam, mini-batches, each batch under a random symmetry of the
@@ -34,7 +34,7 @@ the equivalent of ``--features 1 --dagger-rounds 1`` (not rerun with this versio
 4b. DAgger (``--dagger-rounds``, default 2): the trained policy, behind its shield, drives
    new instances; every configuration it visits is labelled by one PIBT step from there;
    the samples join the data set and training goes on (half the learning rate).
-5. Output: the weights as ``.npz`` (see :mod:`warerover_phys.planning.policy`) and a JSON
+5. Output: the weights as ``.npz`` (see :mod:`warerover_phys.planning.learned.policy`) and a JSON
    log next to it.
 
     # the shipped weights, written over the shipped file:
@@ -62,20 +62,20 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 from warerover_phys.planning.graph import UNREACHABLE  # noqa: E402  (also the off-grid column)
-from warerover_phys.planning.lacam import lacam  # noqa: E402
-from warerover_phys.planning.oneshot import grid_graph  # noqa: E402
-from warerover_phys.planning.pibt import (  # noqa: E402
-    initial_priorities,
-    pibt_oneshot,
-    update_priorities,
-)
-from warerover_phys.planning.policy import (  # noqa: E402
+from warerover_phys.planning.lacam.reference import lacam  # noqa: E402
+from warerover_phys.planning.learned.policy import (  # noqa: E402
     NUM_ACTIONS,
     WEIGHTS_VERSION,
     MLPPolicy,
     ObsGrid,
     actions_from_moves,
     policy_features,
+)
+from warerover_phys.planning.oneshot.core import grid_graph  # noqa: E402
+from warerover_phys.planning.pibt.reference import (  # noqa: E402
+    initial_priorities,
+    pibt_oneshot,
+    update_priorities,
 )
 
 # Label permutations of the square's symmetries (action order: wait, up, down, left, right).
@@ -268,8 +268,8 @@ def dagger_dataset(root: np.random.SeedSequence, count: int, policy: MLPPolicy,
     (behind its shield) drives new instances; at every configuration it visits, every agent
     is labelled with the move one PIBT step (with swap, the controller's priorities) would
     make from there."""
-    from warerover_phys.planning.learned import LearnedController
-    from warerover_phys.planning.pibt import pibt_step
+    from warerover_phys.planning.learned.planner import LearnedController
+    from warerover_phys.planning.pibt.reference import pibt_step
 
     radius, version = policy.fov_radius, policy.version
     xs, ss, ys, group = [], [], [], []

@@ -1,7 +1,7 @@
 """PyTorch back end of ``tools/train_learned.py`` (``--backend torch``; needs the ``[train]``
 extra: ``pip install -e '.[train]'``).
 
-The same network as the numpy path and as :class:`warerover_phys.planning.policy.MLPPolicy`
+The same network as the numpy path and as :class:`warerover_phys.planning.learned.policy.MLPPolicy`
 (``F -> H -> H/2 -> 5``, ReLU; parameters ``W1 (F, H1)``, ``b1``, ... in the weights file's
 layout, so ``x @ W + b`` as at run time), the same data (the caller's samples, the same
 held-out instances, shuffles and symmetries drawn from the same numpy generator), the same
@@ -35,7 +35,7 @@ from torch import nn  # noqa: E402
 from torch.nn import functional as F  # noqa: E402
 from train_learned import accuracy, augment, batch_features, init_params  # noqa: E402
 
-from warerover_phys.planning.policy import NUM_ACTIONS  # noqa: E402
+from warerover_phys.planning.learned.policy import NUM_ACTIONS  # noqa: E402
 
 __all__ = ["TorchMLP", "setup", "train_torch", "loss_and_grads"]
 
@@ -164,10 +164,10 @@ def compare(weights: list[str], agents: list[int], seed: int = 0) -> list[dict]:
 
     from learned_table import _soc
 
-    from warerover_phys.movingai import read_map, read_scen
-    from warerover_phys.planning.learned import learned_oneshot
-    from warerover_phys.planning.oneshot import grid_graph
-    from warerover_phys.planning.policy import MLPPolicy
+    from warerover_phys.planning.learned.planner import learned_oneshot
+    from warerover_phys.planning.learned.policy import MLPPolicy
+    from warerover_phys.planning.oneshot.core import grid_graph
+    from warerover_phys.problems.movingai import read_map, read_scen
     from warerover_phys.validate import validate_states
 
     data = Path(__file__).resolve().parents[1] / "tests" / "data"

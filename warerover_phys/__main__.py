@@ -1,5 +1,5 @@
-"""``python -m warerover_phys`` is the ``warerover`` command (:mod:`warerover_phys.entry`)."""
+"""``python -m warerover_phys`` is the ``warerover`` command (:mod:`warerover_phys.cli.entry`)."""
 
-from .entry import main
+from .cli.entry import main
 
 main()

@@ -30,8 +30,8 @@ from pydantic import (
     model_validator,
 )
 
-from . import safe_yaml
 from .errors import ScenarioError
+from .util import safe_yaml
 
 __all__ = [
     "AgvTypeSpec", "AgvGroupSpec", "FleetSpec", "ShelfBlockSpec", "RectSpec", "InventorySpec",
@@ -552,7 +552,7 @@ class PlannerSpec(_Model):
     twice the period (``periodic``) or ``2 K`` (``event``)."""
     rotation_rule: Literal["cascade", "actions", "turn-first"] = "cascade"
     """How lifelong PIBT meets rotations (``rotations: true``). ``cascade``: the
-    footprint-aware step of :mod:`~warerover_phys.planning.footprint_pibt` (any fleet).
+    footprint-aware step of :mod:`~warerover_phys.planning.pibt.footprint` (any fleet).
     ``actions``: PIBT over the actions forward / turn a quarter / wait, ranked by the
     cost-to-go of the cell and heading each leads to (:mod:`~warerover_phys.planning.
     pibt_heading`); ``turn-first``: PIBT on cells, then AGVs whose cell is not ahead turn
@@ -560,7 +560,7 @@ class PlannerSpec(_Model):
     that move a cell and turn a quarter in one tick each, compiled (:mod:`~warerover_phys.
     planning.pibt_numba`)."""
     dist_budget_mb: PosFloat = 1024.0
-    """Lifelong PIBT of 1x1 fleets (:mod:`~warerover_phys.planning.pibt_compiled`): MiB its
+    """Lifelong PIBT of 1x1 fleets (:mod:`~warerover_phys.planning.pibt.compiled`): MiB its
     distance tables (one per goal cell, shared by every AGV) may hold; least recently used
     go first."""
     ties: Literal["low_id", "high_id"] = "low_id"

@@ -82,7 +82,7 @@ def load_floor(path: str | Path) -> tuple[Layout, dict[str, AgvTypeSpec] | None,
 
     path = check_regular_file(path, "floor")
     if path.suffix == ".map":
-        from .movingai import read_map
+        from .problems.movingai import read_map
 
         m = read_map(path)
         grid = np.where(m.obstacles, CellType.OBSTACLE, CellType.FLOOR).astype(np.int8)
@@ -658,8 +658,8 @@ def execute_plan(plan: Plan, layout: Layout, types: list[AgvTypeSpec], *,
     (:class:`~warerover_phys.config.ExecutorSpec`: ``no_slip``, ``payload``,
     ``comm_latency_s``, ``shelf_contacts``, ``park``, ``speed_scale``, ``adg`` ...), checked
     by its schema (see :func:`executor_options`)."""
-    from .gc_tuning import long_loop
     from .registry import build
+    from .util.gc_tuning import long_loop
 
     spec = executor_spec(executor, dt_s=dt_s, delays=delays, trajectory_hz=trajectory_hz,
                          params=executor_params, options=options)
@@ -748,13 +748,13 @@ def write_execution(result: ExecutionResult, plan: Plan, layout: Layout,
     """``metrics.json``, ``events.jsonl``, ``paths.json`` (planned = the executed plan,
     actual = executed states per tick, the same structure as ``warerover run`` writes),
     ``agents.csv`` (planned vs executed finish per agent) and ``trajectories.npz`` (physics;
-    a per-tick one on the grid), written as one set (see :mod:`warerover_phys.atomic`)."""
+    a per-tick one on the grid), written as one set (see :mod:`warerover_phys.util.atomic`)."""
     import csv
     import io
     import json
 
-    from .atomic import write_set
     from .outputs import _savez
+    from .util.atomic import write_set
 
     cols = layout.cols
     paths = {

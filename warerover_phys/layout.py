@@ -275,7 +275,7 @@ def build_layout(spec: LayoutSpec, *, fleet_size: int = 0, file: str | None = No
                   if ch == "A"]
     elif spec.map is not None:
         from .inputs import describe
-        from .movingai import read_map
+        from .problems.movingai import read_map
 
         kind = describe(spec.map)
         if kind != "a regular file":

@@ -67,7 +67,7 @@ class Order:
     size: int
     """Container size class the order needs (``sku_sizes[sku]``)."""
     errands: tuple[int, ...] = ()
-    """An errand task (``orders.pattern: errands``, :mod:`~warerover_phys.errands`): the
+    """An errand task (``orders.pattern: errands``, :mod:`~warerover_phys.problems.errands`): the
     cells (nodes ``row * cols + col``) its AGV visits in order; ``sku`` and ``station`` are
     then -1. Empty for a shelf order."""
     for_agv: int | None = None

@@ -7,7 +7,7 @@ committed path: AGV, start tick, per-tick ``[[row, col], [row, col]]`` from/to a
 ``planner.rotations`` a planned path also has ``headings`` (direction index per state: 0
 east, 1 south, 2 west, 3 north) and ``headings`` maps each rotation-aware AGV to its
 executed heading per tick.
-The files are written as one set (:func:`warerover_phys.atomic.write_set`): into a new
+The files are written as one set (:func:`warerover_phys.util.atomic.write_set`): into a new
 folder beside the output folder, with a ``manifest.json`` (run id, every file's size and
 SHA-256), which then takes the output folder's place in one step. An interrupted run leaves
 the previous complete set; readers refuse a folder whose files do not match its manifest.
@@ -21,7 +21,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .atomic import replacing, write_set
+from .util.atomic import replacing, write_set
 
 if TYPE_CHECKING:
     from .sim import EpisodeResult

@@ -48,20 +48,20 @@ GROUPS = {kind: f"warerover_phys.{kind}s" for kind in KINDS}
 
 
 def _astar(spec):
-    from .planning.astar import AStarPlanner
+    from .planning.search.astar import AStarPlanner
 
     return AStarPlanner(max_expansions=spec.max_expansions)
 
 
 def _pibt(spec):
-    from .planning.pibt_planner import PIBTPlanner
+    from .planning.pibt.planner import PIBTPlanner
 
     return PIBTPlanner(rotation=spec.rotation_rule, budget_mb=spec.dist_budget_mb,
                        max_expansions=spec.max_expansions)
 
 
 def _cbs(spec):
-    from .planning.cbs import CBSPlanner
+    from .planning.search.cbs import CBSPlanner
 
     return CBSPlanner(max_expansions=spec.max_expansions, horizon=spec.horizon_ticks,
                       max_nodes=spec.max_nodes, time_budget_s=spec.time_budget_s,
@@ -69,13 +69,13 @@ def _cbs(spec):
 
 
 def _lacam(spec):
-    from .planning.lacam_planner import LaCAMPlanner
+    from .planning.lacam.planner import LaCAMPlanner
 
     return LaCAMPlanner(time_budget_s=spec.time_budget_s, max_iterations=spec.max_iterations)
 
 
 def _learned(spec):  # numpy inference only: the shipped weights, no PyTorch
-    from .planning.learned import LearnedPlanner
+    from .planning.learned.planner import LearnedPlanner
 
     return LearnedPlanner(spec, weights=spec.weights)
 

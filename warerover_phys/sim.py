@@ -21,23 +21,22 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from types import MappingProxyType
 
 from .config import Scenario
 from .errors import ScenarioError
 from .executors import make_executor
-from .executors.base import AgvBody, ExecutorSetup, StepReport, TickView
+from .executors.base import StepReport, TickView
+from .executors.binding import _goal_now, apply_report, executor_setup, step_executor, tick_view
 from .faults.exits import exit_spots, inside_open_corridor
 from .faults.model import FaultModel, close_failure, open_failure
 from .invoke import PlanClock, cut, plan_window, splice
+from .loop_requests import YIELD_TICKS, PlanRequests
 from .metrics import MetricsRecorder
 from .planning import make_planner
-from .planning.astar import nearest_free_anchor
 from .planning.base import AgentRequest, Planner, PlanRequest, PlanResult
-from .planning.paths import TimedPath, footprint_nodes, occupancy
+from .planning.paths import TimedPath, occupancy
 from .planning.rotation import agent_turn_ticks
 from .planning.sweep import DIR_OF, EAST, BodyShape, TurnMasks, turn_fields
-from .planning.turns import request_turn_fields
 from .registry import check_plugins
 from .schedulers import make_scheduler
 from .schedulers.base import SchedulerView
@@ -48,11 +47,6 @@ __all__ = ["EpisodeResult", "run_episode", "Simulation", "executor_setup", "tick
 
 STUCK_FAILURES = 3
 """Failed plans in a row after which AGVs waiting on the AGV's route are asked to make way."""
-YIELD_TICKS = 8
-"""How long an AGV that makes way stays away."""
-_TRAVEL_STATES = (AgvState.TO_SHELF, AgvState.TO_STATION, AgvState.RETURNING)
-"""States whose goal holds a step planner's AGV once it stands there (its work starts when
-it is at rest); an errand needs no work, so an AGV on an errand is never held."""
 
 
 @dataclass
@@ -73,7 +67,7 @@ class EpisodeResult:
     """Wall seconds the planner took at every tick (0 where it was not called)."""
 
 
-class Simulation:
+class Simulation(PlanRequests):
     """One episode, stepped one tick at a time (``run_episode`` runs it to the end)."""
 
     def __init__(self, scenario: Scenario, seed: int | None = None, *,
@@ -232,7 +226,7 @@ class Simulation:
                                  collisions=report.collisions)
 
     def run(self, progress: Callable[[int, int, int], None] | None = None) -> EpisodeResult:
-        from .gc_tuning import long_loop
+        from .util.gc_tuning import long_loop
 
         with long_loop():  # (see gc_tuning)
             while not self.done:
@@ -418,132 +412,6 @@ class Simulation:
     def _lifelong(self) -> bool:
         return self.planner.replans_all
 
-    def _step_requests(self, t_eff: int) -> list[AgentRequest]:
-        """Every AGV, for planners that move all of them each tick; from where each will
-        be at ``t_eff`` (later than now with a latency: where its committed path is then)."""
-        w = self.world
-        out = []
-        n = len(w.agvs)
-        high = self.scenario.planner.ties == "high_id"
-        ahead = t_eff > w.tick
-        for agv in w.agvs:
-            goal = w.goal_of(agv)
-            # Standing on a task stage's goal: hold there, so that the path ends on the
-            # goal and the stage's work can start (World.advance_tasks).
-            hold = goal is None or (agv.standing and agv.node == goal
-                                    and agv.state in _TRAVEL_STATES)
-            goal = agv.node if goal is None else goal
-            if agv.id in self._freeze_yields or agv.id in self._exit_sent:
-                if agv.yield_goal is not None and w.tick < agv.yield_until and (
-                        not hold or agv.id in self._exit_sent):
-                    goal, hold = agv.yield_goal, False
-                else:
-                    agv.yield_goal = None
-                    self._freeze_yields.discard(agv.id)
-            if goal != agv.last_goal:
-                agv.last_goal, agv.goal_since = goal, w.tick
-            age = w.tick - agv.goal_since + ((agv.id if high else n - agv.id) / (n + 1))
-            start = self._committed.get(agv.id, agv.node)
-            if ahead and agv.id in w.reservations.paths:
-                start = w.reservations.paths[agv.id].state_at(t_eff)[1]
-            out.append(AgentRequest(
-                agv=agv.id, start=start, goal=goal, k=agv.k, loaded=agv.loaded,
-                ticks_per_move=agv.ticks_per_move,
-                shelf=agv.trip.shelf if agv.loaded and agv.trip is not None else None,
-                priority=(0.0 if hold else age,), hold=hold,
-                **self._turn_request(agv, goal)))
-        return out
-
-    def _turn_request(self, agv: Agv, goal: int) -> dict:
-        """The AgentRequest fields of a turn-aware AGV (none for the others): its heading,
-        what its turns hold, where it may not turn, and how it leaves its goal."""
-        turn = self._turns.get(agv.id)
-        rot = self._rot.get(agv.id)
-        if turn is None:
-            return {} if rot is None else {"heading": self._heading[agv.id], "turn_ticks": rot}
-        w = self.world
-        shelf = agv.trip.shelf if agv.trip is not None else None
-        after = None
-        if goal == w.goal_of(agv):
-            after = {AgvState.TO_SHELF: (True, shelf), AgvState.TO_STATION: (True, shelf),
-                     AgvState.RETURNING: (False, None)}.get(agv.state)
-        out = request_turn_fields(w.graphs, self._masks[agv.id], turn[0],
-                                  self._heading[agv.id], agv.k, agv.loaded,
-                                  shelf if agv.loaded else None, goal, after)
-        if rot is not None:
-            out["turn_ticks"] = rot
-        return out
-
-    def _replan_requests(self, t_eff: int) -> list[AgentRequest]:
-        """The AGVs that need a new path (see :meth:`_plan`), from where each will be at
-        ``t_eff`` (later than now with a latency)."""
-        w = self.world
-        res = w.reservations
-        ahead = t_eff > w.tick
-        agents = []
-        for agv in w.agvs:
-            if not agv.standing or agv.state not in MOVING_STATES or w.tick < agv.retry_at:
-                continue
-            goal = w.goal_of(agv)
-            if agv.yield_goal is not None:
-                if w.tick < agv.yield_until:
-                    goal = agv.yield_goal
-                else:
-                    agv.yield_goal = None
-            path = res.paths.get(agv.id)
-            if goal is None or path is None:
-                continue
-            on_track = path.goal == goal and agv.delay == 0 and path.state_at(w.tick) == agv.pos
-            if on_track and (path.end_tick > w.tick or agv.node == goal):
-                continue
-            if agv.delay and agv.blocked_ticks < self.scenario.planner.replan_blocked_ticks \
-                    and path.goal == goal:
-                continue
-            if agv.node == goal and agv.state == AgvState.IDLE and path.end_tick <= w.tick:
-                continue
-            agents.append(AgentRequest(
-                agv=agv.id, start=path.state_at(t_eff)[1] if ahead else agv.node, goal=goal,
-                k=agv.k, loaded=agv.loaded, ticks_per_move=agv.ticks_per_move,
-                shelf=agv.trip.shelf if agv.loaded and agv.trip is not None else None,
-                priority=(-agv.plan_failures, not agv.loaded, agv.state == AgvState.IDLE),
-                **self._turn_request(agv, goal)))
-            # Re-anchor a delayed AGV's committed path at where it really stands.
-            if not ahead and (agv.delay or path.state_at(w.tick) != agv.pos):
-                res.commit(TimedPath(agv.id, w.tick, (agv.pos,)), agv.k)
-        return agents
-
-    def _make_way_for(self, stuck: Agv, goal: int | None = None) -> None:
-        """Send AGVs that stand idle or queue on ``stuck``'s shortest path (to ``goal``,
-        default its task's) somewhere else for a while: prioritized planning alone can wall
-        an AGV in with AGVs that wait for it."""
-        w = self.world
-        goal = w.goal_of(stuck) if goal is None else goal
-        if goal is None:
-            return
-        shelf = stuck.trip.shelf if stuck.loaded and stuck.trip is not None else None
-        graph = w.graphs.get(stuck.k, stuck.loaded, shelf)
-        route = graph.static_path(w.cell(stuck.node), w.cell(goal))
-        cells = frozenset(c for node in route
-                          for c in footprint_nodes(node, stuck.k, w.layout.cols))
-        for other in w.agvs:
-            if other.id == stuck.id or not other.standing or other.yield_goal is not None:
-                continue
-            waiting = other.state == AgvState.IDLE or (
-                other.state in MOVING_STATES and other.node != w.goal_of(other))
-            mine = set(footprint_nodes(other.node, other.k, w.layout.cols))
-            if not waiting or not mine & cells:
-                continue
-            g = w.graphs.get(other.k, other.loaded,
-                             other.trip.shelf if other.loaded and other.trip else None)
-            probe = AgentRequest(other.id, other.node, other.node, k=other.k)
-            spot = nearest_free_anchor(g, w.reservations, probe, keep_clear=w.keep_clear(),
-                                       avoid=cells)
-            if spot is not None:
-                other.yield_goal = spot
-                other.yield_until = w.tick + YIELD_TICKS
-                other.retry_at = w.tick
-                w.log("make_way", agv=other.id, for_agv=stuck.id, spot=list(w.cell(spot)))
-
     def _grid_intrusions(self) -> None:
         """On the grid, an AGV is inside a corridor when one of its cells is a corridor cell
         (checked once per tick, after the move: the check covers the tick just run)."""
@@ -707,56 +575,3 @@ def run_episode(scenario: Scenario, seed: int | None = None,
     return Simulation(scenario, seed).run(progress)
 
 
-def executor_setup(world: World) -> ExecutorSetup:
-    """What an executor is bound to for ``world``'s episode."""
-    return ExecutorSetup(
-        layout=world.layout, tick_s=world.scenario.tick_s, rng=world.rngs["delays"],
-        agvs=tuple(AgvBody(a.id, a.k, a.spec, a.pos) for a in world.agvs),
-        intrusion_checker=world.scenario.faults.checker)
-
-
-def tick_view(world: World) -> TickView:
-    """What the executor may know of the world's current tick (read-only)."""
-    agvs = world.agvs
-    return TickView(
-        tick=world.tick, plans=MappingProxyType(world.reservations.paths),
-        behind=tuple(a.delay for a in agvs),
-        failed=frozenset(a.id for a in agvs if a.state == AgvState.FAILED),
-        loaded=tuple(a.loaded for a in agvs),
-        carried=tuple(a.trip.shelf if a.loaded and a.trip is not None else None
-                      for a in agvs),
-        task_state=tuple(int(a.state) for a in agvs),
-        corridors=MappingProxyType(world.corridors),
-        goals=tuple(_goal_now(world, a) for a in agvs))
-
-
-def _goal_now(world: World, agv: Agv) -> int | None:
-    """Where the AGV is headed now: its yield spot while it makes way, else its task goal
-    (None while it works in place or is down)."""
-    if agv.state == AgvState.FAILED:
-        return None
-    if agv.yield_goal is not None and world.tick < agv.yield_until:
-        return agv.yield_goal
-    return world.goal_of(agv)
-
-
-def apply_report(world: World, report: StepReport) -> None:
-    """Write what the executor reports into the world (before the tick advances)."""
-    from .faults.intrusion_log import record_checks
-
-    for i, state in report.states.items():
-        world.agvs[i].pos = state
-    for i, behind in report.behind.items():
-        world.agvs[i].delay = behind
-    for name, fields in report.events:
-        world.log(name, **fields)
-    record_checks(world, report.intrusion_checks, unit=report.intrusion_unit)
-
-
-def step_executor(world: World, executor) -> StepReport:
-    """One executor tick against ``world``, as the loop runs it (view in, report applied;
-    the caller advances ``world.tick``). The executor must be bound
-    (``executor.bind(executor_setup(world))``)."""
-    report = executor.step(tick_view(world))
-    apply_report(world, report)
-    return report

@@ -544,7 +544,8 @@ def _run_plan_case(planner, case: _PlanCase, seed: int, ck: _Checker,
     paths as the loop does) and check every call; return a trace of the results."""
     from .planning.base import AgentRequest
     from .planning.rotation import agent_turn_ticks
-    from .planning.sweep import EAST, heading_after, turn_fields
+    from .planning.sweep import EAST, turn_fields
+    from .planning.sweep_checks import heading_after
 
     world = _mixed_world(seed)
     res = world.reservations
@@ -735,7 +736,7 @@ def _check_paths(world, agents: list, result, tick: int, ck: _Checker) -> None:
                 f"turns in place where it may not ({c})",
                 fixes[c.kind] + "; a turn is a move whose direction differs from the AGV's "
                 "heading (agent.heading, then its last move's); see "
-                "warerover_phys.planning.turns")
+                "warerover_phys.planning.search.turning_astar")
     ck.ok("turn sweeps")
 
 
@@ -778,7 +779,7 @@ def _check_headings(world, agents: list, result, ck: _Checker) -> None:
 def plan_turn_conflicts(world, paths: dict, tick: int,
                         headings: dict | None = None, max_conflicts: int = 100,
                         loaded: dict | None = None) -> list:
-    """Turn-in-place conflicts (:func:`~warerover_phys.planning.sweep.sweep_conflicts`:
+    """Turn-in-place conflicts (:func:`~warerover_phys.planning.sweep_checks.sweep_conflicts`:
     ``sweep``, ``turn_lock``, ``turn_wall``) of the timed ``paths`` (``agv -> TimedPath``)
     from ``tick`` on, for ``world``'s fleet and layout (empty when no AGV's turn holds
     anything). ``headings``: the heading of AGVs at ``tick`` (for paths that start then);
@@ -786,7 +787,8 @@ def plan_turn_conflicts(world, paths: dict, tick: int,
     ``loaded`` (``agv -> bool``, or one bool per tick from ``tick``): also the turns beside
     AGVs that carry a shelf (``shelf_sweep``; planners do not reserve these yet, the
     physics executor's dependency graph makes such a turn wait)."""
-    from .planning.sweep import heading_after, sweep_conflicts, turn_fields
+    from .planning.sweep import turn_fields
+    from .planning.sweep_checks import heading_after, sweep_conflicts
 
     fields = turn_fields(world.layout, [a.spec for a in world.agvs])
     if not fields:

@@ -3,7 +3,7 @@
 A page asks for a generated block with one marker line (the object is named there, so the
 module paths live in ``docs/reference/*.md`` only)::
 
-    <!-- generated: cli warerover_phys.cli:app -->        every command of the typer app
+    <!-- generated: cli warerover_phys.cli.commands:app -->        every command of the typer app
     <!-- generated: schema warerover_phys:Scenario -->    a pydantic model's JSON schema
 
 ``cli`` walks the click command tree typer builds (``typer.main.get_command``) and writes each

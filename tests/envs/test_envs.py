@@ -23,10 +23,10 @@ from warerover_phys.envs import (  # noqa: E402
     MAPFGymEnv,
     parallel_env,
 )
-from warerover_phys.movingai import read_map, read_scen  # noqa: E402
-from warerover_phys.planning.learned import learned_oneshot  # noqa: E402
-from warerover_phys.planning.oneshot import grid_graph  # noqa: E402
-from warerover_phys.planning.policy import NUM_CHANNELS  # noqa: E402
+from warerover_phys.planning.learned.planner import learned_oneshot  # noqa: E402
+from warerover_phys.planning.learned.policy import NUM_CHANNELS  # noqa: E402
+from warerover_phys.planning.oneshot.core import grid_graph  # noqa: E402
+from warerover_phys.problems.movingai import read_map, read_scen  # noqa: E402
 from warerover_phys.validate import validate_states  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -195,7 +195,7 @@ def test_env_episode_with_learned_policy_equals_learned_planner(agents, seed):
 
 @pytest.mark.parametrize("module", ["warerover_phys.envs", "warerover_phys.envs.parallel",
                                     "warerover_phys.envs.single",
-                                    "warerover_phys.planning.policy"])
+                                    "warerover_phys.planning.learned.policy"])
 def test_docstring_examples(module):
     import doctest
     import importlib

@@ -26,8 +26,8 @@ from warerover_phys import load_scenario, run_episode
 from warerover_phys.config import AgvTypeSpec, ExecutorSpec
 from warerover_phys.execute import load_floor
 from warerover_phys.executors.bodies import SHELF_SIDE
-from warerover_phys.gap_open import execute_timed
-from warerover_phys.gap_plan import TimedPlan
+from warerover_phys.gap.ideal_plan import TimedPlan
+from warerover_phys.gap.open_loop import execute_timed
 from warerover_phys.planning.paths import TimedPath
 
 LAYOUTS = Path(__file__).resolve().parents[2] / "layouts"

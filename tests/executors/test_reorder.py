@@ -20,7 +20,7 @@ from warerover_phys.config import AgvTypeSpec, ExecutorSpec, LayoutSpec
 from warerover_phys.executors.base import AgvBody, ExecutorSetup, TickView
 from warerover_phys.executors.physics import PhysicsExecutor
 from warerover_phys.executors.reorder import check_executed, slowdown
-from warerover_phys.gap_open import PARTS
+from warerover_phys.gap.open_loop import PARTS
 from warerover_phys.layout import build_layout
 from warerover_phys.planning.base import TimedPath
 
@@ -123,8 +123,8 @@ def test_slowdown_is_the_expected_share_of_time_held_by_delays():
 @pytest.fixture(scope="module")
 def plan40(tmp_path_factory):
     """A LaCAM plan of 40 agents on random-32-32-10 (the project's planner)."""
-    from warerover_phys.movingai import read_map, read_scen
-    from warerover_phys.planning.oneshot import solve, write_plan
+    from warerover_phys.planning.oneshot.core import solve, write_plan
+    from warerover_phys.problems.movingai import read_map, read_scen
 
     m = read_map(REPO / "tests" / "data" / "random-32-32-10.map")
     agents = read_scen(REPO / "tests" / "data" / "random-32-32-10-random-1.scen", 40)
@@ -136,7 +136,7 @@ def plan40(tmp_path_factory):
 
 
 def gap(plan_file, mode: str, seed: int = 1):
-    from warerover_phys.gap import plan_gap
+    from warerover_phys.gap.core import plan_gap
 
     return plan_gap(REPO / "tests" / "data" / "random-32-32-10.map", plan_file,
                     delays="bernoulli:0.2", reorder=mode, seed=seed)

@@ -9,7 +9,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
 from warerover_phys.planning.graph import UNREACHABLE, bfs_depths
-from warerover_phys.planning.oneshot import grid_graph
+from warerover_phys.planning.oneshot.core import grid_graph
 
 
 @settings(max_examples=60, deadline=None)

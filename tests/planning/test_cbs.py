@@ -23,8 +23,8 @@ from warerover_phys.planning import (
     ReservationTable,
     TimedPath,
 )
-from warerover_phys.planning import cbs as cbs_module
-from warerover_phys.planning.cbs import CBSPlanner, find_conflicts
+from warerover_phys.planning.search import cbs as cbs_module
+from warerover_phys.planning.search.cbs import CBSPlanner, find_conflicts
 from warerover_phys.validate import validate_states
 
 # --------------------------------------------------------------------------- helpers

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from warerover_phys.planning.dist_store import DistStore
 from warerover_phys.planning.graph import UNREACHABLE
-from warerover_phys.planning.oneshot import grid_graph
+from warerover_phys.planning.oneshot.core import grid_graph
 
 
 @given(st.integers(2, 12), st.integers(2, 12), st.floats(0.0, 0.4), st.integers(0, 2**31))

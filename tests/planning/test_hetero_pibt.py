@@ -17,15 +17,15 @@ from hypothesis import strategies as st
 from warerover_phys.config import LayoutSpec
 from warerover_phys.layout import build_layout
 from warerover_phys.planning.base import footprint_nodes
-from warerover_phys.planning.footprint_lacam import footprint_lacam, update_footprint_priorities
-from warerover_phys.planning.footprint_pibt import (
+from warerover_phys.planning.graph import UNREACHABLE, GraphSet
+from warerover_phys.planning.lacam.footprint import footprint_lacam, update_footprint_priorities
+from warerover_phys.planning.pibt.footprint import (
     Mover,
     footprint_step,
     pose_cells,
     pose_states,
     successor,
 )
-from warerover_phys.planning.graph import UNREACHABLE, GraphSet
 from warerover_phys.validate import validate_states
 
 # --------------------------------------------------------------------------- instances

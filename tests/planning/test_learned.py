@@ -16,12 +16,17 @@ from longcases import slow_after
 
 from warerover_phys.config import PlannerSpec, load_scenario
 from warerover_phys.errors import PlanningError
-from warerover_phys.movingai import read_map, read_scen
 from warerover_phys.planning import make_planner
 from warerover_phys.planning.base import AgentRequest, PlanRequest
-from warerover_phys.planning.learned import LearnedPlanner, learned_oneshot
-from warerover_phys.planning.oneshot import grid_graph
-from warerover_phys.planning.policy import DEFAULT_WEIGHTS, MLPPolicy, WeightsError, shield_step
+from warerover_phys.planning.learned.planner import LearnedPlanner, learned_oneshot
+from warerover_phys.planning.learned.policy import (
+    DEFAULT_WEIGHTS,
+    MLPPolicy,
+    WeightsError,
+    shield_step,
+)
+from warerover_phys.planning.oneshot.core import grid_graph
+from warerover_phys.problems.movingai import read_map, read_scen
 from warerover_phys.sim import run_episode
 from warerover_phys.validate import validate_states
 from warerover_phys.world import World
@@ -29,7 +34,7 @@ from warerover_phys.world import World
 ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT / "tests" / "data"
 PAPER = ROOT / "layouts" / "paper_homogeneous.yaml"
-PLUGIN = "warerover_phys.planning.learned:LearnedPlanner"
+PLUGIN = "warerover_phys.planning.learned.planner:LearnedPlanner"
 
 
 # ------------------------------------------------------------------------- weights
@@ -286,7 +291,12 @@ def test_cli_run_exits_2_on_missing_truncated_or_misshapen_weights(tmp_path, kin
 def test_policy_features_v2_priorities_intentions_scalars():
     """Feature set 2: the observation, others' priority sign, their greedy next cells
     (signed by priority) and four scalars; version 1 is the flattened observation."""
-    from warerover_phys.planning.policy import ObsGrid, num_features, observe, policy_features
+    from warerover_phys.planning.learned.policy import (
+        ObsGrid,
+        num_features,
+        observe,
+        policy_features,
+    )
 
     obstacles = np.zeros((5, 5), dtype=bool)
     g = grid_graph(obstacles)

@@ -13,9 +13,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from warerover_phys.movingai import read_map, read_scen
 from warerover_phys.planning.graph import UNREACHABLE
-from warerover_phys.planning.oneshot import grid_graph, solve
+from warerover_phys.planning.oneshot.core import grid_graph, solve
+from warerover_phys.problems.movingai import read_map, read_scen
 from warerover_phys.validate import validate_states
 
 DATA = Path(__file__).resolve().parents[1] / "data"

@@ -15,11 +15,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from warerover_phys.movingai import read_map, read_scen
 from warerover_phys.planning.graph import UNREACHABLE
-from warerover_phys.planning.oneshot import REFINE_SHARE, grid_graph, solve
-from warerover_phys.planning.refine import _astar, _Plan, _sipp, refine
-from warerover_phys.planning.scatter import guide_paths
+from warerover_phys.planning.oneshot.core import REFINE_SHARE, grid_graph, solve
+from warerover_phys.planning.oneshot.scatter import guide_paths
+from warerover_phys.planning.refine.lns import _astar, _Plan, _sipp, refine
+from warerover_phys.problems.movingai import read_map, read_scen
 from warerover_phys.validate import validate_states
 
 DATA = Path(__file__).resolve().parents[1] / "data"
@@ -194,7 +194,7 @@ def test_sipp_finds_the_same_cost_as_space_time_astar(instance):
     cols = graph.cols
     nodes = [[r * cols + c for r, c in p] for p in first.paths]
     goal_nodes = [graph.node(g) for g in goals]
-    from warerover_phys.planning.refine import _trim
+    from warerover_phys.planning.refine.lns import _trim
     plan = _Plan(graph.num_nodes, [_trim(p, g) for p, g in zip(nodes, goal_nodes, strict=True)])
     a = seed % len(starts)
     plan.remove(a)

@@ -10,8 +10,8 @@ import pytest
 
 from warerover_phys import load_scenario
 from warerover_phys.config import parse_override
-from warerover_phys.planning import pibt_compiled
-from warerover_phys.planning.pibt_planner import PIBTPlanner
+from warerover_phys.planning.pibt import compiled as pibt_compiled
+from warerover_phys.planning.pibt.planner import PIBTPlanner
 from warerover_phys.sim import Simulation
 from warerover_phys.validate import validate_states
 

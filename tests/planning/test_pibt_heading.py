@@ -1,4 +1,4 @@
-"""One PIBT step under the rotation model (:mod:`warerover_phys.planning.pibt_heading`):
+"""One PIBT step under the rotation model (:mod:`warerover_phys.planning.pibt.heading`):
 every step is valid (no shared cells, no swaps, moves only straight ahead, turns a quarter),
 robots facing each other in a corridor get past each other, and robots reach goals."""
 
@@ -8,8 +8,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from warerover_phys.planning.oneshot import grid_graph
-from warerover_phys.planning.pibt_heading import STEP, heading_pibt_step
+from warerover_phys.planning.oneshot.core import grid_graph
+from warerover_phys.planning.pibt.heading import STEP, heading_pibt_step
 
 
 def _check_step(graph, cols, config, heading, nxt, nh, acts):

@@ -1,4 +1,4 @@
-"""The compiled PIBT steps (:mod:`warerover_phys.planning.pibt_numba`) against the Python
+"""The compiled PIBT steps (:mod:`warerover_phys.planning.pibt.kernels`) against the Python
 reference steps: the same next cells, headings and actions on random grids (hypothesis), and
 the same output over whole lifelong runs of ``warehouse_small`` with 200 and 400 robots.
 Every step is also checked by an independent validator (no shared cells, no swaps, no
@@ -16,18 +16,19 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from warerover_phys.planning import pibt_numba as pn
 from warerover_phys.planning.dist_store import DistStore
-from warerover_phys.planning.oneshot import grid_graph
-from warerover_phys.planning.pibt import pibt_step
-from warerover_phys.planning.pibt_heading import (
+from warerover_phys.planning.oneshot.core import grid_graph
+from warerover_phys.planning.pibt import heading_kernels as hk
+from warerover_phys.planning.pibt import kernels as pn
+from warerover_phys.planning.pibt.heading import (
     STEP,
     Facing,
     heading_pibt_step,
     steps_of,
     turn_first,
 )
-from warerover_phys.planning.pibt_planner import PIBTPlanner
+from warerover_phys.planning.pibt.planner import PIBTPlanner
+from warerover_phys.planning.pibt.reference import pibt_step
 from warerover_phys.problems.robotrunners import output_json, problem_scenario, read_problem
 from warerover_phys.sim import Simulation
 
@@ -99,7 +100,7 @@ def test_compiled_steps_match_the_python_steps_on_random_grids(inst):
     acts = ["W"] * n
     hd = list(heading)
     moved = turn_first(config, got, hd, acts, cols)
-    c_moved, c_hd, c_acts = pn.turn_first_nb(np.array(config), np.array(got), np.array(heading),
+    c_moved, c_hd, c_acts = hk.turn_first_nb(np.array(config), np.array(got), np.array(heading),
                                              cols, graph.num_nodes)
     assert (c_moved.tolist(), c_hd.tolist(), c_acts.tobytes().decode("ascii")) == (
         moved, hd, "".join(acts))
@@ -126,7 +127,7 @@ def test_compiled_steps_match_the_python_steps_on_random_grids(inst):
     w_nxt, w_nh, w_acts, w_esc = heading_pibt_step(
         graph.neighbors, cols, config, heading, views, prio, tie.tolist(),
         frozenset(np.flatnonzero(escaping).tolist()), steps_of(graph.neighbors, cols))
-    g_nxt, g_nh, g_acts, g_esc = pn.heading_step_nb(tab, np.array(config), np.array(heading),
+    g_nxt, g_nh, g_acts, g_esc = hk.heading_step_nb(tab, np.array(config), np.array(heading),
                                                     typed, order, tie, escaping)
     assert g_nxt.tolist() == w_nxt and g_nh.tolist() == w_nh
     assert g_acts.tobytes().decode("ascii") == "".join(w_acts)
@@ -138,7 +139,7 @@ def test_compiled_steps_match_the_python_steps_on_random_grids(inst):
         graph.neighbors, cols, config, heading, views, prio, tie.tolist(),
         frozenset(np.flatnonzero(escaping).tolist()), steps_of(graph.neighbors, cols),
         acyclic=True)
-    g_nxt, g_nh, g_acts, g_esc = pn.heading_step_nb(tab, np.array(config), np.array(heading),
+    g_nxt, g_nh, g_acts, g_esc = hk.heading_step_nb(tab, np.array(config), np.array(heading),
                                                     typed, order, tie, escaping, acyclic=True)
     assert g_nxt.tolist() == w_nxt and g_nh.tolist() == w_nh
     assert g_acts.tobytes().decode("ascii") == "".join(w_acts)

@@ -1,4 +1,4 @@
-"""The LNS refiner's compiled search (:mod:`warerover_phys.planning.refine_nb`): the same
+"""The LNS refiner's compiled search (:mod:`warerover_phys.planning.refine.kernels`): the same
 costs as the Python reference searches, valid plans, determinism with a seed."""
 
 from __future__ import annotations
@@ -11,11 +11,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from warerover_phys.movingai import read_map, read_scen
-from warerover_phys.planning import refine_nb
 from warerover_phys.planning.graph import UNREACHABLE
-from warerover_phys.planning.oneshot import grid_graph, solve
-from warerover_phys.planning.refine import _astar, _Plan, _sipp, _trim, refine
+from warerover_phys.planning.oneshot.core import grid_graph, solve
+from warerover_phys.planning.refine import kernels as refine_nb
+from warerover_phys.planning.refine.lns import _astar, _Plan, _sipp, _trim, refine
+from warerover_phys.problems.movingai import read_map, read_scen
 from warerover_phys.validate import validate_states
 
 pytestmark = pytest.mark.skipif(not refine_nb.AVAILABLE, reason="numba missing")

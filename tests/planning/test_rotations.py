@@ -337,7 +337,7 @@ def test_planned_turns_give_physics_its_turn_time():
     """Open loop (the grid plan executed unchanged on physics): with rotations a planned
     turn holds the ticks the body needs, so almost no time is lost to turning and the
     executed / planned makespan drops."""
-    from warerover_phys.gap import open_loop_gap
+    from warerover_phys.gap.core import open_loop_gap
 
     sc = load_scenario("layouts/paper_homogeneous.yaml", [("orders.oneshot.count", 4)])
     rot = load_scenario("layouts/paper_homogeneous.yaml",

@@ -1,5 +1,5 @@
-"""The compiled one-shot engine (``engine="numba"``: :mod:`warerover_phys.planning.scatter_numba`,
-:mod:`warerover_phys.planning.lacam_numba`) against the Python reference: the same guide paths,
+"""The compiled one-shot engine (``engine="numba"``: :mod:`warerover_phys.planning.oneshot.scatter_kernels`,
+:mod:`warerover_phys.planning.lacam.kernels`) against the Python reference: the same guide paths,
 collision counts and rounds, the same LaCAM configurations (forced moves, held agents, guide
 paths, swaps), every plan through the validator; and ``warerover solve``'s own process loads
 the compiled code without scipy.linalg.
@@ -19,11 +19,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from warerover_phys.movingai import read_map, read_scen
 from warerover_phys.planning.graph import UNREACHABLE
-from warerover_phys.planning.lacam import lacam, lacam_nodes
-from warerover_phys.planning.oneshot import goal_tables, grid_graph
-from warerover_phys.planning.scatter import guide_paths
+from warerover_phys.planning.lacam.reference import lacam, lacam_nodes
+from warerover_phys.planning.oneshot.core import goal_tables, grid_graph
+from warerover_phys.planning.oneshot.scatter import guide_paths
+from warerover_phys.problems.movingai import read_map, read_scen
 from warerover_phys.validate import validate_states
 
 REPO = Path(__file__).resolve().parents[2]
@@ -202,7 +202,8 @@ def test_compiled_goal_tables_are_the_bit_parallel_ones(rows, cols, seed, densit
 def test_auto_compiles_only_with_time_for_it(monkeypatch):
     """``auto``: Python below NUMBA_MIN_AGENTS; above, the compiled kernels when numba's cache
     holds them, else only with COLD_COMPILE_S seconds left (a short limit stays honoured)."""
-    from warerover_phys.planning import scatter, scatter_numba
+    from warerover_phys.planning.oneshot import scatter
+    from warerover_phys.planning.oneshot import scatter_kernels as scatter_numba
 
     n = scatter.NUMBA_MIN_AGENTS
     now = time.monotonic()
@@ -216,9 +217,9 @@ def test_auto_compiles_only_with_time_for_it(monkeypatch):
 
 
 def test_the_kernels_are_in_numbas_cache_once_warmed_up():
-    from warerover_phys.planning import scatter_numba
-    from warerover_phys.planning.lacam import lacam_kernels
-    from warerover_phys.planning.oneshot import warm_up
+    from warerover_phys.planning.lacam.reference import lacam_kernels
+    from warerover_phys.planning.oneshot import scatter_kernels as scatter_numba
+    from warerover_phys.planning.oneshot.core import warm_up
 
     assert warm_up() >= 0
     assert scatter_numba.compiled_ready(lacam_kernels())
@@ -239,7 +240,7 @@ def test_solve_loads_the_compiled_engine_without_scipy(tmp_path):
     out = tmp_path / "plan.txt"
     probe = (
         "import json, sys\n"
-        "from warerover_phys.solve_cli import fast_main\n"
+        "from warerover_phys.cli.solve import fast_main\n"
         "try:\n"
         f"    fast_main(['solve', {str(MAP)!r}, {str(SCEN)!r}, '--agents', '300', '--json',\n"
         f"               '--time-limit', '600', '--out', {str(out)!r}])\n"

@@ -14,10 +14,10 @@ from hypothesis import strategies as st
 from warerover_phys import load_scenario
 from warerover_phys.config import AgvTypeSpec
 from warerover_phys.executors.adg import ADGCycleError, path_moves
-from warerover_phys.gap_plan import record_grid_run
+from warerover_phys.gap.ideal_plan import record_grid_run
 from warerover_phys.planning.base import TimedPath, footprint_nodes
 from warerover_phys.planning.motion import MotionModel, quarter_turns
-from warerover_phys.planning.oneshot import solve
+from warerover_phys.planning.oneshot.core import solve
 from warerover_phys.planning.timing import SCHEDULE_FORMAT, schedule, schedule_plan
 from warerover_phys.validate import validate_states
 

@@ -15,14 +15,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from warerover_phys.movingai import read_map, read_scen
-from warerover_phys.planning.learned import learned_oneshot
-from warerover_phys.planning.oneshot import grid_graph
-from warerover_phys.planning.policy import (
+from warerover_phys.planning.learned.planner import learned_oneshot
+from warerover_phys.planning.learned.policy import (
     DEFAULT_WEIGHTS,
     MLPPolicy,
     num_features,
 )
+from warerover_phys.planning.oneshot.core import grid_graph
+from warerover_phys.problems.movingai import read_map, read_scen
 from warerover_phys.validate import validate_states
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -57,7 +57,7 @@ def _random_observations(tl, rng: np.random.Generator, n: int) -> np.ndarray:
     """Feature-set-2 features of ``n`` agents on random distinct cells of a generated map,
     random goals and random PIBT priorities (what the network reads at run time)."""
     from warerover_phys.planning.graph import UNREACHABLE
-    from warerover_phys.planning.policy import ObsGrid, policy_features
+    from warerover_phys.planning.learned.policy import ObsGrid, policy_features
 
     obstacles, _, _ = tl.make_instance(rng)
     graph = grid_graph(obstacles)

@@ -22,15 +22,8 @@ from warerover_phys.planning import (
     PlanRequest,
 )
 from warerover_phys.planning.base import TimedPath
-from warerover_phys.planning.sweep import (
-    EAST,
-    Sweep,
-    heading_after,
-    no_turn_anchors,
-    sweep_conflicts,
-    turn_fields,
-    turn_sweeps,
-)
+from warerover_phys.planning.sweep import EAST, Sweep, no_turn_anchors, turn_fields, turn_sweeps
+from warerover_phys.planning.sweep_checks import heading_after, sweep_conflicts
 from warerover_phys.sim import run_episode
 from warerover_phys.validate import validate_states
 from warerover_phys.world import World

@@ -16,14 +16,13 @@ from warerover_phys.planning import TimedPath
 from warerover_phys.planning.sweep import (
     BodyShape,
     Sweep,
-    check_fleet_sweeps,
     disc_overlaps_rect,
     discs_overlap,
-    sweep_conflicts,
     sweep_offsets,
     turn_locks,
     turn_sweeps,
 )
+from warerover_phys.planning.sweep_checks import check_fleet_sweeps, sweep_conflicts
 from warerover_phys.sim import step_executor
 from warerover_phys.world import World
 

@@ -161,8 +161,8 @@ def test_header_of_a_plan_execution(pocket):
 def late_fleet(tmp_path_factory) -> Path:
     """40 AGVs of a LaCAM plan on random-32-32-10 executed on physics: the bodies fall
     behind the plan's unit-time moves (acceleration, turns, waits on one another)."""
-    from warerover_phys.movingai import read_map, read_scen
-    from warerover_phys.planning.oneshot import solve, write_plan
+    from warerover_phys.planning.oneshot.core import solve, write_plan
+    from warerover_phys.problems.movingai import read_map, read_scen
 
     tmp = tmp_path_factory.mktemp("late")
     data = REPO / "tests" / "data"

@@ -390,7 +390,7 @@ def test_simulation_imports_neither_cv2_nor_av(tmp_path):
     renderer; asking for a video does."""
     code = f"""
 import sys
-import warerover_phys, warerover_phys.cli
+import warerover_phys, warerover_phys.cli.commands
 from warerover_phys import load_scenario
 from warerover_phys.outputs import write_outputs
 from warerover_phys.sim import Simulation

@@ -133,7 +133,7 @@ def test_export_glb_command(tmp_path, monkeypatch):
     pytest.importorskip("trimesh", reason="glTF export needs trimesh (the serve extra)")
     import typer
 
-    from warerover_phys.serve.cli import register
+    from warerover_phys.cli.serve import register
 
     app = typer.Typer()
     register(app)

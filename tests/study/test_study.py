@@ -22,7 +22,7 @@ import yaml
 from typer.testing import CliRunner
 
 from warerover_phys.cli import app
-from warerover_phys.movingai import read_map, read_scen
+from warerover_phys.problems.movingai import read_map, read_scen
 from warerover_phys.study import StudyError, expand, load_study, run_study
 from warerover_phys.study.cells import cell_id
 from warerover_phys.study.report import rank_correlation, write_study_report
@@ -393,7 +393,7 @@ def test_motion_timing_reads_the_same_plan_and_predicts_aet_better(tmp_path):
 
 
 def test_a_folder_of_plan_files_is_read_and_a_missing_one_is_a_row(tmp_path):
-    from warerover_phys.planning.oneshot import solve, write_plan
+    from warerover_phys.planning.oneshot.core import solve, write_plan
 
     grid = read_map(MAP)
     scen = read_scen(SCEN, 6, grid)

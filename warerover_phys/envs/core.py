@@ -77,8 +77,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..planning.graph import UNREACHABLE, MotionGraph
-from ..planning.oneshot import grid_graph
-from ..planning.policy import ACTIONS, NUM_ACTIONS, NUM_CHANNELS, ObsGrid, observe
+from ..planning.learned.policy import ACTIONS, NUM_ACTIONS, NUM_CHANNELS, ObsGrid, observe
+from ..planning.oneshot.core import grid_graph
 
 if TYPE_CHECKING:
     from ..config import AgvTypeSpec, ExecutorSpec, Scenario
@@ -176,7 +176,7 @@ class Instance:
     def from_movingai(cls, map_file: str | Path, scen_file: str | Path | None = None,
                       num_agents: int | None = None) -> Instance:
         """A MovingAI map; with a ``.scen`` file, its first ``num_agents`` starts/goals."""
-        from ..movingai import read_map, read_scen
+        from ..problems.movingai import read_map, read_scen
 
         m = read_map(map_file)
         if scen_file is None:
@@ -562,12 +562,12 @@ def rotation_actions(moves: np.ndarray, heading: np.ndarray) -> np.ndarray:
 
 class LearnedDriver:
     """The learned planner's policy and shield choosing every agent's action in a
-    :class:`GridMAPF` (the same :class:`~warerover_phys.planning.learned.LearnedController`
-    as :func:`~warerover_phys.planning.learned.learned_oneshot`, so a one-shot episode
+    :class:`GridMAPF` (the same :class:`~warerover_phys.planning.learned.planner.LearnedController`
+    as :func:`~warerover_phys.planning.learned.planner.learned_oneshot`, so a one-shot episode
     driven by it moves exactly as that planner does with the same ``seed``)."""
 
     def __init__(self, core: GridMAPF, policy=None, seed: int = 0) -> None:
-        from ..planning.learned import LearnedController, load_policy
+        from ..planning.learned.planner import LearnedController, load_policy
 
         self.core = core
         self.controller = LearnedController(policy or load_policy(), core.graph, seed=seed)
@@ -579,7 +579,7 @@ class LearnedDriver:
         """One action per agent for the core's current state (call once per step); with
         rotations, the move's rotation action (a turn first where the move is not straight
         ahead: the policy is asked again next step)."""
-        from ..planning.policy import actions_from_moves
+        from ..planning.learned.policy import actions_from_moves
 
         ctrl, core = self.controller, self.core
         for i in np.flatnonzero(np.asarray(ctrl.goals) != core.goal):

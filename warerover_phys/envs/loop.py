@@ -22,7 +22,7 @@ Rules of one step, on the planning request the loop made for the tick
   executor orders them).
 
 Observations: each agent's ``(4, 2r+1, 2r+1)`` window of
-:func:`~warerover_phys.planning.policy.observe` (obstacles for its class: a loaded AGV's
+:func:`~warerover_phys.planning.learned.policy.observe` (obstacles for its class: a loaded AGV's
 shelves block it; other AGVs; its goal's direction; its distance-to-goal heuristic), for the
 goal the loop gives it this tick. ``infos[agent]``: ``goal`` (cell), ``hold``, ``loaded``,
 ``priority`` (ticks it has chased its goal, as the loop ranks step planners' AGVs; 0 held),
@@ -52,8 +52,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..planning.base import PlanResult
+from ..planning.learned.policy import ACTIONS, NUM_ACTIONS, ObsGrid, actions_from_moves, observe
 from ..planning.paths import TimedPath
-from ..planning.policy import ACTIONS, NUM_ACTIONS, ObsGrid, actions_from_moves, observe
 from .deps import require
 
 require("pettingzoo")

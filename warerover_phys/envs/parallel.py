@@ -1,7 +1,7 @@
 """PettingZoo parallel environment: one agent (``agv_0`` ... ``agv_{N-1}``) per AGV.
 
 Every agent observes its ``(4, 2r+1, 2r+1)`` window (see
-:mod:`warerover_phys.planning.policy`) and picks one of five actions (wait, up, down, left,
+:mod:`warerover_phys.planning.learned.policy`) and picks one of five actions (wait, up, down, left,
 right; with rotations, ``rotations=True`` or a scenario's ``planner.rotations``: a fifth
 channel for the heading and four actions, wait, forward, turn left, turn right); rules and
 rewards are those of :mod:`warerover_phys.envs.core`. Agents stay in the

@@ -25,7 +25,7 @@ and left when it finishes. So the turn waits for every AGV planned on those cell
 overlapping turn planned) before it, and every one planned there after it waits for the
 turn. The executor turns such an AGV only once the move is ready. A planner
 that keeps the swept cells free of other AGVs at the turn's tick and the next one (as
-:func:`warerover_phys.planning.sweep.sweep_conflicts` checks) gets only edges that go
+:func:`warerover_phys.planning.sweep_checks.sweep_conflicts` checks) gets only edges that go
 strictly forward in planned time from them, so they add no cycle.
 
 Carried shelves. The cells a turn's disc reaches only through the shelf a neighbour may

@@ -22,7 +22,7 @@ The steps between the finish of an AGV's previous action (or step 0) and the fin
 action are that action's *interval*; :meth:`CauseRecorder.log` returns, per finished
 action, its planned start tick and duration, the steps at which it started and finished and
 the label counts of its interval, which add up to the interval's length exactly. Dependency
-waits are also counted per blocker. :mod:`warerover_phys.gap_open` credits the plan's
+waits are also counted per blocker. :mod:`warerover_phys.gap.open_loop` credits the plan's
 durations against these counts to split lost time into causes.
 
 Costs a few vectorised numpy operations per physics step (:meth:`CauseRecorder.step`, the

@@ -24,7 +24,7 @@ looks at the AGVs found waiting on the graph:
    ``milp``: :func:`.reorder_milp.choose` (the receding-horizon program over the
    candidates and the AGVs they touch; greedy where it finds no optimum in its budget).
 4. **Switch** (checked acyclic) and account: the switched AGV's current interval is
-   credited ``wait`` (``reorder_gain`` in the lost-time causes, :mod:`warerover_phys.gap_open`),
+   credited ``wait`` (``reorder_gain`` in the lost-time causes, :mod:`warerover_phys.gap.open_loop`),
    and a ``reorder`` event names the AGVs and cells.
 
 Deterministic: candidates are taken in AGV id order, the estimates are arithmetic on the

@@ -45,12 +45,12 @@ def inside_open_corridor(world: World, agv_id: int) -> int | None:
 def exit_spots(world: World, already: dict[int, int] | None = None) -> dict[int, int]:
     """Caught AGVs that must be sent out now -> the anchor to go to (the nearest plain floor
     anchor outside every open corridor that nobody holds for good; see
-    :func:`~warerover_phys.planning.astar.nearest_free_anchor`). Only AGVs that stand,
+    :func:`~warerover_phys.planning.search.astar.nearest_free_anchor`). Only AGVs that stand,
     are not down and do not work in place are sent (one that works finishes first, then
     leaves); ``already`` (agv -> spot) are AGVs sent before whose spot is still good,
     left out."""
-    from ..planning.astar import nearest_free_anchor
     from ..planning.base import AgentRequest
+    from ..planning.search.astar import nearest_free_anchor
 
     already = already or {}
     out: dict[int, int] = {}

@@ -1,7 +1,7 @@
 """MAPF planning: motion graphs, reservations, planners.
 
 The names below are imported on first use, so that importing one planning module (as
-``warerover solve`` does with :mod:`~warerover_phys.planning.oneshot`) does not load every
+``warerover solve`` does with :mod:`~warerover_phys.planning.oneshot.core`) does not load every
 planner and the plug-in registry (pydantic).
 """
 
@@ -11,19 +11,19 @@ import importlib
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from .astar import AStarPlanner
     from .base import AgentRequest, Planner, PlanRequest, PlanResult, TimedPath
-    from .cbs import CBSPlanner
     from .graph import GraphSet, MotionGraph
-    from .lacam_planner import LaCAMPlanner
-    from .pibt_planner import PIBTPlanner
+    from .lacam.planner import LaCAMPlanner
+    from .pibt.planner import PIBTPlanner
     from .reservation import ReservationTable
+    from .search.astar import AStarPlanner
+    from .search.cbs import CBSPlanner
 
 __all__ = ["AStarPlanner", "CBSPlanner", "PIBTPlanner", "LaCAMPlanner", "AgentRequest", "Planner", "PlanRequest", "PlanResult", "TimedPath",
            "GraphSet", "MotionGraph", "ReservationTable", "make_planner"]
 
-_LAZY = {"AStarPlanner": "astar", "CBSPlanner": "cbs", "PIBTPlanner": "pibt_planner",
-         "LaCAMPlanner": "lacam_planner", "AgentRequest": "base", "Planner": "base",
+_LAZY = {"AStarPlanner": "search.astar", "CBSPlanner": "search.cbs",
+         "PIBTPlanner": "pibt.planner", "LaCAMPlanner": "lacam.planner", "AgentRequest": "base", "Planner": "base",
          "PlanRequest": "base", "PlanResult": "base", "TimedPath": "base",
          "GraphSet": "graph", "MotionGraph": "graph", "ReservationTable": "reservation"}
 

@@ -17,7 +17,7 @@ be reached, as :meth:`MotionGraph.dist_to` gives. Either way every free cell hol
 move count as :meth:`MotionGraph.dist_to`, so plans do not change.
 
 They are filled by a breadth-first search compiled with numba
-(:func:`~warerover_phys.planning.pibt_numba.bfs_fill`: 1.3 ms CPU a table on the fulfill map
+(:func:`~warerover_phys.planning.pibt.kernels.bfs_fill`: 1.3 ms CPU a table on the fulfill map
 below, against 2.8 ms for the scipy route, at load 8 on 2 cores; 2026-11-26), else by scipy's compiled breadth-first search cut into levels (as
 :func:`~warerover_phys.planning.graph.bfs_depths`) over the enterable cells only, the
 compiled search called directly: on the 140 x 500 ``lorr2026_warehouse_fulfill`` map 3.0 ms
@@ -30,7 +30,7 @@ and a numpy one that can is 16 ms for a whole table, so it would have to stop wi
 first fifth of the map to pay.
 
 >>> import numpy as np
->>> from warerover_phys.planning.oneshot import grid_graph
+>>> from warerover_phys.planning.oneshot.core import grid_graph
 >>> store = DistStore(grid_graph(np.zeros((1, 4), dtype=bool)), budget_mb=1)
 >>> store.get(3).tolist(), store.get(3).dtype.name, store.counters()["hits"]
 ([3, 2, 1, 0], 'uint16', 1)
@@ -109,7 +109,7 @@ class DistStore:
         # numba's breadth-first search, imported here (not at module import: numba takes a
         # second or more to import): 1.3 ms a table on the fulfill map against 2.8 ms
         # through scipy (CPU, load 8 on 2 cores); the same depths
-        from .pibt_numba import AVAILABLE, bfs_fill
+        from .pibt.kernels import AVAILABLE, bfs_fill
         self._bfs_fill = bfs_fill if AVAILABLE else None
         self.dtype = share.dtype if share is not None else (
             dtype if dtype is not None else self._choose_dtype())

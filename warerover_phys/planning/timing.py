@@ -474,7 +474,7 @@ def _run_time(go: float, x: float, d: float, m: MotionModel, pause: tuple | None
 
 
 def schedule_plan(plan, *, payload: bool = False, comm_latency_s: float = 0.0) -> Schedule:
-    """The schedule of a :class:`~warerover_phys.gap_plan.TimedPlan` (the open-loop gap's
+    """The schedule of a :class:`~warerover_phys.gap.ideal_plan.TimedPlan` (the open-loop gap's
     plan: paths, dwells, cargo); ``payload``, ``comm_latency_s``: the executor's settings."""
     lay = plan.layout
     down: dict[int, list[tuple[float, float]]] = {}

@@ -13,7 +13,7 @@ not modelled (one action per timestep; delays come from ``executor.delays`` if s
 **Runs** (:func:`problem_scenario`): the problem becomes a :class:`~warerover_phys.config.
 Scenario` of the one loop (:class:`~warerover_phys.sim.Simulation`): its map the layout
 (1 m cells), its agents the fleet (1x1 robots facing east, 1.5 m/s, quarter turn within a
-tick), its tasks errand tasks (:mod:`warerover_phys.errands`) assigned by the problem's rule
+tick), its tasks errand tasks (:mod:`warerover_phys.problems.errands`) assigned by the problem's rule
 (2023 ``roundrobin`` / ``roundrobin-fixed`` with wrap-around, ``greedy``; 2024+ ``pool``:
 nearest first errand), planned by lifelong PIBT (the league's rotation model ``MAPF_T`` by
 default: forward, turn clockwise ``R`` / counter-clockwise ``C``, wait ``W``, one per
@@ -50,9 +50,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errands import check_cell, read_numbers, read_task_file, read_text
 from ..errors import ScenarioError
-from ..movingai import MovingAIMap, read_map
+from .errands import check_cell, read_numbers, read_task_file, read_text
+from .movingai import MovingAIMap, read_map
 
 if TYPE_CHECKING:
     from ..config import Scenario

@@ -411,9 +411,9 @@ def load_trajectory(path: str | Path) -> Recording:
     ``paths.json`` beside it, when present, give the order counts and the planned paths.
 
     A run folder whose files do not match its ``manifest.json`` (a mixed or half-written set,
-    :func:`warerover_phys.atomic.check_set`) is refused; so is any corrupt or truncated file,
+    :func:`warerover_phys.util.atomic.check_set`) is refused; so is any corrupt or truncated file,
     with a :class:`WareroverError` naming it."""
-    from ..atomic import check_set
+    from ..util.atomic import check_set
 
     p = Path(path)
     if p.is_dir():

@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from ..atomic import replacing
+from ..util.atomic import replacing
 from .frame import Style, draw_frame
 
 if TYPE_CHECKING:

@@ -31,8 +31,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..planning.graph import UNREACHABLE
-from ..planning.pibt_numba import AVAILABLE as BFS_AVAILABLE
-from ..planning.pibt_numba import bfs_fill
+from ..planning.pibt.kernels import AVAILABLE as BFS_AVAILABLE
+from ..planning.pibt.kernels import bfs_fill
 from .costs_nb import best_trips, ranked_options
 
 if TYPE_CHECKING:

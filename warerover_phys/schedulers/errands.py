@@ -1,5 +1,5 @@
 """The errand-task scheduler: assigns errand tasks (``orders.pattern: errands``) to free
-AGVs by the rule of ``orders.errands.assign`` (:mod:`warerover_phys.errands`):
+AGVs by the rule of ``orders.errands.assign`` (:mod:`warerover_phys.problems.errands`):
 
 - ``roundrobin``: each released task names its AGV (``Order.for_agv``);
 - ``greedy``: free AGVs in id order take the pending tasks in id order;
@@ -59,7 +59,7 @@ def nearest_first(fr: np.ndarray, fc: np.ndarray, rr: np.ndarray, rc: np.ndarray
     """For robots at ``(rr, rc)`` in turn, the index of the nearest still-open task (first
     errand at ``(fr, fc)``, Manhattan; the lowest index among equals), -1 once none is left."""
     try:
-        from ..planning.pibt_numba import AVAILABLE, nearest_open
+        from ..planning.pibt.kernels import AVAILABLE, nearest_open
     except ImportError:  # pragma: no cover - numba is a dependency
         AVAILABLE = False
     if AVAILABLE:

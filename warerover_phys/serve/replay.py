@@ -119,7 +119,7 @@ def layout_grid(path: Path | None, fallback: np.ndarray | None,
         return fallback, fallback_cell_m
     if path.suffix == ".map":
         from ..layout import CellType
-        from ..movingai import read_map
+        from ..problems.movingai import read_map
 
         obstacles = read_map(str(path)).obstacles
         return np.where(obstacles, CellType.OBSTACLE, CellType.FLOOR).astype(np.int8), 1.0

@@ -307,8 +307,8 @@ def load_trajectory_file(path: str | Path, shelves: bool = True) -> TimedPlan:
     p = Path(path)
     if p.is_dir():
         p = p / "trajectories.npz"
-    from ..atomic import check_set
     from ..inputs import check_regular_file, load_npz
+    from ..util.atomic import check_set
 
     try:
         check_regular_file(p, "trajectory")

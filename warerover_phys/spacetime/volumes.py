@@ -249,18 +249,9 @@ def _agent_segments(m, end_s: float, shelves: bool):
     return t, x, y, h, shelf
 
 
-def build_volumes(plan: TimedPlan, *, tolerance_m: float = 1e-3, margin_m: float = 0.0,
-                  max_turn_rad: float = math.pi / 16, shelves: bool = True) -> Volumes:
-    """Every agent's swept volumes (see the module docstring). Agents hold their last pose
-    until the plan's end; when some agent's only sample is at that end, every agent holds
-    it 1 us longer (so a plan of one instant is checked too)."""
-    if not (0 < max_turn_rad < math.pi):
-        raise ValueError(f"max_turn_rad must be in (0, pi) (got {max_turn_rad})")
-    end_s = plan.end_s
-    if any(m.t_s[0] >= end_s for m in plan.agents.values()):
-        # an agent seen only at the plan's last instant: every agent holds its last pose a
-        # moment longer, so that instant has volumes too
-        end_s += max(1e-6, 1e-9 * abs(end_s))
+def _segment_columns(plan: TimedPlan, end_s: float, shelves: bool):
+    """The straight segments between every agent's samples, as lists of column arrays: the
+    bodies' (``agent, t0, t1, x0, y0, h0, x1, y1, dh, L, W``) and the carried shelves'."""
     cols = {k: [] for k in ("agent", "t0", "t1", "x0", "y0", "h0", "x1", "y1", "dh", "L", "W")}
     sh = {k: [] for k in ("agent", "t0", "t1", "x0", "y0", "x1", "y1", "sx", "sy")}
     for aid, m in plan.agents.items():
@@ -289,6 +280,22 @@ def build_volumes(plan: TimedPlan, *, tolerance_m: float = 1e-3, margin_m: float
                                  ("y0", y[:-1]), ("x1", x[1:]), ("y1", y[1:]), ("sx", sx),
                                  ("sy", sy)):
                     sh[key].append(arr[on])
+    return cols, sh
+
+
+def build_volumes(plan: TimedPlan, *, tolerance_m: float = 1e-3, margin_m: float = 0.0,
+                  max_turn_rad: float = math.pi / 16, shelves: bool = True) -> Volumes:
+    """Every agent's swept volumes (see the module docstring). Agents hold their last pose
+    until the plan's end; when some agent's only sample is at that end, every agent holds
+    it 1 us longer (so a plan of one instant is checked too)."""
+    if not (0 < max_turn_rad < math.pi):
+        raise ValueError(f"max_turn_rad must be in (0, pi) (got {max_turn_rad})")
+    end_s = plan.end_s
+    if any(m.t_s[0] >= end_s for m in plan.agents.values()):
+        # an agent seen only at the plan's last instant: every agent holds its last pose a
+        # moment longer, so that instant has volumes too
+        end_s += max(1e-6, 1e-9 * abs(end_s))
+    cols, sh = _segment_columns(plan, end_s, shelves)
     if not cols["agent"]:
         z = np.zeros(0)
         return Volumes(np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int8),

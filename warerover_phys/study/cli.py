@@ -55,8 +55,8 @@ def study(target: Annotated[str, typer.Argument(
     """Planners x MAPF instances x robot models, each plan executed on physics: one row per
     cell in OUT/results.parquet and OUT/results.csv (resumable). `warerover study report
     DIR` writes DIR/report.md with tables, rank correlations and pictures."""
-    from ..console import fail as _fail
     from ..errors import WareroverError
+    from ..util.console import fail as _fail
 
     try:
         if target == "report":
@@ -83,8 +83,8 @@ def _run(spec_file: Path, out: Path, workers: int | None, ray: str | None,
          solvers: dict[str, str], retry_failed: bool, json_out: bool, quiet: bool) -> None:
     import os
 
-    from ..console import err_console
-    from ..sweep.cli import _Progress
+    from ..cli.sweep import _Progress
+    from ..util.console import err_console
     from .runner import run_study
     from .spec import load_study
 
@@ -117,7 +117,7 @@ def _run(spec_file: Path, out: Path, workers: int | None, ray: str | None,
 
 
 def _report(folder: Path, pictures: bool, json_out: bool) -> None:
-    from ..console import err_console
+    from ..util.console import err_console
     from .report import write_study_report
 
     result = write_study_report(folder, pictures=pictures)

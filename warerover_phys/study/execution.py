@@ -1,7 +1,7 @@
 """Run a study task: obtain its plan once, repair its rotations once, execute it on physics
 once per cell, and make each cell's row.
 
-Execution is the open-loop gap's (:func:`warerover_phys.gap_open.execute_timed`: the plan
+Execution is the open-loop gap's (:func:`warerover_phys.gap.open_loop.execute_timed`: the plan
 unchanged on the physics executor through the action dependency graph, every AGV's lost
 time split into causes). The robots are the cell's true model: its robot model with the
 mismatch factors applied; the planner's side (turn ticks of rotation-aware plans, the
@@ -33,7 +33,7 @@ __all__ = ["run_plan_task", "fail_task", "run_lifelong_task", "cell_row", "ROW_P
 ROW_PARTS = ("dependency", "accel_decel", "turning", "control", "injected",
              "rotation_repair", "dwell_overrun", "faster_than_plan", "plan_waits_skipped")
 """The lost-time causes kept in a row (seconds summed over agents; see
-:data:`warerover_phys.gap_open.PARTS`)."""
+:data:`warerover_phys.gap.open_loop.PARTS`)."""
 
 
 def _cpu() -> float:
@@ -142,7 +142,7 @@ def _prepare(task: PlanTask, outcome: PlanOutcome) -> dict[str, Any] | str:
 
 
 def _timed_plan(task: PlanTask, prepared: dict[str, Any], types: list[AgvTypeSpec]):
-    from ..gap_plan import TimedPlan
+    from ..gap.ideal_plan import TimedPlan
 
     return TimedPlan(layout=prepared["layout"], types=types, tick_s=task.execution.tick_s,
                      paths=prepared["paths"], dwells={}, source=f"study plan {task.plan_id}",
@@ -152,7 +152,7 @@ def _timed_plan(task: PlanTask, prepared: dict[str, Any], types: list[AgvTypeSpe
 def _execute_cell(task: PlanTask, cell: Cell, prepared: dict[str, Any],
                   schedules: dict[str, Any]) -> dict[str, Any]:
     from ..execute import executor_spec
-    from ..gap_open import execute_timed, motion_timed, open_loop_report
+    from ..gap.open_loop import execute_timed, motion_timed, open_loop_report
 
     model = task.robots[cell.robot]
     true = task.mismatch[cell.mismatch].apply(model)

@@ -114,7 +114,7 @@ def obtain_plan(task: PlanTask) -> PlanOutcome:
     if kept is not None:
         kept.stats["kept"] = True
         return kept
-    from ..movingai import read_map, read_scen
+    from ..problems.movingai import read_map, read_scen
 
     grid = read_map(task.map_path)
     scen = read_scen(task.scen_path, task.n, grid)
@@ -130,7 +130,7 @@ def obtain_plan(task: PlanTask) -> PlanOutcome:
     except WareroverError as err:  # a plan file that cannot be read
         out = PlanOutcome(None, error=str(err), stage="read")
     if out.plan is not None:
-        from ..planning.oneshot import goal_tables, grid_graph
+        from ..planning.oneshot.core import goal_tables, grid_graph
 
         graph = grid_graph(grid.obstacles)
         tables = goal_tables(graph, goals)
@@ -159,7 +159,7 @@ def _builtin(task: PlanTask, obstacles: np.ndarray, starts: list, goals: list) -
                                stage="solve", stats=stats)
         return PlanOutcome(plan, wall, stats=stats)
     from ..errors import PlanningError
-    from ..planning.oneshot import solve
+    from ..planning.oneshot.core import solve
 
     try:
         res = solve(obstacles, starts, goals, planner=entry.solver or "",

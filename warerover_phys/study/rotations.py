@@ -30,7 +30,7 @@ MAX_TICKS = 100_000
 
 def _setup(obstacles: np.ndarray):
     from ..planning.graph import GraphSet
-    from ..planning.oneshot import grid_graph
+    from ..planning.oneshot.core import grid_graph
 
     graph = grid_graph(obstacles)
     graphs = GraphSet(graph.layout)
@@ -39,9 +39,9 @@ def _setup(obstacles: np.ndarray):
 
 
 def _planner(name: str, budget_s: float):
-    from ..planning.astar import AStarPlanner
-    from ..planning.lacam_planner import LaCAMPlanner
-    from ..planning.pibt_planner import PIBTPlanner
+    from ..planning.lacam.planner import LaCAMPlanner
+    from ..planning.pibt.planner import PIBTPlanner
+    from ..planning.search.astar import AStarPlanner
 
     if name == "astar":
         return AStarPlanner(max_expansions=200_000, budget_per_move=None)
@@ -60,7 +60,7 @@ def solve_rotations(obstacles: np.ndarray, starts: list[tuple[int, int]],
     study's, and a plan not found within it is the reported result."""
     import logging
 
-    quiet = logging.getLogger("warerover_phys.planning.lacam_planner")
+    quiet = logging.getLogger("warerover_phys.planning.lacam.planner")
     level = quiet.level
     quiet.setLevel(logging.ERROR)
     try:

@@ -356,6 +356,28 @@ def _half(h: float) -> float:
     return 0.0 if math.isnan(h) else h
 
 
+def _rules_and_legend(ax, groups: Sequence[Group], top: float, row_h: float,
+                      legend_h: float, width: float) -> None:
+    """The heat-map table's rules (one between environments) and the legend under it: what
+    bold and hatching mean."""
+    from matplotlib.patches import Rectangle
+
+    bottom = top - row_h * (len(groups) + 1)
+    for y, lw in ((top, 1.2), (top - row_h, 0.6), (bottom, 1.2)):
+        ax.plot([0, width], [y, y], color="black", linewidth=lw)
+    for r in range(1, len(groups)):
+        if groups[r].env != groups[r - 1].env:
+            y = top - row_h * (r + 1)
+            ax.plot([0, width], [y, y], color="0.6", linewidth=0.4)
+    ly = bottom - legend_h / 2
+    ax.add_patch(Rectangle((0.08, ly - 0.09), 0.35, 0.18, facecolor=(0.0, 1.0, 0.0),
+                           alpha=0.25, edgecolor="none"))
+    ax.add_patch(Rectangle((0.08, ly - 0.09), 0.35, 0.18, facecolor="none",
+                           edgecolor=(0.0, 0.0, 0.0, 0.45), hatch="////", linewidth=0.0))
+    ax.text(0.5, ly, "95% CI overlaps the best of its column (bold): not shown to differ",
+            ha="left", va="center", fontsize=7)
+
+
 def heatmap(groups: Sequence[Group], path: str | Path, title: str = "") -> Path:
     """Draw ``groups`` as the paper draws Table 1: Env., Method, then SR, CT and TP cells
     (and the execution columns the groups have) filled ``green!p!red`` at 25% opacity, p the
@@ -417,23 +439,9 @@ def heatmap(groups: Sequence[Group], path: str | Path, title: str = "") -> Path:
             ax.text(x0[i] + widths[i] - 0.08, y - row_h / 2,
                     _blank(g.stats[m], _column(m)[1]) or "", ha="right", va="center",
                     fontsize=8, fontweight="bold" if mark == "best" else "normal")
-    bottom = top - row_h * (len(groups) + 1)
-    for y, lw in ((top, 1.2), (top - row_h, 0.6), (bottom, 1.2)):
-        ax.plot([0, sum(widths)], [y, y], color="black", linewidth=lw)
-    for r in range(1, len(groups)):
-        if groups[r].env != groups[r - 1].env:
-            y = top - row_h * (r + 1)
-            ax.plot([0, sum(widths)], [y, y], color="0.6", linewidth=0.4)
-    # legend: what bold and hatching mean
-    ly = bottom - legend_h / 2
-    ax.add_patch(Rectangle((0.08, ly - 0.09), 0.35, 0.18, facecolor=(0.0, 1.0, 0.0),
-                           alpha=0.25, edgecolor="none"))
-    ax.add_patch(Rectangle((0.08, ly - 0.09), 0.35, 0.18, facecolor="none",
-                           edgecolor=(0.0, 0.0, 0.0, 0.45), hatch="////", linewidth=0.0))
-    ax.text(0.5, ly, "95% CI overlaps the best of its column (bold): not shown to differ",
-            ha="left", va="center", fontsize=7)
+    _rules_and_legend(ax, groups, top, row_h, legend_h, sum(widths))
     path = Path(path)
-    from ..atomic import replacing
+    from ..util.atomic import replacing
 
     with replacing(path) as tmp:      # a killed report never leaves half a PNG
         fig.savefig(tmp, format=path.suffix.lstrip(".") or "png")

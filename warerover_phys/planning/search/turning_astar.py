@@ -1,0 +1,322 @@
+"""Space-time A* with headings, for AGVs whose turns in place must be reserved (issue 13).
+
+A differential-drive AGV turns in place before every move whose direction differs from the
+one it faces (its last move's). When its body's swept disc leaves its footprint
+(:mod:`~warerover_phys.planning.sweep`), such a turn is a reservation of its own, and
+:func:`turning_astar` searches over states ``(anchor, heading, tick)``:
+
+- a move from ``a`` in a new direction at tick ``t`` is a turn at ``a``: allowed only if
+  ``a`` is not a no-turn anchor (``agent.no_turn``: the disc would reach a wall), the
+  turn's swept cells are free of other AGVs at ``t`` and ``t + 1``, and no other AGV's
+  turn at ``t`` holds one of its turn locks (both read from the reservation table, which
+  holds the committed turns of the other AGVs the same way);
+- no move enters a *dead end* (:func:`~warerover_phys.planning.sweep.dead_ends`): a
+  no-turn anchor faced so that straight ahead never leads to a place to turn;
+- everything else is the space-time A* of :mod:`astar` and, with CBS constraints and a
+  conflict-avoidance table, the low level of :mod:`cbs` (same moves, footprints, slow
+  moves, sinks, swaps, goal rules and work budgets). CBS adds *no-turn* constraints
+  ``(anchor, tick)``: the AGV may not start a turn there then.
+
+Turns take no ticks of their own in the plan (the physics executor spends the turn's time
+inside the move, and its dependency graph orders overlapping turns).
+
+Rotations (issue 15, ``planner.rotations``; :mod:`~warerover_phys.planning.rotation`): for an
+agent with ``turn_ticks`` the same search moves only along the heading and turns in place as
+actions of their own: a quarter turn (either way) takes ``turn_ticks[0]`` ticks, a half turn
+``turn_ticks[1]``, standing on the anchor throughout (CBS no-turn constraints and the turn
+checks above apply at the turn's first tick); the heuristic is the exact single-agent
+distance over (anchor, heading) in ticks (:func:`~warerover_phys.planning.rotation.
+graph_rotation_dist`), and the path carries the heading of every state.
+
+Only AGVs that need it are searched this way (:func:`~warerover_phys.planning.sweep.
+turn_aware`): for the default 0.7 m bodies on 1 m cells nothing changes.
+"""
+
+from __future__ import annotations
+
+from ..base import AgentRequest, State, TimedPath, footprint_nodes
+from ..graph import UNREACHABLE, MotionGraph
+from ..reservation import FOREVER, ReservationTable
+from ..rotation import UNREACHABLE_T, graph_rotation_dist
+from ..sweep import DIR_OF, lock_keys, move_dir, sweep_cells
+from .frontier import ConflictFrontier, avoidance_hits, free_check, move_conflicts
+
+__all__ = ["turning_astar", "turn_ok", "heading_index", "request_turn_fields"]
+
+_NONE = 4
+"""Heading index for "unknown" (the first move counts as a turn)."""
+
+
+def heading_index(heading: tuple[int, int] | None) -> int:
+    return _NONE if heading is None else DIR_OF[heading]
+
+
+def request_turn_fields(graphs, masks, sweep, heading: tuple[int, int] | None, k: int,
+                        loaded: bool, shelf: int | None, goal: int,
+                        after: tuple[bool, int | None] | None) -> dict:
+    """The :class:`~warerover_phys.planning.base.AgentRequest` fields of a turn-aware AGV:
+    ``heading``, ``sweep``, ``no_turn`` for how it drives now (``masks``: its
+    :class:`~warerover_phys.planning.sweep.TurnMasks`; loaded: carrying ``shelf``), and
+    ``goal_dead`` for ``after`` = (loaded, shelf) once its work at the goal is done (None:
+    unchanged)."""
+    no_turn = masks.carrying(shelf) if loaded else masks.walls
+    goal_dead = None
+    if after is not None and after != (loaded, shelf if loaded else None):
+        loaded2, shelf2 = after
+        no_turn2 = masks.carrying(shelf2) if loaded2 else masks.walls
+        dead2 = graphs.get(k, loaded2, shelf2).dead_ends(no_turn2)
+        goal_dead = frozenset(d for d in range(4) if (goal, d) in dead2)
+    return {"heading": heading, "sweep": sweep, "no_turn": no_turn, "goal_dead": goal_dead}
+
+
+def turn_ok(res: ReservationTable, agent: AgentRequest, node: int, t: int, rows: int,
+            cols: int) -> bool:
+    """May ``agent`` turn in place at anchor ``node`` at tick ``t`` given the committed
+    paths of ``res``? (Not a no-turn anchor, swept cells free at ``t`` and ``t + 1``,
+    turn locks free at ``t``.)"""
+    if node in agent.no_turn:
+        return False
+    sw = agent.sweep
+    if sw is None:
+        return True
+    me = agent.agv
+    for c in sweep_cells(node, sw.cells, rows, cols):
+        if not (res.free(c, t, me) and res.free(c, t + 1, me)):
+            return False
+    return not sw.locks or res.locks_free(lock_keys(node, sw.locks, rows, cols), t, me)
+
+
+def turning_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest, t0: int,
+                  constraints=None, avoid=None, max_expansions: int = 50_000,
+                  budget_per_move: int | None = 40, cbs: bool = False,
+                  ) -> tuple[TimedPath | None, int]:
+    """Search one turn-aware AGV's path from tick ``t0`` (see the module doc). With
+    ``cbs`` the budgets and limits of :func:`~warerover_phys.planning.search.cbs.constrained_astar`
+    apply (``constraints``: its :class:`~warerover_phys.planning.search.cbs.Constraints`;
+    ``avoid``: its conflict-avoidance table), else those of
+    :func:`~warerover_phys.planning.search.astar.space_time_astar`. Returns (path or None,
+    expansions)."""
+    cols, rows, k, m, me = graph.cols, graph.rows, agent.k, agent.ticks_per_move, agent.agv
+    start, goal = agent.start, agent.goal
+    cap = max_expansions
+    vertex = constraints.vertex if constraints is not None else {}
+    edge = constraints.edge if constraints is not None else set()
+    never = constraints.never if constraints is not None else {}
+    noturn = constraints.noturn if constraints is not None else set()
+    cat, cat_rest = avoid if avoid is not None else ({}, {})
+    no_turn = agent.no_turn
+    dead = graph.dead_ends(no_turn)
+    sw = agent.sweep
+    sw_cells = sw.cells if sw is not None else ()
+    sw_locks = sw.locks if sw is not None else ()
+
+    def fp(node: int) -> tuple[int, ...]:
+        return footprint_nodes(node, k, cols)
+
+    ok = free_check(res, me, vertex, never)
+    hits = avoidance_hits(cat, cat_rest)
+
+    def can_turn(node: int, t: int) -> bool:
+        if node in no_turn or (noturn and (node, t) in noturn):
+            return False
+        if sw_cells:
+            cells = sweep_cells(node, sw_cells, rows, cols)
+            if not (ok(cells, t) and ok(cells, t + 1)):
+                return False
+        return not sw_locks or res.locks_free(lock_keys(node, sw_locks, rows, cols), t, me)
+
+    goal_cells = fp(goal)
+    if any(c in never for c in goal_cells):
+        return None, 0
+    goal_dead = agent.goal_dead
+    if no_turn and (start, heading_index(agent.heading)) not in graph.turn_dist(
+            no_turn, goal, goal_dead):
+        return None, 0  # no way there without turning where it may not
+    t_free = max((res.last_use(c, me) for c in goal_cells), default=-1) + 1
+    if t_free >= FOREVER:
+        return None, 0
+    if constraints is not None:
+        t_free = max(t_free, constraints.finish_after + 1)
+        for t, cells in vertex.items():
+            if t >= t_free and not cells.isdisjoint(goal_cells):
+                t_free = t + 1
+    t_max = constraints.finish_by if constraints is not None else FOREVER
+    h_table = graph.dist_to(graph.cell(goal))
+    h0 = graph.distance(graph.cell(start), graph.cell(goal))
+    if h0 >= UNREACHABLE or max(t_free, t0 + h0 * m) > t_max:
+        return None, 0
+    if cbs:
+        last = constraints.last_tick(t0) + 1 if constraints is not None else t0
+        t_limit = max(t_free, t0 + h0 * m, last) + h0 * m + 64
+        n_cons = len(constraints) if constraints is not None else 0
+        max_expansions = min(max_expansions, 40 * (h0 * m + 25 + n_cons))
+    else:
+        t_limit = max(t_free, t0 + h0 * m) + h0 * m + 64
+        if budget_per_move is not None:
+            max_expansions = min(max_expansions, budget_per_move * (h0 * m + 25))
+
+    def h(node: int) -> int:
+        v = int(h_table[node])
+        return v * m if v < UNREACHABLE else (h0 * m if node == start else UNREACHABLE)
+
+    rot = agent.turn_ticks
+    if rot is not None:
+        r_table = graph_rotation_dist(graph, goal, m, rot[0], rot[1])
+        r_min = r_table.min(axis=1)
+
+        def hr(node: int, hd: int) -> int:
+            v = int(r_table[node, hd] if hd < 4 else r_min[node])
+            if v < UNREACHABLE_T:
+                return v
+            return h(node) + (rot[1] if node == start else 0)
+
+        h_start = hr(start, heading_index(agent.heading))
+        t_limit += h_start - h0 * m
+        if cbs:
+            max_expansions = min(cap, 40 * (h_start + 25 + n_cons))
+        elif budget_per_move is not None:
+            max_expansions = min(cap, budget_per_move * (h_start + 25))
+
+    loaded_sinks = graph.has_sinks
+    expandable = graph.expandable_flat
+    neighbors = graph.neighbors
+    s0 = start * 5 + heading_index(agent.heading)
+    if rot is not None:
+        return _rotating_search(graph, agent, t0, s0, t_free, t_max, t_limit, max_expansions,
+                                hr, ok, hits, can_turn, edge, dead, fp, m, res, me)
+    open_ = ConflictFrontier(s0, t0, t0 + h(start), t_max)
+    closed, push = open_.closed, open_.push
+    expansions = 0
+    while (top := open_.pop()) is not None:
+        sid, t, conf = top
+        key = (sid, t)
+        node, hd = divmod(sid, 5)
+        if node == goal and t >= t_free and (goal_dead is None or hd not in goal_dead):
+            return _reconstruct(open_.parent, key, me), expansions
+        expansions += 1
+        if expansions > max_expansions:
+            break
+        if t >= t_limit:
+            continue
+        here = fp(node)
+        if ok(here, t + 1):  # wait one tick
+            push(sid, t + 1, conf + hits(here, t + 1), h(node), key)
+        for nxt in (neighbors[node] if node == start or expandable[node] else ()):
+            if loaded_sinks and nxt != goal and not expandable[nxt]:
+                continue  # never drive into another shelf's home
+            d = move_dir(node, nxt, cols)
+            if nxt == goal and goal_dead is not None:
+                if d in goal_dead:
+                    continue  # it would start its work there facing the wrong way
+            elif (nxt, d) in dead:
+                continue
+            t_arr = t + m
+            nsid = nxt * 5 + d
+            if (nsid, t_arr) in closed:
+                continue
+            hn = h(nxt)
+            if hn >= UNREACHABLE:
+                continue
+            there = fp(nxt)
+            if not ok(there, t_arr):
+                continue
+            extra = move_conflicts(res, node, nxt, here, there, t, m, ok, hits, edge, me)
+            if extra is None or (d != hd and not can_turn(node, t)):
+                continue
+            push(nsid, t_arr, conf + extra + hits(there, t_arr), hn, key)
+    return None, expansions
+
+
+def _reconstruct(parent: dict, key: tuple[int, int], agv: int,
+                 rotations: bool = False) -> TimedPath:
+    """The path to ``key``; with ``rotations`` also the heading of every state (a turn
+    keeps the old heading until its last tick; unknown headings become the first move's
+    direction, east if it never moves)."""
+    chain: list[tuple[int, int, int]] = []
+    walk: tuple[int, int] | None = key
+    while walk is not None:
+        chain.append((walk[0] // 5, walk[0] % 5, walk[1]))
+        walk = parent[walk]
+    chain.reverse()
+    states: list[State] = [(chain[0][0], chain[0][0])]
+    heads: list[int] = [chain[0][1]]
+    for (a, ha, ta), (b, hb, tb) in zip(chain, chain[1:], strict=False):
+        hold = hb if a != b else ha
+        for _ in range(tb - ta - 1):
+            states.append((a, b))
+            heads.append(hold)
+        states.append((b, b))
+        heads.append(hb)
+    if not rotations:
+        return TimedPath(agv=agv, start_tick=chain[0][2], states=tuple(states))
+    known = next((h for h in heads if h < 4), 0)
+    heads = [known if h == 4 else h for h in heads]
+    return TimedPath(agv=agv, start_tick=chain[0][2], states=tuple(states),
+                     headings=tuple(heads))
+
+
+def _rotating_search(graph: MotionGraph, agent: AgentRequest, t0: int, s0: int, t_free: int,
+                     t_max: int, t_limit: int, max_expansions: int, hr, ok, hits, can_turn,
+                     edge, dead, fp, m: int, res: ReservationTable, me: int,
+                     ) -> tuple[TimedPath | None, int]:
+    """The search of :func:`turning_astar` with rotations (see the module doc): states
+    ``anchor * 5 + heading``; moves only along the heading (any way while it is unknown),
+    quarter and half turns in place that take ``agent.turn_ticks``."""
+    assert agent.turn_ticks is not None
+    q1, q2 = agent.turn_ticks
+    cols, goal, start = graph.cols, agent.goal, agent.start
+    goal_dead = agent.goal_dead
+    loaded_sinks = graph.has_sinks
+    expandable = graph.expandable_flat
+    neighbors = graph.neighbors
+    open_ = ConflictFrontier(s0, t0, t0 + hr(start, s0 % 5), t_max)
+    closed, push = open_.closed, open_.push
+    expansions = 0
+    while (top := open_.pop()) is not None:
+        sid, t, conf = top
+        key = (sid, t)
+        node, hd = divmod(sid, 5)
+        if node == goal and t >= t_free and (goal_dead is None or hd not in goal_dead):
+            return _reconstruct(open_.parent, key, me, rotations=True), expansions
+        expansions += 1
+        if expansions > max_expansions:
+            break
+        if t >= t_limit:
+            continue
+        here = fp(node)
+        if ok(here, t + 1):  # wait one tick
+            push(sid, t + 1, conf + hits(here, t + 1), hr(node, hd), key)
+        if hd < 4:  # turn in place: a quarter either way, or half round
+            for h2, q in (((hd + 1) % 4, q1), ((hd + 3) % 4, q1), ((hd + 2) % 4, q2)):
+                if q2 >= 2 * q1 and h2 == (hd + 2) % 4:
+                    continue  # two quarter turns are as fast
+                if all(ok(here, t + i) for i in range(1, q + 1)) and can_turn(node, t):
+                    push(node * 5 + h2, t + q,
+                         conf + sum(hits(here, t + i) for i in range(1, q + 1)),
+                         hr(node, h2), key)
+        for nxt in (neighbors[node] if node == start or expandable[node] else ()):
+            if loaded_sinks and nxt != goal and not expandable[nxt]:
+                continue  # never drive into another shelf's home
+            d = move_dir(node, nxt, cols)
+            if hd < 4 and d != hd:
+                continue  # only along the heading
+            if nxt == goal and goal_dead is not None:
+                if d in goal_dead:
+                    continue
+            elif (nxt, d) in dead:
+                continue
+            t_arr = t + m
+            nsid = nxt * 5 + d
+            if (nsid, t_arr) in closed:
+                continue
+            hn = hr(nxt, d)
+            if hn >= UNREACHABLE_T:
+                continue
+            there = fp(nxt)
+            if not ok(there, t_arr):
+                continue
+            extra = move_conflicts(res, node, nxt, here, there, t, m, ok, hits, edge, me)
+            if extra is None or (hd == 4 and not can_turn(node, t)):
+                continue
+            push(nsid, t_arr, conf + extra + hits(there, t_arr), hn, key)
+    return None, expansions
