@@ -39,7 +39,21 @@ def _commands(tmp: Path) -> dict[str, list[list]]:
         "execute": [execute],
         "lorr": [["lorr", LORR, "--ticks", "20", "--out", tmp / "lorr"]],
         "check-trajectory": [execute, ["check-trajectory", tmp / "exec"]],
+        "study": [["study", _study_spec(tmp), "--out", tmp / "study", "--workers", "1"]],
     }
+
+
+def _study_spec(tmp: Path) -> Path:
+    """A one-cell study (one map, one scenario, 4 agents, PIBT, one robot)."""
+    spec = tmp / "study.yaml"
+    if tmp.is_dir():
+        spec.write_text(json.dumps({  # (JSON is YAML)
+            "name": "json-case",
+            "instances": [{"map": str(MAP), "scens": [str(SCEN)], "agents": [4]}],
+            "planners": {"pibt": {"solver": "pibt", "time_limit_s": 5}},
+            "robots": {"quick": {"max_speed_mps": 1.0, "max_accel_mps2": 1.0,
+                                 "max_turn_rate_radps": 2.0}}}), encoding="utf-8")
+    return spec
 
 
 CASES = list(_commands(Path("/nonexistent")).keys())
