@@ -36,8 +36,9 @@ import numpy as np
 
 from .config import PlannerSpec, parse_invoke, parse_latency
 from .planning.base import PlanRequest, PlanResult, State, TimedPath
+from .planning.paths import occupancy
 
-__all__ = ["PlanClock", "Pending", "plan_window", "splice"]
+__all__ = ["PlanClock", "Pending", "hold_back", "plan_window", "splice"]
 
 _DIRS = ((0, 1), (1, 0), (0, -1), (-1, 0))
 
@@ -158,8 +159,11 @@ def cut(path: TimedPath, tick: int) -> TimedPath:
 def splice(old: TimedPath | None, new: TimedPath, t_r: int, now: State) -> TimedPath | None:
     """The AGV's path once ``new`` (planned to start at ``new.start_tick`` = t_eff) takes
     effect at ``t_r``: ``old`` up to t_eff (to the end of a move under way then), a wait at
-    ``new``'s first state until ``t_r``, then ``new``; ``old`` from the last of its states
-    that is the AGV's state ``now`` (what it still has to drive; earlier ones are history).
+    ``new``'s first state until ``t_r``, then ``new``; ``old`` from the AGV's state ``now``
+    (what it still has to drive; earlier states are history): the end of the first run of
+    ``now`` in ``old``, since a path may come back to ``now`` (a side step and back) and
+    the AGV behind its plan has not made that side step yet (the executor skips what it has
+    already driven, :meth:`~warerover_phys.executors.follow.PlanFollower._cut`).
     None if ``old`` does not reach ``new``'s first state at t_eff (it was changed meanwhile:
     the AGV keeps ``old`` and is planned again)."""
     first = new.states[0]
@@ -173,8 +177,11 @@ def splice(old: TimedPath | None, new: TimedPath, t_r: int, now: State) -> Timed
     t_eff = old.start_tick + j
     t_r = max(t_r, t_eff)
     s0 = old.start_tick
-    for k in range(min(j, len(old.states) - 1), -1, -1):
+    last = min(j, len(old.states) - 1)
+    for k in range(last + 1):
         if old.states[k] == now:
+            while k < last and old.states[k + 1] == now:
+                k += 1
             s0 = old.start_tick + k
             break
     states = tuple(old.state_at(t) for t in range(s0, t_eff)) + (first,) * (t_r - t_eff) \
@@ -186,6 +193,49 @@ def splice(old: TimedPath | None, new: TimedPath, t_r: int, now: State) -> Timed
                        for t in range(s0, t_eff))
         heads = before + (h0,) * (t_r - t_eff) + new.headings
     return TimedPath(new.agv, s0, states, heads)
+
+
+def hold_back(spliced: dict[int, TimedPath], old: dict[int, TimedPath], dropped: list[int],
+              sizes: dict[int, int], cols: int, tick: int) -> list[int]:
+    """The AGVs of a late joint plan that must keep their old paths too, because the AGVs
+    ``dropped`` keep theirs (their splice failed: their paths changed while the plan was
+    computed) and the joint plan assumed they would move. ``spliced``: the new paths of the
+    others; ``old``: every AGV's path before the plan (each stops at the call's effect
+    tick); ``sizes``: footprints; ``tick``: now. An AGV whose new path covers a cell that a
+    kept path covers at the same tick (from ``tick`` on) keeps its old path as well, and
+    so on until none does: the old paths stop on cells of one collision-free
+    configuration, so the paths left are collision-free in plan time and the executor's
+    dependency graph stays acyclic. Returns the AGVs to hold back, in the order found."""
+    if not dropped:
+        return []
+    end = max((p.end_tick for p in spliced.values()), default=tick)
+    held: dict[tuple[int, int], int] = {}
+
+    def hold(aid: int) -> None:
+        path = old.get(aid)
+        if path is None:
+            return
+        for t in range(max(tick, path.start_tick), end + 1):
+            for c in occupancy(path.state_at(t), sizes[aid], cols):
+                held[(t, c)] = aid
+
+    for aid in dropped:
+        hold(aid)
+    out: list[int] = []
+    todo = dict(spliced)
+    changed = True
+    while changed:
+        changed = False
+        for aid, path in list(todo.items()):
+            k = sizes[aid]
+            if any(held.get((t, c), aid) != aid
+                   for t in range(max(tick, path.start_tick), end + 1)
+                   for c in occupancy(path.state_at(t), k, cols)):
+                del todo[aid]
+                out.append(aid)
+                hold(aid)
+                changed = True
+    return out
 
 
 def plan_window(planner, request: PlanRequest, window: int) -> PlanResult:

@@ -11,10 +11,14 @@ from .planning.search.astar import nearest_free_anchor
 from .planning.search.turning_astar import request_turn_fields
 from .world import MOVING_STATES, Agv, AgvState
 
-__all__ = ["PlanRequests", "YIELD_TICKS"]
+__all__ = ["LAG_SLACK_TICKS", "PlanRequests", "YIELD_TICKS", "claimed_to", "driven_to"]
 
 YIELD_TICKS = 8
 """How long an AGV that makes way stays away."""
+LAG_SLACK_TICKS = 2
+"""With a planning latency: how many ticks an AGV may run behind its path (plus half the
+planner's window) before the planner stops extending it (it is held where its path is at
+the plan's effect tick)."""
 _TRAVEL_STATES = (AgvState.TO_SHELF, AgvState.TO_STATION, AgvState.RETURNING)
 """States whose goal holds a step planner's AGV once it stands there (its work starts when
 it is at rest); an errand needs no work, so an AGV on an errand is never held."""
@@ -50,7 +54,21 @@ class PlanRequests:
             age = w.tick - agv.goal_since + ((agv.id if high else n - agv.id) / (n + 1))
             start = self._committed.get(agv.id, agv.node)
             if ahead and agv.id in w.reservations.paths:
-                start = w.reservations.paths[agv.id].state_at(t_eff)[1]
+                path = w.reservations.paths[agv.id]
+                start = path.state_at(t_eff)[1]
+                tc = claimed_to(path, self._committed.get(agv.id, agv.node), t_eff,
+                                driven_to(path, agv.pos, first=True))
+                if tc is not None:
+                    # Ahead of its path (the dependency graph let it go early): it stands,
+                    # or is committed by the executor to stand, where its path is only
+                    # after t_eff. It keeps its path to there and is planned to stand there.
+                    start, hold = path.state_at(tc)[1], True
+                    self._cut_at[agv.id] = tc
+                # Far behind its path already: stand where the path is at t_eff (the
+                # plan's time waits for it), so that the paths do not run ahead of the AGVs
+                # without bound.
+                hold = hold or min(w.tick, path.end_tick) - driven_to(path, agv.pos) \
+                    > LAG_SLACK_TICKS + self.clock.window // 2
             out.append(AgentRequest(
                 agv=agv.id, start=start, goal=goal, k=agv.k, loaded=agv.loaded,
                 ticks_per_move=agv.ticks_per_move,
@@ -148,3 +166,38 @@ class PlanRequests:
                 other.yield_until = w.tick + YIELD_TICKS
                 other.retry_at = w.tick
                 w.log("make_way", agv=other.id, for_agv=stuck.id, spot=list(w.cell(spot)))
+
+
+def driven_to(path: TimedPath, here, first: bool = False) -> int:
+    """The tick of ``path`` the AGV at state ``here`` has reached: the end of the first run
+    of ``here`` in it (see :func:`~warerover_phys.invoke.splice`); an AGV between two cells
+    (a move the path plans in one tick) is just before its first standing on the next
+    one; the path's start if ``here`` is not on it. ``first``: the start of that run (the
+    earliest tick the AGV may be at), not its end."""
+    states = path.states
+    a, b = here
+    if a != b and here not in states:  # between two cells: on its way to the next one
+        for k, s in enumerate(states):
+            if s[0] == s[1] == b:
+                return path.start_tick + max(k - 1, 0)
+        return path.start_tick
+    for k, s in enumerate(states):
+        if s == here:
+            while not first and k + 1 < len(states) and states[k + 1] == here:
+                k += 1
+            return path.start_tick + k
+    return path.start_tick
+
+
+def claimed_to(path: TimedPath, committed: int, t_eff: int, here: int) -> int | None:
+    """The tick of ``path`` after ``t_eff`` at which the AGV, at tick ``here`` of it
+    (:func:`driven_to`), will stand on ``committed`` (its node, or the node the executor
+    has committed it to beyond its state): its first standing there from ``here`` on.
+    None if that is not after ``t_eff`` (or the path does not stand there): the AGV is not
+    ahead of where its path is at ``t_eff``."""
+    states = path.states
+    for k in range(max(here - path.start_tick, 0), len(states)):
+        a, b = states[k]
+        if a == b == committed:
+            return path.start_tick + k if path.start_tick + k > t_eff else None
+    return None

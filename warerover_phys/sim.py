@@ -29,7 +29,7 @@ from .executors.base import StepReport, TickView
 from .executors.binding import _goal_now, apply_report, executor_setup, step_executor, tick_view
 from .faults.exits import exit_spots, inside_open_corridor
 from .faults.model import FaultModel, close_failure, open_failure
-from .invoke import PlanClock, cut, plan_window, splice
+from .invoke import PlanClock, cut, hold_back, plan_window, splice
 from .loop_requests import YIELD_TICKS, PlanRequests
 from .metrics import MetricsRecorder
 from .planning import make_planner
@@ -89,6 +89,9 @@ class Simulation(PlanRequests):
         self.metrics = MetricsRecorder(scenario)
         self.faults = FaultModel(scenario.faults, self.world.rngs["faults"])
         self._pending: tuple | None = None
+        self._cut_at: dict[int, int] = {}
+        """With a planning latency: AGVs committed beyond the effect tick of the call being
+        made, and the tick of their paths they keep to (see ``_step_requests``)."""
         """Between begin_tick and finish_tick: (request, t0, t1, asked at)."""
         self.clock = PlanClock(scenario.planner, scenario.tick_s)
         self._committed: dict[int, int] = {}
@@ -180,13 +183,14 @@ class Simulation(PlanRequests):
         request = None
         if self.clock.due(w.tick, self._short_of_plan):
             t_eff = self.clock.effect_tick(w.tick)
+            self._cut_at = {}
             agents = self._step_requests(t_eff) if self._lifelong else \
                 self._replan_requests(t_eff)
             if agents and t_eff > w.tick:  # the world moves on while the planner works
                 for a in agents:
                     path = w.reservations.paths.get(a.agv)
                     if path is not None:
-                        w.reservations.commit(cut(path, t_eff), a.k)
+                        w.reservations.commit(cut(path, self._cut_at.get(a.agv, t_eff)), a.k)
             request = None if not agents else PlanRequest(
                 tick=t_eff, agents=agents, graphs=w.graphs,
                 reservations=w.reservations.snapshot(), rng=w.rngs["planner"],
@@ -311,6 +315,11 @@ class Simulation(PlanRequests):
                 dropped.append(aid)
             else:
                 paths[aid] = new
+        if dropped:
+            for aid in hold_back(paths, w.reservations.paths, dropped,
+                                 {a.id: a.k for a in w.agvs}, w.layout.cols, w.tick):
+                del paths[aid]
+                dropped.append(aid)
         self.metrics.plans_dropped += len(dropped)
         self._take(replace(result, paths=paths), request.agents, keep_delay=True)
 
@@ -447,7 +456,10 @@ class Simulation(PlanRequests):
                 agv = w.agvs[aid]
                 self._freeze_hits[aid] = self._freeze_hits.get(aid, 0) + 1
                 again |= self._freeze_hits[aid] > 1
-                if agv.standing and agv.state in MOVING_STATES:
+                if agv.standing and agv.state in MOVING_STATES and not self.clock.delayed:
+                    # (With a planning latency the loop plans ahead from the paths'
+                    # positions; an AGV put back where it stands would contradict the
+                    # paths the others were given around it.)
                     w.reservations.commit(TimedPath(aid, w.tick, (agv.pos,)), agv.k)
             self._replan_now([a for a in agvs if w.agvs[a].state in MOVING_STATES])
             if again:

@@ -157,6 +157,9 @@ class _Agent:
     next_seq: int = 0
     heading: tuple[int, int] | None = None
     """Direction the AGV faces after its finished actions (None: unknown)."""
+    last_tick: int | None = None
+    """Planned tick at which the AGV stands at ``node`` (the end of its last finished
+    action; None: none finished)."""
 
 
 def path_moves(path: TimedPath, cols: int) -> list[tuple[int, int, int, int]]:
@@ -549,6 +552,19 @@ class ActionGraph:
                 return step.action.dst
         return rec.running.action.dst if rec.running is not None else rec.node
 
+    def cut_tick(self, agv: int) -> int | None:
+        """The planned tick at which the AGV stands at :meth:`cut_node` (the end of its last
+        claimed or running action, in its plan's ticks); None if it has done no action
+        since it was registered. A new plan that passes the cut node more than once starts
+        at its first standing there at or after this tick."""
+        rec = self._agents.get(agv) or self._rec(agv)
+        for step in reversed(rec.pending):
+            if step.claimed:
+                return step.action.tick + step.action.ticks
+        if rec.running is not None:
+            return rec.running.action.tick + rec.running.action.ticks
+        return rec.last_tick
+
     def claim(self, agv: int, limit: int | None = None,
               released: list[Action] | None = None) -> list[Action]:
         """Commit the AGV to its released actions (at most ``limit``): their visits keep
@@ -819,6 +835,7 @@ class ActionGraph:
                 self._heard_at[v.cell] = (agv, self.now + self.latency_s)
         rec.running = None
         rec.node = step.action.dst
+        rec.last_tick = step.action.tick + step.action.ticks
         rec.heading = step.action.direction
         self._dirty.add(agv)
         return step.action

@@ -125,7 +125,7 @@ class PlanFollower:
     def _sync_one(self, i: int, path: TimedPath, view: TickView) -> None:
         """Hand AGV ``i``'s new plan ``path`` to the ADG (commit cut)."""
         self._synced[i] = path
-        cut = self._cut(i, path)
+        cut = self._cut(i, path, view.tick)
         node = cut.states[0][0]
         self._face.pop(i, None)
         heads = path.headings
@@ -163,15 +163,33 @@ class PlanFollower:
             st.hold_until[i] = max(st.hold_until[i],
                                    st.last_finish[i] + holds[nxt.seq] * st.tick_s)
 
-    def _cut(self, i: int, path: TimedPath) -> TimedPath:
-        """The part of ``path`` from where the AGV will stand after its current action."""
+    def _cut(self, i: int, path: TimedPath, tick: int) -> TimedPath:
+        """The part of ``path`` from where the AGV will stand after its current action.
+
+        A path that starts before ``tick`` (a late plan spliced behind the prefix the AGV
+        still had to drive) may stand at that node more than once (a PIBT side step and
+        back): it is cut at the last such standing no later than the AGV's progress in
+        the plan's ticks (:meth:`~.adg.ActionGraph.cut_tick`), so that neither a step still
+        to drive is skipped nor one already driven is driven again."""
+        after = None
         if self.synced_once(i):
             node = self.adg.cut_node(i)
+            if path.start_tick < tick:
+                after = self.adg.cut_tick(i)
         else:
             node = path.states[0][0]
+        first = None
         for j, (a, b) in enumerate(path.states):
             if a == b == node:
-                return TimedPath(i, path.start_tick + j, path.states[j:])
+                if first is None:
+                    first = j
+                    if after is None:
+                        break
+                if path.start_tick + j > after:
+                    break
+                first = j
+        if first is not None:
+            return TimedPath(i, path.start_tick + first, path.states[first:])
         # The plan does not pass where the AGV will stop (it was made from a stale view):
         # stop there and ask for a new plan.
         self._resync.add(i)
@@ -494,7 +512,8 @@ class PlanFollower:
         report.states.update(enumerate(states))
         cut = self.adg.cut_node
         report.committed.update((i, c) for i, c in ((i, cut(i)) for i in range(st.n)
-                                                    if running[i]) if c != states[i][1])
+                                                    if running[i] or has_next[i])
+                                if c != states[i][1])
         report.behind.update(enumerate(map(int, late)))
         report.blocked.extend(np.flatnonzero(st.waiting).tolist())
         # Distance of driving bodies from their path line (across the move direction).
