@@ -1,4 +1,5 @@
-"""The ``warerover execute`` command: another solver's MAPF plan on a floor, executed and measured."""
+"""The ``warerover execute`` command: another solver's MAPF plan on a floor, executed and
+measured."""
 
 from __future__ import annotations
 

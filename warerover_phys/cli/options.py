@@ -1,4 +1,5 @@
-"""What the ``warerover`` commands share: option types, loading a scenario with overrides, the progress bar, video checks and rendering."""
+"""What the ``warerover`` commands share: option types, loading a scenario with overrides,
+the progress bar, video checks and rendering."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""Rotations in a plan: groups of agents that move round a cycle in one timestep (:func:`find_cycles`)."""
+"""Rotations in a plan: groups of agents that move round a cycle in one timestep
+(:func:`find_cycles`)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""The floor and the fleet of ``warerover execute``: a map, layout or scenario file, the AGV types (:func:`load_floor`, :func:`load_fleet`), and :class:`PlanError`."""
+"""The floor and the fleet of ``warerover execute``: a map, layout or scenario file, the AGV
+types (:func:`load_floor`, :func:`load_fleet`), and :class:`PlanError`."""
 
 from __future__ import annotations
 

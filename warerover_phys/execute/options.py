@@ -1,4 +1,5 @@
-"""Command-line options of ``warerover execute``: the executor spec, ``--set`` options, ``--reorder``, the robot model, ``--delays``."""
+"""Command-line options of ``warerover execute``: the executor spec, ``--set`` options,
+``--reorder``, the robot model, ``--delays``."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""Rotations repaired (:func:`repair_cycles`): each replaced by a local detour found as a sliding puzzle around it, spliced into the plan, and the whole plan re-timed."""
+"""Rotations repaired (:func:`repair_cycles`): each replaced by a local detour found as a
+sliding puzzle around it, spliced into the plan, and the whole plan re-timed."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""What every conformance checker shares: the report, the error, building the plug-in under test, the small test worlds."""
+"""What every conformance checker shares: the report, the error, building the plug-in under
+test, the small test worlds."""
 
 from __future__ import annotations
 
