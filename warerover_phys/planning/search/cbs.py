@@ -92,10 +92,10 @@ from .astar import AStarPlanner, _reconstruct, goal_held, nearest_free_anchor
 from .conflicts import PairConflict, find_conflicts, path_fits
 from .frontier import (
     ConflictFrontier,
+    arrivals,
     avoidance_hits,
     free_check,
     goal_free_tick,
-    move_conflicts,
 )
 from .turning_astar import turning_astar
 
@@ -188,7 +188,8 @@ def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentReq
     neighbors = graph.neighbors
     # (f, conflicts) ordered: see planning.frontier.
     open_ = ConflictFrontier(start, t0, t0 + h(start), t_max)
-    closed, push = open_.closed, open_.push
+    push = open_.push
+    arrive = arrivals(open_, res, fp, ok, hits, edge, me, m, UNREACHABLE)
     for node, t, conf in open_.expanding(max_expansions, t_limit,
                                          lambda v, t: v == goal and t >= t_free):
         key = (node, t)
@@ -198,18 +199,10 @@ def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentReq
         for nxt in (neighbors[node] if node == start or expandable[node] else ()):
             if loaded_sinks and nxt != goal and not expandable[nxt]:
                 continue  # never drive into another shelf's home
-            t_arr = t + m
-            if (nxt, t_arr) in closed:
-                continue
             hn = h(nxt)
-            if hn >= UNREACHABLE:
-                continue
-            there = fp(nxt)
-            if not ok(there, t_arr):
-                continue
-            extra = move_conflicts(res, node, nxt, here, there, t, m, ok, hits, edge, me)
+            extra = arrive(node, nxt, nxt, here, t, hn)
             if extra is not None:
-                push(nxt, t_arr, conf + extra + hits(there, t_arr), hn, key)
+                push(nxt, t + m, conf + extra, hn, key)
     if open_.goal is not None:
         return _reconstruct(open_.parent, *open_.goal, me), open_.expansions
     return None, open_.expansions

@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterator, Sequence
 from ..graph import UNREACHABLE
 from ..reservation import FOREVER, ReservationTable
 
-__all__ = ["ConflictFrontier", "avoidance_hits", "free_check", "goal_free_tick",
+__all__ = ["ConflictFrontier", "arrivals", "avoidance_hits", "free_check", "goal_free_tick",
            "move_conflicts", "swaps"]
 
 Key = tuple[int, int]
@@ -192,3 +192,26 @@ def goal_free_tick(res: ReservationTable, me: int, goal_cells: tuple[int, ...],
             if t >= t_free and not cells.isdisjoint(goal_cells):
                 t_free = t + 1
     return t_free
+
+
+def arrivals(open_: ConflictFrontier, res: ReservationTable, fp: Callable, ok: Callable,
+             hits: Callable, edge, me: int, m: int, far: int) -> Callable:
+    """The move test of every space-time A* on ``open_``: ``arrive(node, nxt, nsid, here, t,
+    hn)`` is the conflicts of the move ``node -> nxt`` started at tick ``t`` from the cells
+    ``here`` into state ``nsid`` (its heuristic ``hn``), counted until it arrives, or None
+    when that state is closed, cannot reach the goal (``hn >= far``), its cells are not
+    free on arrival or the move breaks a constraint (:func:`move_conflicts`)."""
+    closed = open_.closed
+
+    def arrive(node: int, nxt: int, nsid: int, here: tuple[int, ...], t: int,
+               hn: int) -> int | None:
+        t_arr = t + m
+        if (nsid, t_arr) in closed or hn >= far:
+            return None
+        there = fp(nxt)
+        if not ok(there, t_arr):
+            return None
+        extra = move_conflicts(res, node, nxt, here, there, t, m, ok, hits, edge, me)
+        return None if extra is None else extra + hits(there, t_arr)
+
+    return arrive

@@ -43,10 +43,10 @@ from ..rotation import UNREACHABLE_T, graph_rotation_dist
 from ..sweep import DIR_OF, lock_keys, move_dir, sweep_cells
 from .frontier import (
     ConflictFrontier,
+    arrivals,
     avoidance_hits,
     free_check,
     goal_free_tick,
-    move_conflicts,
 )
 
 __all__ = ["turning_astar", "turn_ok", "heading_index", "request_turn_fields"]
@@ -207,13 +207,10 @@ def _plain_search(graph: MotionGraph, agent: AgentRequest, t0: int, s0: int, t_f
     """The search of :func:`turning_astar` without rotations: states ``anchor * 5 +
     heading`` (the last move's direction, 4 while unknown); a move that changes the heading
     needs a turn in place that ``can_turn`` allows, and takes no extra time."""
-    cols, goal, start = graph.cols, agent.goal, agent.start
-    goal_dead = agent.goal_dead
-    loaded_sinks = graph.has_sinks
-    expandable = graph.expandable_flat
-    neighbors = graph.neighbors
+    goal, start, goal_dead = agent.goal, agent.start, agent.goal_dead
     open_ = ConflictFrontier(s0, t0, t0 + h(start), t_max)
-    closed, push = open_.closed, open_.push
+    push = open_.push
+    arrive = arrivals(open_, res, fp, ok, hits, edge, me, m, UNREACHABLE)
     for sid, t, conf in open_.expanding(max_expansions, t_limit,
                                         _goal_test(goal, t_free, goal_dead)):
         key = (sid, t)
@@ -221,32 +218,36 @@ def _plain_search(graph: MotionGraph, agent: AgentRequest, t0: int, s0: int, t_f
         here = fp(node)
         if ok(here, t + 1):  # wait one tick
             push(sid, t + 1, conf + hits(here, t + 1), h(node), key)
-        for nxt in (neighbors[node] if node == start or expandable[node] else ()):
-            if loaded_sinks and nxt != goal and not expandable[nxt]:
-                continue  # never drive into another shelf's home
-            d = move_dir(node, nxt, cols)
-            if nxt == goal and goal_dead is not None:
-                if d in goal_dead:
-                    continue  # it would start its work there facing the wrong way
-            elif (nxt, d) in dead:
-                continue
-            t_arr = t + m
+        for nxt, d in _moves(graph, node, start, goal, goal_dead, dead):
             nsid = nxt * 5 + d
-            if (nsid, t_arr) in closed:
-                continue
             hn = h(nxt)
-            if hn >= UNREACHABLE:
-                continue
-            there = fp(nxt)
-            if not ok(there, t_arr):
-                continue
-            extra = move_conflicts(res, node, nxt, here, there, t, m, ok, hits, edge, me)
+            extra = arrive(node, nxt, nsid, here, t, hn)
             if extra is None or (d != hd and not can_turn(node, t)):
                 continue
-            push(nsid, t_arr, conf + extra + hits(there, t_arr), hn, key)
+            push(nsid, t + m, conf + extra, hn, key)
     if open_.goal is not None:
         return _reconstruct(open_.parent, open_.goal, me), open_.expansions
     return None, open_.expansions
+
+
+def _moves(graph: MotionGraph, node: int, start: int, goal: int, goal_dead, dead):
+    """The moves ``(next anchor, direction)`` from ``node`` the searches may take: out of
+    an expandable node (or the start), never into another shelf's home, never into a dead
+    end, never into the goal facing a way ``goal_dead`` forbids."""
+    expandable = graph.expandable_flat
+    if not (node == start or expandable[node]):
+        return
+    loaded_sinks, cols = graph.has_sinks, graph.cols
+    for nxt in graph.neighbors[node]:
+        if loaded_sinks and nxt != goal and not expandable[nxt]:
+            continue  # never drive into another shelf's home
+        d = move_dir(node, nxt, cols)
+        if nxt == goal and goal_dead is not None:
+            if d in goal_dead:
+                continue  # it would start its work there facing the wrong way
+        elif (nxt, d) in dead:
+            continue
+        yield nxt, d
 
 
 def _goal_test(goal: int, t_free: int, goal_dead) -> Callable[[int, int], bool]:
@@ -296,13 +297,10 @@ def _rotating_search(graph: MotionGraph, agent: AgentRequest, t0: int, s0: int, 
     quarter and half turns in place that take ``agent.turn_ticks``."""
     assert agent.turn_ticks is not None
     q1, q2 = agent.turn_ticks
-    cols, goal, start = graph.cols, agent.goal, agent.start
-    goal_dead = agent.goal_dead
-    loaded_sinks = graph.has_sinks
-    expandable = graph.expandable_flat
-    neighbors = graph.neighbors
+    goal, start, goal_dead = agent.goal, agent.start, agent.goal_dead
     open_ = ConflictFrontier(s0, t0, t0 + hr(start, s0 % 5), t_max)
-    closed, push = open_.closed, open_.push
+    push = open_.push
+    arrive = arrivals(open_, res, fp, ok, hits, edge, me, m, UNREACHABLE_T)
     for sid, t, conf in open_.expanding(max_expansions, t_limit,
                                         _goal_test(goal, t_free, goal_dead)):
         key = (sid, t)
@@ -318,31 +316,15 @@ def _rotating_search(graph: MotionGraph, agent: AgentRequest, t0: int, s0: int, 
                     push(node * 5 + h2, t + q,
                          conf + sum(hits(here, t + i) for i in range(1, q + 1)),
                          hr(node, h2), key)
-        for nxt in (neighbors[node] if node == start or expandable[node] else ()):
-            if loaded_sinks and nxt != goal and not expandable[nxt]:
-                continue  # never drive into another shelf's home
-            d = move_dir(node, nxt, cols)
+        for nxt, d in _moves(graph, node, start, goal, goal_dead, dead):
             if hd < 4 and d != hd:
                 continue  # only along the heading
-            if nxt == goal and goal_dead is not None:
-                if d in goal_dead:
-                    continue
-            elif (nxt, d) in dead:
-                continue
-            t_arr = t + m
             nsid = nxt * 5 + d
-            if (nsid, t_arr) in closed:
-                continue
             hn = hr(nxt, d)
-            if hn >= UNREACHABLE_T:
-                continue
-            there = fp(nxt)
-            if not ok(there, t_arr):
-                continue
-            extra = move_conflicts(res, node, nxt, here, there, t, m, ok, hits, edge, me)
+            extra = arrive(node, nxt, nsid, here, t, hn)
             if extra is None or (hd == 4 and not can_turn(node, t)):
                 continue
-            push(nsid, t_arr, conf + extra + hits(there, t_arr), hn, key)
+            push(nsid, t + m, conf + extra, hn, key)
     if open_.goal is not None:
         return _reconstruct(open_.parent, open_.goal, me, rotations=True), open_.expansions
     return None, open_.expansions
