@@ -12,7 +12,8 @@ from rich.console import Console
 from typer.testing import CliRunner
 
 from warerover_phys.cli import app
-from warerover_phys.cli import commands as cli
+from warerover_phys.cli import options as cli_options
+from warerover_phys.cli import render as cli_render
 
 REPO = Path(__file__).resolve().parents[1]
 HOMO = str(REPO / "layouts" / "paper_homogeneous.yaml")
@@ -22,8 +23,9 @@ HOMO = str(REPO / "layouts" / "paper_homogeneous.yaml")
 def terminal(monkeypatch) -> io.StringIO:
     """stderr as a terminal: the CLI's error console writes to a buffer that says it is one."""
     buf = io.StringIO()
-    monkeypatch.setattr(cli, "err_console", Console(file=buf, force_terminal=True,
-                                                    width=120))
+    console = Console(file=buf, force_terminal=True, width=120)
+    for module in (cli_options, cli_render):  # the progress bar's and render's console
+        monkeypatch.setattr(module, "err_console", console)
     return buf
 
 
@@ -68,7 +70,8 @@ def test_run_shows_a_bar_on_a_terminal_only(terminal, tmp_path):
 
 def test_run_without_a_terminal_is_silent(monkeypatch, tmp_path):
     buf = io.StringIO()
-    monkeypatch.setattr(cli, "err_console", Console(file=buf, force_terminal=False))
+    for module in (cli_options, cli_render):
+        monkeypatch.setattr(module, "err_console", Console(file=buf, force_terminal=False))
     res = CliRunner().invoke(app, ["run", HOMO, "--set", "max_ticks=10", "--out",
                                    str(tmp_path / "a")])
     assert res.exit_code == 0, res.output

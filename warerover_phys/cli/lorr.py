@@ -47,10 +47,8 @@ def lorr(problem: Annotated[Path, typer.Argument(
     """Run a Robot Runners problem in the loop; write the output JSON that PlanViz replays."""
     from ..config import parse_override
     from ..errors import ScenarioError, WareroverError
-    from ..inputs import check_output_dir, check_seed
     from ..outputs import write_outputs
     from ..problems.robotrunners import (
-        RULES,
         output_json,
         problem_scenario,
         read_problem,
@@ -61,17 +59,7 @@ def lorr(problem: Annotated[Path, typer.Argument(
     from ..util.console import fail as _fail
 
     try:
-        if not 1 <= ticks <= 10_000_000:
-            raise WareroverError(f"--ticks: expected 1 to 10000000 (got {ticks})")
-        if rotation_rule not in RULES:
-            raise WareroverError(f"--rotation-rule: expected one of {', '.join(RULES)} (got "
-                                 f"{rotation_rule!r})")
-        if not 0 < dist_budget_mb < float("inf"):
-            raise WareroverError(f"--dist-budget-mb: expected a positive number (got "
-                                 f"{dist_budget_mb})")
-        check_seed(seed)
-        if out is not None:
-            check_output_dir(out)
+        _check_options(ticks, rotation_rule, dist_budget_mb, seed, out)
         prob = read_problem(problem)
         overrides = [parse_override(s) for s in set_ or []]
         overrides.append(("planner.dist_budget_mb", dist_budget_mb))
@@ -79,16 +67,7 @@ def lorr(problem: Annotated[Path, typer.Argument(
                               seed=seed, planner=planner, executor=executor,
                               overrides=overrides)
         sim = Simulation(sc)
-        if not quiet and not json_out and err_console.is_terminal:
-            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-
-            with Progress(TextColumn("lorr"), BarColumn(), TextColumn(
-                    "tick {task.completed:.0f} / {task.total:.0f}, {task.fields[done]} tasks"),
-                    TimeElapsedColumn(), console=err_console, transient=True) as bar:
-                task = bar.add_task("lorr", total=ticks, done=0)
-                result = sim.run(lambda t, done, gen: bar.update(task, completed=t, done=done))
-        else:
-            result = sim.run()
+        result = _run(sim, ticks, not quiet and not json_out and err_console.is_terminal)
         doc = output_json(result, prob, rotations=rotations, executor=sim.executor)
         figures = _figures(result, prob, doc)
         written = {}
@@ -113,6 +92,41 @@ def lorr(problem: Annotated[Path, typer.Argument(
                    f"peak memory {figures['peak_rss_mb']:.0f} MB")
     for f in written.values():
         err_console.print(f"wrote {f}", markup=False, highlight=False)
+
+
+def _check_options(ticks: int, rotation_rule: str, dist_budget_mb: float, seed: int,
+                   out: Path | None) -> None:
+    """``lorr``'s options, before anything is read: one clear error for the first bad one."""
+    from ..errors import WareroverError
+    from ..inputs import check_output_dir, check_seed
+    from ..problems.robotrunners import RULES
+
+    if not 1 <= ticks <= 10_000_000:
+        raise WareroverError(f"--ticks: expected 1 to 10000000 (got {ticks})")
+    if rotation_rule not in RULES:
+        raise WareroverError(f"--rotation-rule: expected one of {', '.join(RULES)} (got "
+                             f"{rotation_rule!r})")
+    if not 0 < dist_budget_mb < float("inf"):
+        raise WareroverError(f"--dist-budget-mb: expected a positive number (got "
+                             f"{dist_budget_mb})")
+    check_seed(seed)
+    if out is not None:
+        check_output_dir(out)
+
+
+def _run(sim, ticks: int, show: bool):
+    """The simulation run to its end, with a progress bar on the error console (``show``)."""
+    if not show:
+        return sim.run()
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from ..util.console import err_console
+
+    with Progress(TextColumn("lorr"), BarColumn(), TextColumn(
+            "tick {task.completed:.0f} / {task.total:.0f}, {task.fields[done]} tasks"),
+            TimeElapsedColumn(), console=err_console, transient=True) as bar:
+        task = bar.add_task("lorr", total=ticks, done=0)
+        return sim.run(lambda t, done, gen: bar.update(task, completed=t, done=done))
 
 
 def _figures(result, prob, doc: dict) -> dict:

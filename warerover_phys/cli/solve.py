@@ -176,28 +176,8 @@ def run_solve(map_file: Path, scen_file: Path, agents: int = 100, planner: str =
             if not json_out:
                 _echo(f"refine: {seconds:7.2f} s  sum of costs {soc}", err=True)
 
-        if _ENTERED is not None and planner in ("lacam", "pibt"):
-            from ..planning.oneshot.scatter import NUMBA_MIN_AGENTS
-
-            if agents >= NUMBA_MIN_AGENTS:  # the compiled kernels may load
-                numba_without_blas_probe()
-        # The search makes many small objects and no cyclic garbage to speak of: the
-        # collector's passes over the objects loaded so far (frozen) and its frequent young
-        # passes are skipped (LaCAM's CPU -10% at 700 agents); restored afterwards.
-        import gc
-
-        thresholds = gc.get_threshold()
-        gc.freeze()
-        gc.set_threshold(50_000, 50, 100)
-        try:
-            with _quiet_interrupt():
-                result = solve_instance(grid.obstacles, [a.start for a in scen],
-                                        [a.goal for a in scen], planner=planner,
-                                        time_limit_s=budget, seed=seed, guide=guide,
-                                        refine=refine, on_improve=improved)
-        finally:
-            gc.set_threshold(*thresholds)
-            gc.unfreeze()
+        result = _search(solve_instance, grid, scen, agents, planner, budget, seed, guide,
+                         refine, improved)
         conflicts = []
         if result.success:
             conflicts = validate_cell_paths(result.paths, grid.obstacles)
@@ -211,6 +191,47 @@ def run_solve(map_file: Path, scen_file: Path, agents: int = 100, planner: str =
         fail(err)
     except OSError as err:
         fail(WareroverError(f"{getattr(err, 'filename', '') or ''}: {err.strerror or err}"))
+    figures = _solve_figures(map_file, scen_file, agents, planner, result, conflicts, refine)
+    if json_out:
+        _echo(json.dumps(figures, indent=2))
+    else:
+        for k, v in figures.items():
+            _echo(f"{k:>13}: {v}")
+    return 0 if result.success else 1
+
+
+def _search(solve_instance, grid, scen, agents: int, planner: str, budget: float, seed: int,
+            guide: bool, refine: bool, improved):
+    """The one-shot search of :func:`run_solve` (``solve_instance``: its solver, loaded
+    first; garbage collection paused)."""
+    if _ENTERED is not None and planner in ("lacam", "pibt"):
+        from ..planning.oneshot.scatter import NUMBA_MIN_AGENTS
+
+        if agents >= NUMBA_MIN_AGENTS:  # the compiled kernels may load
+            numba_without_blas_probe()
+    # The search makes many small objects and no cyclic garbage to speak of: the
+    # collector's passes over the objects loaded so far (frozen) and its frequent young
+    # passes are skipped (LaCAM's CPU -10% at 700 agents); restored afterwards.
+    import gc
+
+    thresholds = gc.get_threshold()
+    gc.freeze()
+    gc.set_threshold(50_000, 50, 100)
+    try:
+        with _quiet_interrupt():
+            result = solve_instance(grid.obstacles, [a.start for a in scen],
+                                    [a.goal for a in scen], planner=planner,
+                                    time_limit_s=budget, seed=seed, guide=guide,
+                                    refine=refine, on_improve=improved)
+    finally:
+        gc.set_threshold(*thresholds)
+        gc.unfreeze()
+    return result
+
+
+def _solve_figures(map_file: Path, scen_file: Path, agents: int, planner: str, result,
+                   conflicts: list, refine: bool) -> dict:
+    """What :func:`run_solve` prints (or writes as JSON)."""
     figures = {"map": map_file.name, "scen": scen_file.name, "agents": agents,
                "planner": planner, "success": result.success,
                "sum_of_costs": result.sum_of_costs, "makespan": result.makespan,
@@ -222,12 +243,7 @@ def run_solve(map_file: Path, scen_file: Path, agents: int = 100, planner: str =
         figures.update(first_sum_of_costs=ref.get("first_soc"),
                        refine_iterations=ref.get("iterations"),
                        refine_improvements=ref.get("improvements"))
-    if json_out:
-        _echo(json.dumps(figures, indent=2))
-    else:
-        for k, v in figures.items():
-            _echo(f"{k:>13}: {v}")
-    return 0 if result.success else 1
+    return figures
 
 
 # ----------------------------------------------------------------------------- fast path

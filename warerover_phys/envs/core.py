@@ -69,8 +69,6 @@ such an AGV needs about two steps per cell.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from pathlib import Path
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
@@ -79,152 +77,37 @@ import numpy as np
 from ..planning.graph import UNREACHABLE, MotionGraph
 from ..planning.learned.policy import ACTIONS, NUM_ACTIONS, NUM_CHANNELS, ObsGrid, observe
 from ..planning.oneshot.core import grid_graph
+from .actions import (  # noqa: F401
+    HEADING_MOVE,
+    HEADING_STEP,
+    MOVE_HEADING,
+    NUM_ROT_ACTIONS,
+    TURN,
+    LearnedDriver,
+    rotation_actions,
+)
+from .instance import (  # noqa: F401
+    ALIGN_RAD,
+    TICK_S,
+    EnvConfig,
+    Instance,
+    default_agv,
+)
+from .view import (  # noqa: F401
+    render_ansi,
+    render_rgb,
+)
 
 if TYPE_CHECKING:
-    from ..config import AgvTypeSpec, ExecutorSpec, Scenario
     from ..executors.base import StepReport
 
 __all__ = ["EnvConfig", "GridMAPF", "Instance"]
-
-TICK_S = 1.0
-"""Seconds of simulated time per environment step on a real executor."""
-ALIGN_RAD = 0.01
-"""Rotations on a real executor: a turn is over once the body faces its new heading within
-this (radians; the physics executor ends its turns exactly on the heading)."""
-
-
-def default_agv() -> AgvTypeSpec:
-    """The AGV of every agent on a real executor unless ``EnvConfig.agv_type`` says: 1x1,
-    0.7 m body, 1 m/s, differential drive (a quarter turn in 0.63 s)."""
-    from ..config import AgvTypeSpec
-
-    return AgvTypeSpec(body_m=(0.7, 0.7), max_speed_mps=1.0)
-
-
-@dataclass(frozen=True)
-class EnvConfig:
-    """Settings of an environment (immutable; ``ValueError`` on bad values)."""
-
-    num_agents: int = 8
-    fov_radius: int = 5
-    """Observation window radius, cells (the window is ``2r+1`` cells a side)."""
-    max_steps: int = 256
-    """Steps (ticks) before the episode is truncated."""
-    lifelong: bool = False
-    goal_reward: float = 1.0
-    step_penalty: float = -0.01
-    blocked_penalty: float = -0.05
-    executor: str | ExecutorSpec = "grid"
-    """Who carries out the moves: ``"grid"`` (the step rules, applied directly), or an
-    executor of the registry (``"physics"``, an entry point, ``package.module:ClassName``),
-    by name or as an :class:`~warerover_phys.config.ExecutorSpec` (see the module doc)."""
-    agv_type: AgvTypeSpec | None = None
-    """Every agent's AGV on a real executor (default: 1x1, 0.7 m body, 1 m/s, diff drive)."""
-    rotations: bool = False
-    """Headings and wait / forward / turn left / turn right actions (see the module doc);
-    also on when the instance asks (``Instance.rotations``)."""
-
-    def __post_init__(self) -> None:
-        if self.num_agents < 1:
-            raise ValueError(f"num_agents must be >= 1 (got {self.num_agents})")
-        if not 1 <= self.fov_radius <= 32:
-            raise ValueError(f"fov_radius must be in 1..32 (got {self.fov_radius})")
-        if self.max_steps < 1:
-            raise ValueError(f"max_steps must be >= 1 (got {self.max_steps})")
-        if isinstance(self.executor, str):
-            if not self.executor:
-                raise ValueError("executor must be a name (got '')")
-        else:
-            from ..config import ExecutorSpec
-
-            if not isinstance(self.executor, ExecutorSpec):
-                raise ValueError(f"executor must be a name or an ExecutorSpec (got "
-                                 f"{self.executor!r})")
-        if self.agv_type is not None:
-            from ..config import AgvTypeSpec
-
-            if not isinstance(self.agv_type, AgvTypeSpec) or self.agv_type.footprint != 1:
-                raise ValueError(f"agv_type must be an AgvTypeSpec of footprint 1 (got "
-                                 f"{self.agv_type!r})")
-        if self.rotations and self.agv_type is not None and self.agv_type.drive != "diff":
-            raise ValueError(f"rotations: the AGV must have a differential drive (got drive "
-                             f"{self.agv_type.drive!r})")
-
-    @property
-    def executor_spec(self) -> ExecutorSpec | None:
-        """The executor to build, or None for the step rules alone (``"grid"``)."""
-        from ..config import ExecutorSpec
-
-        spec = self.executor
-        if isinstance(spec, str):
-            return None if spec == "grid" else ExecutorSpec(name=spec)
-        return None if spec.name == "grid" else spec
-
-
-@dataclass(frozen=True, eq=False)
-class Instance:
-    """An obstacle grid and, optionally, fixed starts and goals ((row, col) per agent)."""
-
-    obstacles: np.ndarray
-    starts: tuple[tuple[int, int], ...] | None = None
-    goals: tuple[tuple[int, int], ...] | None = None
-    name: str = "grid"
-    rotations: bool = False
-    """The instance asks for headings and turn actions (a scenario's ``planner.rotations``)."""
-
-    @classmethod
-    def from_movingai(cls, map_file: str | Path, scen_file: str | Path | None = None,
-                      num_agents: int | None = None) -> Instance:
-        """A MovingAI map; with a ``.scen`` file, its first ``num_agents`` starts/goals."""
-        from ..problems.movingai import read_map, read_scen
-
-        m = read_map(map_file)
-        if scen_file is None:
-            return cls(m.obstacles, name=m.name)
-        agents = read_scen(scen_file)
-        if num_agents is not None:
-            if num_agents > len(agents):
-                raise ValueError(f"{scen_file} has {len(agents)} agents, asked for "
-                                 f"{num_agents}")
-            agents = agents[:num_agents]
-        return cls(m.obstacles, tuple(a.start for a in agents), tuple(a.goal for a in agents),
-                   m.name)
-
-    @classmethod
-    def from_scenario(cls, path: str | Path | Scenario) -> Instance:
-        """The layout of a scenario YAML (or a loaded :class:`~warerover_phys.config.Scenario`,
-        or a shipped scenario's name); unloaded AGVs: only obstacles block them."""
-        from ..config import Scenario, load_scenario
-        from ..layout import build_layout
-
-        sc = path if isinstance(path, Scenario) else load_scenario(path)
-        layout = build_layout(sc.layout, fleet_size=sc.fleet.size, file=sc.source,
-                              name=sc.name)
-        return cls(layout.obstacles.copy(), name=sc.name, rotations=sc.planner.rotations)
-
-    @classmethod
-    def coerce(cls, source: Instance | Scenario | str | Path) -> Instance:
-        """An :class:`Instance` from what the environments take, as ``loop_env`` does: an
-        Instance (as it is), a loaded Scenario, a MovingAI ``.map`` path, or a scenario
-        YAML path (or a shipped scenario's name)."""
-        if isinstance(source, Instance):
-            return source
-        if isinstance(source, str | Path):
-            if Path(source).suffix.lower() == ".map":
-                return cls.from_movingai(source)
-            return cls.from_scenario(source)
-        from ..config import Scenario
-
-        if isinstance(source, Scenario):
-            return cls.from_scenario(source)
-        raise TypeError(f"expected an Instance, a Scenario, a scenario YAML path or a "
-                        f"MovingAI .map path (got {type(source).__name__})")
 
 
 class GridMAPF:
     """``N`` agents on a grid, stepped together (see the module doc)."""
 
-    def __init__(self, instance: Instance, config: EnvConfig = EnvConfig()) -> None:
+    def __init__(self, instance: Instance, config: EnvConfig = EnvConfig()) -> None:  # noqa: B008
         self.instance = instance
         self.config = config
         obstacles = np.asarray(instance.obstacles, dtype=bool)
@@ -537,76 +420,3 @@ class GridMAPF:
     def paths(self) -> list[tuple[int, int]]:
         """Current (row, col) of every agent."""
         return [divmod(int(v), self.cols) for v in self.pos]
-
-
-HEADING_STEP = np.array([[0, 1], [1, 0], [0, -1], [-1, 0]], dtype=np.int64)
-"""(d_row, d_col) of each heading: east, south, west, north."""
-HEADING_MOVE = np.array([4, 2, 3, 1], dtype=np.int64)
-"""The move action (right, down, left, up) of each heading."""
-MOVE_HEADING = np.array([-1, 3, 1, 2, 0], dtype=np.int64)
-"""The heading of each move action (-1: wait)."""
-TURN = np.array([0, 0, -1, 1], dtype=np.int64)
-"""Heading change of each rotation action: wait, forward, turn left, turn right."""
-NUM_ROT_ACTIONS = 4
-
-
-def rotation_actions(moves: np.ndarray, heading: np.ndarray) -> np.ndarray:
-    """Rotation actions that follow move actions: forward where the move is along the
-    heading, else a turn towards it (left or right; right for a half turn), wait for wait."""
-    moves = np.asarray(moves, dtype=np.int64)
-    want = MOVE_HEADING[moves]
-    diff = (want - heading) % 4
-    out = np.where(diff == 0, 1, np.where(diff == 3, 2, 3))
-    return np.where(moves == 0, 0, out)
-
-
-class LearnedDriver:
-    """The learned planner's policy and shield choosing every agent's action in a
-    :class:`GridMAPF` (the same :class:`~warerover_phys.planning.learned.planner.LearnedController`
-    as :func:`~warerover_phys.planning.learned.planner.learned_oneshot`, so a one-shot episode
-    driven by it moves exactly as that planner does with the same ``seed``)."""
-
-    def __init__(self, core: GridMAPF, policy=None, seed: int = 0) -> None:
-        from ..planning.learned.planner import LearnedController, load_policy
-
-        self.core = core
-        self.controller = LearnedController(policy or load_policy(), core.graph, seed=seed)
-
-    def reset(self) -> None:
-        self.controller.reset(self.core.pos.tolist(), self.core.goal.tolist())
-
-    def actions(self) -> np.ndarray:
-        """One action per agent for the core's current state (call once per step); with
-        rotations, the move's rotation action (a turn first where the move is not straight
-        ahead: the policy is asked again next step)."""
-        from ..planning.learned.policy import actions_from_moves
-
-        ctrl, core = self.controller, self.core
-        for i in np.flatnonzero(np.asarray(ctrl.goals) != core.goal):
-            ctrl.set_goal(int(i), int(core.goal[i]))
-        config = core.pos.tolist()
-        moves = actions_from_moves(config, ctrl.step(config), core.cols)
-        return rotation_actions(moves, core.heading) if core.rotations else moves
-
-
-def render_ansi(core: GridMAPF) -> str:
-    """Text frame: ``@`` obstacle, ``.`` free, ``A`` agent, ``*`` agent on its goal,
-    ``g`` a goal."""
-    grid = np.where(core.free, ".", "@").astype("<U1")
-    gr, gc = np.divmod(core.goal, core.cols)
-    grid[gr, gc] = "g"
-    pr, pc = np.divmod(core.pos, core.cols)
-    grid[pr, pc] = np.where(core.on_goal(), "*", "A")
-    return "\n".join("".join(row) for row in grid)
-
-
-def render_rgb(core: GridMAPF, cell_px: int = 8) -> np.ndarray:
-    """RGB frame ``(rows * cell_px, cols * cell_px, 3)`` uint8: obstacles black, agents
-    blue (green on their goal), goals light red."""
-    img = np.full((core.rows, core.cols, 3), 255, dtype=np.uint8)
-    img[~core.free] = (0, 0, 0)
-    gr, gc = np.divmod(core.goal, core.cols)
-    img[gr, gc] = (255, 170, 170)
-    pr, pc = np.divmod(core.pos, core.cols)
-    img[pr, pc] = np.where(core.on_goal()[:, None], [40, 170, 40], [40, 80, 220])
-    return np.repeat(np.repeat(img, cell_px, axis=0), cell_px, axis=1)

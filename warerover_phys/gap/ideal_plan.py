@@ -312,7 +312,7 @@ def repair_rotations(plan: TimedPlan, *, strict: bool = False,
     :class:`~warerover_phys.errors.WareroverError` (naming the AGVs and cells) if a
     rotation has no local detour."""
     from ..errors import WareroverError
-    from ..execute import PlanError, Repair, _detour, _PuzzleFloor
+    from ..execute import Repair, _PuzzleFloor
 
     cols = plan.layout.cols
     n = plan.num_agents
@@ -340,44 +340,10 @@ def repair_rotations(plan: TimedPlan, *, strict: bool = False,
             raise WareroverError(f"{plan.source}: rotations remain after {limit} repairs")
         cyc = cycles[0]
         row = cyc.timestep
-        for i in range(n):  # pad every path to the rotation's tick
-            if len(states[i]) < row + 1:
-                states[i] += [states[i][-1]] * (row + 1 - len(states[i]))
-        before = [states[i][row - 1] for i in range(n)]
-        moving = {i for i in range(n) if before[i][0] != before[i][1]}
-        working = {d.agv for i in range(n) for d in dwells[i]
-                   if d.tick <= row - 1 < d.tick + d.ticks}
-        g = given_t[min(row - 1, len(given_t) - 1)]
-        working |= {f.agv for f in plan.failures if f.tick <= g < f.tick + f.ticks}  # down
-        blocked = {v for i in moving for v in _cells(before[i][1], sizes[i], cols)}
-        pos = np.asarray([[divmod(s[0], cols) for s in before],
-                          [divmod(states[i][row][0], cols) for i in range(n)]])
-        given_tick = given_t[min(row, len(given_t) - 1)]
-        try:
-            moves, agents = _detour(pos, 1, cyc, floor, sizes, cols, plan.source, given_tick,
-                                    blocked=frozenset(blocked),
-                                    fixed=frozenset(moving | working))
-        except PlanError as err:
-            raise WareroverError(f"{plan.source}: {err}") from None
+        before, moves, agents, given_tick = _find_detour(plan, states, dwells, given_t, cyc,
+                                                         floor, sizes)
         length = len(moves)
-        detour = {a: [] for a in agents}
-        cur = {a: before[a][0] for a in agents}
-        for a, cell in moves:
-            cur[a] = cell
-            for b in agents:
-                detour[b].append((cur[b], cur[b]))
-        stops = {}  # AGV -> index after which the detour ticks are inserted
-        for i in range(n):
-            if i in detour:
-                stops[i] = row - 1
-                states[i][row:row] = detour[i]
-                continue
-            p = next((t for t in range(row - 1, len(states[i]))
-                      if states[i][t][0] == states[i][t][1]), len(states[i]) - 1)
-            if p >= len(states[i]) - 1:
-                continue  # nothing left to do after it: nothing to shift
-            stops[i] = p
-            states[i][p + 1:p + 1] = [states[i][p]] * length
+        stops = _insert_detour(states, before, moves, agents, row)
         for i, p in stops.items():
             dwells[i] = [d if d.tick + d.ticks <= p else
                          Dwell(d.agv, d.tick + length, d.ticks, d.kind, d.node)
@@ -403,6 +369,64 @@ def repair_rotations(plan: TimedPlan, *, strict: bool = False,
         repairs=tuple(repairs))
     _check_repaired(plan, out)
     return out
+
+
+def _find_detour(plan: TimedPlan, states: dict[int, list], dwells: dict[int, list],
+                 given_t: list[int], cyc, floor, sizes: list[int]):
+    """For :func:`repair_rotations`: every path padded to the rotation's tick, then the
+    detour of rotation ``cyc`` around the AGVs mid-move, at work or down: the states before
+    the rotation, the detour's moves and AGVs, and the tick as given."""
+    from ..errors import WareroverError
+    from ..execute import PlanError, _detour
+
+    cols, n, row = plan.layout.cols, plan.num_agents, cyc.timestep
+    for i in range(n):  # pad every path to the rotation's tick
+        if len(states[i]) < row + 1:
+            states[i] += [states[i][-1]] * (row + 1 - len(states[i]))
+    before = [states[i][row - 1] for i in range(n)]
+    moving = {i for i in range(n) if before[i][0] != before[i][1]}
+    working = {d.agv for i in range(n) for d in dwells[i]
+               if d.tick <= row - 1 < d.tick + d.ticks}
+    g = given_t[min(row - 1, len(given_t) - 1)]
+    working |= {f.agv for f in plan.failures if f.tick <= g < f.tick + f.ticks}  # down
+    blocked = {v for i in moving for v in _cells(before[i][1], sizes[i], cols)}
+    pos = np.asarray([[divmod(s[0], cols) for s in before],
+                      [divmod(states[i][row][0], cols) for i in range(n)]])
+    given_tick = given_t[min(row, len(given_t) - 1)]
+    try:
+        moves, agents = _detour(pos, 1, cyc, floor, sizes, cols, plan.source, given_tick,
+                                blocked=frozenset(blocked),
+                                fixed=frozenset(moving | working))
+    except PlanError as err:
+        raise WareroverError(f"{plan.source}: {err}") from None
+    return before, moves, agents, given_tick
+
+
+def _insert_detour(states: dict[int, list], before: list, moves: list, agents,
+                   row: int) -> dict[int, int]:
+    """For :func:`repair_rotations`: the detour's ticks inserted before ``row`` (its AGVs
+    make its moves, every other AGV waits where it next stands); per AGV shifted, the index
+    after which the ticks went in."""
+    length = len(moves)
+    detour = {a: [] for a in agents}
+    cur = {a: before[a][0] for a in agents}
+    for a, cell in moves:
+        cur[a] = cell
+        for b in agents:
+            detour[b].append((cur[b], cur[b]))
+    stops = {}  # AGV -> index after which the detour ticks are inserted
+    for i in range(len(states)):
+        if i in detour:
+            stops[i] = row - 1
+            states[i][row:row] = detour[i]
+            continue
+        p = next((t for t in range(row - 1, len(states[i]))
+                  if states[i][t][0] == states[i][t][1]), len(states[i]) - 1)
+        if p >= len(states[i]) - 1:
+            continue  # nothing left to do after it: nothing to shift
+        stops[i] = p
+        states[i][p + 1:p + 1] = [states[i][p]] * length
+    return stops
 
 
 def _cells(anchor: int, k: int, cols: int) -> tuple[int, ...]:

@@ -273,18 +273,7 @@ def compare(run: OpenLoopRun) -> tuple[list[dict], list[dict], dict[int, list[tu
                 c = c.copy()
                 c[DEPENDENCY] += gain
             fin = int(log.finish_step[r])
-            p, d, w = a.ticks * spt, a.dwell * spt, a.wait * spt
-            drive = int(c[DRIVE_L])
-            ap = dict.fromkeys(PARTS, 0)
-            ap["accel_decel"] = max(0, drive - p)
-            ap["faster_than_plan"] = min(0, drive - p)
-            ap["dwell_overrun"] = int(c[DWELL]) - d
-            credit = w
-            for lab, name in _CREDIT:
-                used = min(credit, int(c[lab]))
-                ap[name] = int(c[lab]) - used
-                credit -= used
-            ap["plan_waits_skipped"] = -credit
+            ap = _action_parts(a, c, spt)
             ap["reorder_gain"] = -gain
             interval_lost = (fin - prev_exec) - (a.ticks + a.wait + a.dwell) * spt
             assert sum(ap.values()) == interval_lost, (i, a.seq, ap, interval_lost)

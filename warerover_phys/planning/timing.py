@@ -256,46 +256,10 @@ def schedule(paths: Mapping[int, TimedPath], fleet: Sequence[AgvTypeSpec], *, co
     graph.check_acyclic()
     dwells = dwells or {}
     acts = {i: graph.upcoming(i) for i in agvs}
-    models = {i: MotionModel.of(fleet[i], cell_m) for i in agvs}
-    models_loaded = {i: MotionModel.of(fleet[i], cell_m, loaded=True, payload=True)
-                     for i in agvs} if payload else models
-    # Per action: its model, dwell, turn, and whether a run may continue into it.
+    models, model, dwell_s, turn_s, joins, trailing = _action_params(
+        agvs, acts, fleet, dwells, cell_m, tick_s, loaded, payload)
     index = {(i, a.seq): n for i in agvs for n, a in enumerate(acts[i])}
-    model: dict[tuple[int, int], MotionModel] = {}
-    dwell_s: dict[tuple[int, int], float] = {}
-    turn_s: dict[tuple[int, int], float] = {}
-    joins: dict[tuple[int, int], bool] = {}
-    trailing: dict[int, int] = {}
-    for i in agvs:
-        holds, trailing[i] = _holds(acts[i], dwells.get(i, ()))
-        heading = _EAST
-        for n, a in enumerate(acts[i]):
-            key = (i, n)
-            carrying = loaded is not None and payload and 0 <= a.tick < loaded.shape[0] \
-                and bool(loaded[a.tick, i])
-            model[key] = models_loaded[i] if carrying else models[i]
-            dwell_s[key] = holds.get(n, 0) * tick_s
-            turn_s[key] = model[key].turn_s(quarter_turns(heading, a.direction))
-            joins[key] = n > 0 and a.direction == heading and n not in holds \
-                and model[key] == model[(i, n - 1)]
-            heading = a.direction
-    # Cross-AGV dependencies: per queue, the previous visitor's leaving action.
-    deps: dict[tuple[int, int], list[tuple[int, int]]] = {k: [] for k in model}
-    keys: set[int] = set()
-    for i in agvs:
-        keys.update(_footprint(paths[i].states[0][0], sizes[i], cols))
-        for a in acts[i]:
-            keys.update(a.enters)
-            keys.update(a.sweeps)
-    n_deps = 0
-    for key in keys:
-        q = graph.visits(key)
-        for prev, nxt in zip(q, q[1:], strict=False):
-            if nxt.enter is None or prev.agv == nxt.agv or prev.leave is None:
-                continue
-            deps[(nxt.agv, index[(nxt.agv, nxt.enter)])].append(
-                (prev.agv, index[(prev.agv, prev.leave)]))
-            n_deps += 1
+    deps, n_deps = _dependencies(agvs, acts, paths, graph, sizes, cols, index, model)
     order = _topological(acts, deps)
     down = {i: sorted((float(a), float(b)) for a, b in w if b > a)
             for i, w in (downtime or {}).items() if w}
@@ -338,6 +302,60 @@ def schedule(paths: Mapping[int, TimedPath], fleet: Sequence[AgvTypeSpec], *, co
     return Schedule(actions=out, finish_s=finish, finish_unit_s=finish_unit, tick_s=tick_s,
                     cell_m=cell_m, models=models, dependencies=n_deps, splits=len(splits),
                     passes=passes)
+
+
+def _action_params(agvs: list[int], acts: dict, fleet: Sequence[AgvTypeSpec],
+                   dwells: Mapping[int, Sequence[tuple[int, int]]], cell_m: float,
+                   tick_s: float, loaded: np.ndarray | None, payload: bool):
+    """For :func:`schedule`: each AGV's motion model (empty, and loaded with ``payload``),
+    and per action ``(agv, n)`` its model, dwell and turn (seconds) and whether a run may
+    continue into it; each AGV's trailing dwell (ticks)."""
+    models = {i: MotionModel.of(fleet[i], cell_m) for i in agvs}
+    models_loaded = {i: MotionModel.of(fleet[i], cell_m, loaded=True, payload=True)
+                     for i in agvs} if payload else models
+    model: dict[tuple[int, int], MotionModel] = {}
+    dwell_s: dict[tuple[int, int], float] = {}
+    turn_s: dict[tuple[int, int], float] = {}
+    joins: dict[tuple[int, int], bool] = {}
+    trailing: dict[int, int] = {}
+    for i in agvs:
+        holds, trailing[i] = _holds(acts[i], dwells.get(i, ()))
+        heading = _EAST
+        for n, a in enumerate(acts[i]):
+            key = (i, n)
+            carrying = loaded is not None and payload and 0 <= a.tick < loaded.shape[0] \
+                and bool(loaded[a.tick, i])
+            model[key] = models_loaded[i] if carrying else models[i]
+            dwell_s[key] = holds.get(n, 0) * tick_s
+            turn_s[key] = model[key].turn_s(quarter_turns(heading, a.direction))
+            joins[key] = n > 0 and a.direction == heading and n not in holds \
+                and model[key] == model[(i, n - 1)]
+            heading = a.direction
+    return models, model, dwell_s, turn_s, joins, trailing
+
+
+def _dependencies(agvs: list[int], acts: dict, paths: Mapping[int, TimedPath], graph,
+                  sizes: dict[int, int], cols: int, index: dict, model: dict):
+    """For :func:`schedule`: the cross-AGV dependencies, per queue (cell or sweep key) the
+    previous visitor's leaving action before the next one's entering action, and their
+    count."""
+    deps: dict[tuple[int, int], list[tuple[int, int]]] = {k: [] for k in model}
+    keys: set[int] = set()
+    for i in agvs:
+        keys.update(_footprint(paths[i].states[0][0], sizes[i], cols))
+        for a in acts[i]:
+            keys.update(a.enters)
+            keys.update(a.sweeps)
+    n_deps = 0
+    for key in keys:
+        q = graph.visits(key)
+        for prev, nxt in zip(q, q[1:], strict=False):
+            if nxt.enter is None or prev.agv == nxt.agv or prev.leave is None:
+                continue
+            deps[(nxt.agv, index[(nxt.agv, nxt.enter)])].append(
+                (prev.agv, index[(prev.agv, prev.leave)]))
+            n_deps += 1
+    return deps, n_deps
 
 
 def _footprint(node: int, k: int, cols: int) -> tuple[int, ...]:

@@ -44,6 +44,24 @@ def _cells(body: str, source: str, where: str) -> list[int]:
 
 def parse(text: str, source: str) -> Plan:
     lines = text.split("\n")
+    meta, key_line, agents, rows, cols, map_name, solution_at = _parse_header(lines, source)
+    flat, steps, agents = _parse_solution(lines, solution_at, agents, source)
+    ms = meta.get("makespan")
+    if steps and type(ms) is int and ms != steps - 1:
+        fail(source, f"line {key_line['makespan']}", f"makespan={ms} but the solution has "
+             f"{steps} timestep lines (expected makespan={steps - 1}; truncated file?)")
+    if agents and not steps and "agents" in key_line:
+        meta["agents"] = agents  # an unsolved instance: keep its size
+    width = 2 * (agents or 0)
+    paths = tuple(tuple(zip(flat[2 * a + 1::width], flat[2 * a::width], strict=True))
+                  for a in range(agents or 0)) if steps else ()
+    return Plan(paths=paths, rows=rows, cols=cols, map_name=map_name, meta=meta, fmt="lacam")
+
+
+def _parse_header(lines: list[str], source: str):
+    """The header lines up to ``solution=`` (or a bare solution): the other keys' values,
+    the line of each key, agents, rows, cols, the map's name and the solution's first
+    line index."""
     meta: dict = {}
     key_line: dict[str, int] = {}
     agents = rows = cols = None
@@ -102,7 +120,13 @@ def parse(text: str, source: str) -> Plan:
         if key in meta and agents is not None and len(meta[key]) != agents:
             fail(source, f"line {key_line[key]}", f"{key}= lists {len(meta[key])} cells but "
                  f"agents={agents}")
+    return meta, key_line, agents, rows, cols, map_name, solution_at
 
+
+def _parse_solution(lines: list[str], solution_at: int, agents: int | None, source: str):
+    """The timestep lines from ``solution_at``: the cells as one flat list (col, row per
+    agent per timestep), the number of timesteps and the number of agents."""
+    n_lines = len(lines)
     flat: list[int] = []
     steps = 0
     for j in range(solution_at, n_lines):
@@ -129,16 +153,7 @@ def parse(text: str, source: str) -> Plan:
         steps += 1
         if steps * agents > MAX_CELLS:
             fail(source, f"line {j + 1}", f"plan too large (more than {MAX_CELLS} cells)")
-    ms = meta.get("makespan")
-    if steps and type(ms) is int and ms != steps - 1:
-        fail(source, f"line {key_line['makespan']}", f"makespan={ms} but the solution has "
-             f"{steps} timestep lines (expected makespan={steps - 1}; truncated file?)")
-    if agents and not steps and "agents" in key_line:
-        meta["agents"] = agents  # an unsolved instance: keep its size
-    width = 2 * (agents or 0)
-    paths = tuple(tuple(zip(flat[2 * a + 1::width], flat[2 * a::width], strict=True))
-                  for a in range(agents or 0)) if steps else ()
-    return Plan(paths=paths, rows=rows, cols=cols, map_name=map_name, meta=meta, fmt="lacam")
+    return flat, steps, agents
 
 
 def _header_value(value) -> str | None:

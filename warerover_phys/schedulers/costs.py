@@ -39,9 +39,9 @@ if TYPE_CHECKING:
     from collections.abc import Callable, Sequence
 
     from ..config import AgvTypeSpec
+    from ..fleet import Agv
     from ..layout import Layout
     from ..planning.graph import GraphSet, MotionGraph
-    from ..world import Agv
 
 __all__ = ["TripCosts", "OptionTable", "ranges"]
 

@@ -127,33 +127,14 @@ def lacam_nodes(graph: MotionGraph, starts: Sequence[int], goals: Sequence[int],
     movable = [i for i in range(len(s)) if i not in held_set]
 
     def make(config: tuple[int, ...], parent: _High | None, prio: list[float]) -> _High:
-        if engine == "numba":  # the same order by numpy's stable sort
-            from ..pibt.kernels import priority_order
-            ranked = priority_order(prio)
-            order = ranked.tolist()
-            if held_set:
-                order = [i for i in order if i not in held_set]
-            return _High(config, parent, prio, order, ranked=ranked)
-        order = sorted(movable, key=lambda i: -prio[i])
-        return _High(config, parent, prio, order)
+        return _new_high(config, parent, prio, engine, held_set, movable)
 
     if any(dists[i][s[i]] >= UNREACHABLE for i in movable):
         # An agent that cannot reach its goal (a closed corridor, say): no configuration
         # search can succeed, so do not spend the budget proving it.
         return None, {"iterations": 0, "explored": 0, "exhausted": True,
                       "stopped": "unreachable"}
-    compiled = None
-    if engine == "numba":
-        if tables is not None:
-            raise ValueError("lacam_nodes: engine numba takes no per-agent tables")
-        from ..pibt import kernels as pibt_numba
-        from . import kernels as lacam_numba
-        st = pibt_numba.step_tables(neighbors, graph.cols)
-        compiled = (st, pibt_numba.robot_tables(dists),
-                    np.asarray(g, dtype=np.int64), np.asarray(ties, dtype=np.float64),
-                    *lacam_numba.guide_arrays(guide, graph.num_nodes), lacam_numba.step)
-    elif engine != "python":
-        raise ValueError(f"lacam_nodes: engine python or numba (got {engine!r})")
+    compiled = _compiled(engine, tables, graph, dists, g, ties, guide)
     root = make(s, None, prio if prio is not None else initial_priorities(dists, s))
     stack = [root]
     explored = {s: root}
@@ -168,35 +149,16 @@ def lacam_nodes(graph: MotionGraph, starts: Sequence[int], goals: Sequence[int],
                           "exhausted": False, "stopped": "time"}
         node = stack[-1]
         if node.config == g:
-            configs = []
-            walk: _High | None = node
-            while walk is not None:
-                configs.append(list(walk.config))
-                walk = walk.parent
-            configs.reverse()
-            return configs, {"iterations": iterations, "explored": len(explored)}
+            return _configs_to(node), {"iterations": iterations, "explored": len(explored)}
         if not node.tree:
             stack.pop()
             continue
         low = node.tree.popleft()
         if low.depth < len(node.order):
-            i = node.order[low.depth]
-            here = node.config[i]
-            near = tables[i][here] if tables is not None else neighbors[here]
-            d = dists[i]
-            cands = [v for v in near if d[v] < UNREACHABLE] + [here]
-            rng.shuffle(cands)
-            for v in cands:
-                node.tree.append(_Low(low.who + (i,), low.where + (v,)))
+            _grow_low(node, low, tables, neighbors, dists, rng)
         salt = int(rng.integers(4096))
         if compiled is not None:
-            st, robot, goal_arr, tie_arr, gkeys, gvals, step = compiled
-            who = np.asarray([i for i, _ in held_moves] + list(low.who), dtype=np.int64)
-            where = np.asarray([v for _, v in held_moves] + list(low.where), dtype=np.int64)
-            out = step(st.nbr, st.deg, np.asarray(node.config, dtype=np.int64), goal_arr,
-                       robot, node.ranked, tie_arr[salt:], who, where, gkeys, gvals,
-                       st.cols)
-            nxt = None if out is None else out.tolist()
+            nxt = _compiled_successor(compiled, node, low, held_moves, salt)
         else:
             nxt = pibt_step(graph, node.config, dists, node.prio, ties[salt:], goals=g,
                             forced=held_moves + tuple(zip(low.who, low.where, strict=True)),
@@ -212,6 +174,76 @@ def lacam_nodes(graph: MotionGraph, starts: Sequence[int], goals: Sequence[int],
         stack.append(new)
         explored[key] = new
     return None, {"iterations": iterations, "explored": len(explored), "exhausted": True}
+
+
+def _new_high(config: tuple[int, ...], parent: _High | None, prio: list[float], engine: str,
+              held_set: set[int], movable: list[int]) -> _High:
+    """A high-level node: its agents in priority order (held agents left out)."""
+    if engine == "numba":  # the same order by numpy's stable sort
+        from ..pibt.kernels import priority_order
+        ranked = priority_order(prio)
+        order = ranked.tolist()
+        if held_set:
+            order = [i for i in order if i not in held_set]
+        return _High(config, parent, prio, order, ranked=ranked)
+    order = sorted(movable, key=lambda i: -prio[i])
+    return _High(config, parent, prio, order)
+
+
+def _compiled(engine: str, tables, graph: MotionGraph, dists: Sequence[np.ndarray],
+              g: tuple[int, ...], ties: list[float], guide) -> tuple | None:
+    """For :func:`lacam_nodes`: the compiled step and its arrays (``engine="numba"``), or
+    None (``"python"``)."""
+    if engine == "numba":
+        if tables is not None:
+            raise ValueError("lacam_nodes: engine numba takes no per-agent tables")
+        from ..pibt import kernels as pibt_numba
+        from . import kernels as lacam_numba
+        st = pibt_numba.step_tables(graph.neighbors, graph.cols)
+        return (st, pibt_numba.robot_tables(dists),
+                np.asarray(g, dtype=np.int64), np.asarray(ties, dtype=np.float64),
+                *lacam_numba.guide_arrays(guide, graph.num_nodes), lacam_numba.step)
+    if engine != "python":
+        raise ValueError(f"lacam_nodes: engine python or numba (got {engine!r})")
+    return None
+
+
+def _configs_to(node: _High) -> list[list[int]]:
+    """The configurations from the root to ``node``."""
+    configs = []
+    walk: _High | None = node
+    while walk is not None:
+        configs.append(list(walk.config))
+        walk = walk.parent
+    configs.reverse()
+    return configs
+
+
+def _grow_low(node: _High, low: _Low, tables, neighbors, dists: Sequence[np.ndarray],
+              rng: np.random.Generator) -> None:
+    """Add ``low``'s children to ``node``'s constraint tree: the next agent in order at
+    each cell it can take (its neighbours towards which its goal is reachable, and where it
+    is), in random order."""
+    i = node.order[low.depth]
+    here = node.config[i]
+    near = tables[i][here] if tables is not None else neighbors[here]
+    d = dists[i]
+    cands = [v for v in near if d[v] < UNREACHABLE] + [here]
+    rng.shuffle(cands)
+    for v in cands:
+        node.tree.append(_Low(low.who + (i,), low.where + (v,)))
+
+
+def _compiled_successor(compiled: tuple, node: _High, low: _Low, held_moves: tuple,
+                        salt: int) -> list[int] | None:
+    """The compiled PIBT step from ``node`` under ``low``'s constraints (None: none)."""
+    st, robot, goal_arr, tie_arr, gkeys, gvals, step = compiled
+    who = np.asarray([i for i, _ in held_moves] + list(low.who), dtype=np.int64)
+    where = np.asarray([v for _, v in held_moves] + list(low.where), dtype=np.int64)
+    out = step(st.nbr, st.deg, np.asarray(node.config, dtype=np.int64), goal_arr,
+               robot, node.ranked, tie_arr[salt:], who, where, gkeys, gvals,
+               st.cols)
+    return None if out is None else out.tolist()
 
 
 def lacam_kernels() -> tuple:

@@ -139,36 +139,9 @@ def heading_pibt_step(neighbors: Sequence[Sequence[int]], cols: int, config: Seq
     escaped: set[int] = set()
 
     nbr_of, ahead_of = steps if steps is not None else steps_of(neighbors, cols)
-    turns_tab = _TURNS
-
-    def turns_at(d, v: int) -> tuple[int, int, int, int]:
-        """:func:`turns_to_progress` of cell ``v`` for each of the four headings."""
-        dv = d[v]
-        if dv == 0:
-            return _ON_GOAL
-        mask = 0
-        for u, bit in nbr_of[v]:
-            if d[u] < dv:
-                mask |= bit
-        return turns_tab[mask]
 
     def options(i: int) -> list[tuple[float, str, int, int]]:
-        v, h, d = config[i], heading[i], dists[i]
-        out: list[tuple[float, str, int, int]] = []
-        ahead = ahead_of[v][h]
-        if ahead >= 0 and d[ahead] < _UNREACHABLE:
-            cost = float(int(d[ahead]) + turns_at(d, ahead)[h])
-            if i in escaping:
-                cost -= 4.0
-            out.append((cost + 0.5 * float(tie[ahead]), "F", ahead, h))
-        base = float(d[v])
-        here_turns = turns_at(d, v)
-        hr, hc = (h + 1) % 4, (h - 1) % 4
-        out.append((base + here_turns[hr] + 0.3, "R", v, hr))
-        out.append((base + here_turns[hc] + 0.3, "C", v, hc))
-        out.append((base + here_turns[h] + 0.27, "W", v, h))
-        out.sort(key=lambda o: o[0])
-        return out
+        return _options(config[i], heading[i], dists[i], i in escaping, tie, nbr_of, ahead_of)
 
     active: set[int] = set()
 
@@ -211,32 +184,69 @@ def heading_pibt_step(neighbors: Sequence[Sequence[int]], cols: int, config: Seq
         nxt[i], nh[i], acts[i] = here, heading[i], "W"
         occ_next[here] = i
         if must_leave:
-            out = escape(i, pusher)
+            out = _escape(config[i], heading[i], dists[i], pusher, neighbors, cols, occ_now,
+                          occ_next, tie)
             if out >= 0:
                 nh[i] = _turn_towards(heading[i], out)
                 acts[i] = "R" if (out - heading[i]) % 4 in (1, 2) else "C"
                 escaped.add(i)
         return False
 
-    def escape(i: int, pusher: int) -> int:
-        """Heading of the best cell for robot ``i`` to move away into (-1: none): not the
-        pusher's cell, free next timestep, free now if possible, nearest its goal."""
-        here, d = config[i], dists[i]
-        r, c = divmod(here, cols)
-        best, key = -1, None
-        for u in neighbors[here]:
-            if u == pusher or u in occ_next or d[u] >= _UNREACHABLE:
-                continue
-            h = STEP.index((u // cols - r, u % cols - c))
-            if h == heading[i]:
-                continue  # facing it already, and moving there failed
-            kk = (u in occ_now, int(d[u]) + float(tie[u]))
-            if key is None or kk < key:
-                best, key = h, kk
-        return best
-
     in_priority_order(prio, nxt, push)
     return nxt, nh, acts, frozenset(escaped)
+
+
+def _turns_at(d, v: int, nbr_of) -> tuple[int, int, int, int]:
+    """:func:`turns_to_progress` of cell ``v`` for each of the four headings."""
+    dv = d[v]
+    if dv == 0:
+        return _ON_GOAL
+    mask = 0
+    for u, bit in nbr_of[v]:
+        if d[u] < dv:
+            mask |= bit
+    return _TURNS[mask]
+
+
+def _options(v: int, h: int, d, escaping: bool, tie: np.ndarray, nbr_of, ahead_of,
+             ) -> list[tuple[float, str, int, int]]:
+    """For :func:`heading_pibt_step`: a robot's actions at cell ``v`` facing ``h``
+    (distance table ``d``), best first: (cost, action, next cell, next heading)."""
+    out: list[tuple[float, str, int, int]] = []
+    ahead = ahead_of[v][h]
+    if ahead >= 0 and d[ahead] < _UNREACHABLE:
+        cost = float(int(d[ahead]) + _turns_at(d, ahead, nbr_of)[h])
+        if escaping:
+            cost -= 4.0
+        out.append((cost + 0.5 * float(tie[ahead]), "F", ahead, h))
+    base = float(d[v])
+    here_turns = _turns_at(d, v, nbr_of)
+    hr, hc = (h + 1) % 4, (h - 1) % 4
+    out.append((base + here_turns[hr] + 0.3, "R", v, hr))
+    out.append((base + here_turns[hc] + 0.3, "C", v, hc))
+    out.append((base + here_turns[h] + 0.27, "W", v, h))
+    out.sort(key=lambda o: o[0])
+    return out
+
+
+def _escape(here: int, heading: int, d, pusher: int, neighbors: Sequence[Sequence[int]],
+            cols: int, occ_now: dict[int, int], occ_next: dict[int, int], tie: np.ndarray,
+            ) -> int:
+    """For :func:`heading_pibt_step`: the heading of the best cell for a robot at ``here``
+    facing ``heading`` to move away into (-1: none): not the pusher's cell, free next
+    timestep, free now if possible, nearest its goal."""
+    r, c = divmod(here, cols)
+    best, key = -1, None
+    for u in neighbors[here]:
+        if u == pusher or u in occ_next or d[u] >= _UNREACHABLE:
+            continue
+        h = STEP.index((u // cols - r, u % cols - c))
+        if h == heading:
+            continue  # facing it already, and moving there failed
+        kk = (u in occ_now, int(d[u]) + float(tie[u]))
+        if key is None or kk < key:
+            best, key = h, kk
+    return best
 
 
 # ------------------------------------------------------------------------- the turn-first rule

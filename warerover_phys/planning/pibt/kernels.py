@@ -221,10 +221,29 @@ def _swap_partner(i, best, tables, nbr, deg, occ_now, nxt, goal, facing, config,
 
 
 @njit(cache=True)
+def _guide_next(gkeys, gvals, key):
+    """The next cell of a guide path (:func:`~.lacam.kernels.guide_arrays`: sorted
+    ``gkeys``, their next cells ``gvals``) at ``key = agent * cells + cell``; -1: none."""
+    lo = 0
+    hi = gkeys.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if gkeys[mid] < key:
+            lo = mid + 1
+        else:
+            hi = mid
+    if lo < gkeys.shape[0] and gkeys[lo] == key:
+        return gvals[lo]
+    return -1
+
+
+@njit(cache=True)
 def _setup(f, i, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, nxt, goal, tie, facing,
-           config, heading, cols):
+           config, heading, cols, gkeys, gvals, cells):
     """Frame ``f`` of the push stack for robot ``i``: its candidate cells, best first (the
-    reference's sort: stable, by distance plus tie), reversed when it has a swap partner."""
+    reference's sort: stable, by distance plus tie), its guide cell (LaCAM's guide paths,
+    ``gkeys`` / ``gvals``; none when empty) moved to the front before its swap partner is
+    looked for (as the reference's ``push``), reversed when it has a swap partner."""
     here = config[i]
     keys = np.empty(5, dtype=np.float64)
     m = 0
@@ -244,6 +263,18 @@ def _setup(f, i, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, nxt, goa
         keys[j] = key
         cand[f, j] = v
         m += 1
+    if gkeys.shape[0] > 0:
+        first = _guide_next(gkeys, gvals, i * cells + here)
+        if first >= 0 and first != cand[f, 0]:
+            at = -1
+            for j in range(m):
+                if cand[f, j] == first:
+                    at = j
+                    break
+            if at > 0:
+                for j in range(at, 0, -1):
+                    cand[f, j] = cand[f, j - 1]
+                cand[f, 0] = first
     partner = _swap_partner(i, cand[f, 0], tables, nbr, deg, occ_now, nxt, goal, facing,
                             config, heading, cols)
     if partner >= 0:
@@ -257,14 +288,16 @@ def _setup(f, i, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, nxt, goa
 
 @njit(cache=True)
 def _push(root, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, occ_next, nxt, goal,
-          tie, facing, config, heading, cols, instack, acyclic):
+          tie, facing, config, heading, cols, instack, acyclic, gkeys, gvals, cells):
     """The reference's recursive ``push(root, -1)`` run on an explicit stack (numba cannot
     cache recursive functions): a frame per robot asked to move, its next candidate in
     ``idx``; a child's answer resumes its parent at that candidate. ``acyclic``: no robot
-    enters the cell of a robot on the stack (that would close a cycle of moves)."""
+    enters the cell of a robot on the stack (that would close a cycle of moves).
+    ``gkeys`` / ``gvals`` / ``cells``: LaCAM's guide paths (empty: none; see
+    :func:`_setup`); LaCAM's compiled step pushes with this function too."""
     f = 0
     _setup(0, root, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, nxt, goal, tie,
-           facing, config, heading, cols)
+           facing, config, heading, cols, gkeys, gvals, cells)
     instack[root] = True
     ret = False
     resume = False
@@ -300,7 +333,7 @@ def _push(root, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, occ_next,
             if k >= 0 and k != i and nxt[k] == -1:
                 f += 1
                 _setup(f, k, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, nxt, goal,
-                       tie, facing, config, heading, cols)
+                       tie, facing, config, heading, cols, gkeys, gvals, cells)
                 instack[k] = True
                 descended = True
                 break
@@ -339,6 +372,7 @@ def _pibt_kernel(nbr, deg, config, goal, tables, order, tie, facing, heading, co
     ncand = np.empty(n, dtype=np.int64)
     part = np.empty(n, dtype=np.int64)
     idx = np.empty(n, dtype=np.int64)
+    no_guide = np.zeros(0, dtype=np.int64)
     for i in range(n):
         occ_now[config[i]] = i
     for i in range(n):  # held robots stay (the reference's forced moves onto their cells)
@@ -349,7 +383,8 @@ def _pibt_kernel(nbr, deg, config, goal, tables, order, tie, facing, heading, co
         i = order[r]
         if nxt[i] == -1:
             _push(i, ag, cand, ncand, part, idx, tables, nbr, deg, occ_now, occ_next, nxt, goal,
-                  tie, facing, config, heading, cols, instack, acyclic)
+                  tie, facing, config, heading, cols, instack, acyclic, no_guide, no_guide,
+                  cells)
     return nxt
 
 

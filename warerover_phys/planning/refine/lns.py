@@ -223,18 +223,8 @@ def _sipp(neighbors: Sequence[Sequence[int]], plan: _Plan, start: int, goal: int
         work = [0]
     n, occ = plan.n, plan.occ
     cache, his = plan.safe, plan.safe_hi
-    goal_iv = cache.get(goal)
-    if goal_iv is None:
-        goal_iv = cache[goal] = _intervals(plan, goal)
-        his[goal] = [iv[1] for iv in goal_iv]
-    if not goal_iv or goal_iv[-1][1] != _INF:
-        return None
-    earliest = goal_iv[-1][0]
-    s_iv = cache.get(start)
-    if s_iv is None:
-        s_iv = cache[start] = _intervals(plan, start)
-        his[start] = [iv[1] for iv in s_iv]
-    if not s_iv or s_iv[0][0] != 0:
+    earliest = _sipp_ends(plan, start, goal)
+    if earliest is None:
         return None
     f0 = max(dist[start], earliest)
     if f0 > ub:
@@ -301,6 +291,27 @@ def _sipp(neighbors: Sequence[Sequence[int]], plan: _Plan, start: int, goal: int
     return None
 
 
+def _safe_intervals(plan: _Plan, v: int) -> list[tuple[int, int]]:
+    """``v``'s safe intervals, from the plan's cache (computed and cached when missing)."""
+    ivs = plan.safe.get(v)
+    if ivs is None:
+        ivs = plan.safe[v] = _intervals(plan, v)
+        plan.safe_hi[v] = [iv[1] for iv in ivs]
+    return ivs
+
+
+def _sipp_ends(plan: _Plan, start: int, goal: int) -> int | None:
+    """For :func:`_sipp`: the tick from which the goal is free for good, or None when it
+    never is or the start is not free from tick 0."""
+    goal_iv = _safe_intervals(plan, goal)
+    if not goal_iv or goal_iv[-1][1] != _INF:
+        return None
+    s_iv = _safe_intervals(plan, start)
+    if not s_iv or s_iv[0][0] != 0:
+        return None
+    return goal_iv[-1][0]
+
+
 def _unwind(closed: dict[int, tuple[int, int]], key: int, n: int) -> list[int]:
     """The node list of the path that ends in state ``key`` (waits spelt out)."""
     steps = []
@@ -344,12 +355,7 @@ def refine(neighbors: Sequence[Sequence[int]], paths: Sequence[Sequence[int]],
     num = len(paths)
     num_nodes = len(neighbors)
     trimmed = [_trim(p, g) for p, g in zip(paths, goals, strict=True)]
-    if search == "nb":
-        from .kernels import DensePlan, csr
-        plan: _Plan | DensePlan = DensePlan(num_nodes, trimmed)
-        ptr, idx = csr(neighbors)
-    else:
-        plan = _Plan(num_nodes, trimmed)
+    plan, ptr, idx = _new_plan(search, neighbors, trimmed)
     # distance tables as lists (sipp) or int32 arrays (nb), made when an agent is first
     # re-planned
     lists: list = [None] * num
@@ -357,18 +363,10 @@ def refine(neighbors: Sequence[Sequence[int]], paths: Sequence[Sequence[int]],
     costs = [len(p) - 1 for p in trimmed]
     soc = sum(costs)
     history = [(0.0, soc)]
-    sizes = [max(1, min(k, num)) for k in (SIZES if size is None else (size,))]
-    size_w = [1.0] * len(sizes)
-    weights = [1.0] * len(RULES)
-    reaction = REACTION
+    tally = _Tally([max(1, min(k, num)) for k in (SIZES if size is None else (size,))])
     floor = sum(lb)
     tabu: set[int] = set()
     crossings = [v for v in range(num_nodes) if len(neighbors[v]) >= 3]
-    tried = [0] * len(RULES)
-    won = [0] * len(RULES)
-    gained = [0] * len(RULES)
-    size_tried = [0] * len(sizes)
-    size_won = [0] * len(sizes)
     it = 0
     stopped = "time"
     while True:
@@ -381,64 +379,21 @@ def refine(neighbors: Sequence[Sequence[int]], paths: Sequence[Sequence[int]],
             stopped = "optimal"
             break
         it += 1
-        total_w = sum(weights)
-        rule = int(rng.choice(len(RULES), p=[w / total_w for w in weights]))
-        total_w = sum(size_w)
-        which = int(rng.choice(len(sizes), p=[w / total_w for w in size_w]))
-        size = sizes[which]
-        if rule == 1:
-            group = _agent_based(plan, dists, costs, lb, tabu, size, rng, neighbors)
-        elif rule == 2 and crossings:
-            group = _map_based(plan, crossings, neighbors, size, rng)
-        else:
-            group = rng.choice(num, size, replace=False).tolist()
-        if len(group) < 2 and num > 1:
-            # too few to gain anything: top up at random
-            extra = [a for a in rng.permutation(num).tolist() if a not in group]
-            group += extra[:size - len(group)]
-        tried[rule] += 1
-        size_tried[which] += 1
+        rule, which = tally.pick(rng)
+        group = _neighbourhood(rule, plan, dists, costs, lb, tabu, tally.sizes[which], rng,
+                               neighbors, crossings)
         old_cost = sum(costs[a] for a in group)
         olds = {a: plan.remove(a) for a in group}
         order = [group[k] for k in rng.permutation(len(group)).tolist()]
-        rest_lb = sum(lb[a] for a in order)
-        new_cost = 0
-        news: dict[int, list[int]] = {}
-        ok = True
         work = [0]
-        for a in order:
-            rest_lb -= lb[a]
-            ub = old_cost - 1 - new_cost - rest_lb
-            d = lists[a]
-            if search == "nb":
-                if d is None:
-                    d = lists[a] = np.ascontiguousarray(dists[a], dtype=np.int32)
-                # a compiled search does not look at the clock: look before each one
-                path = None if time.monotonic() > deadline else plan.search(
-                    ptr, idx, olds[a][0], goals[a], d, ub, max_expansions, work)
-            else:
-                if d is None:
-                    d = lists[a] = dists[a].tolist()
-                path = _sipp(neighbors, plan, olds[a][0], goals[a], d, ub, deadline,
-                             max_expansions, work)
-            if path is None:
-                ok = False
-                break
-            news[a] = path
-            new_cost += len(path) - 1
-            plan.add(a, path)
+        ok, news, new_cost = _replan(order, plan, olds, old_cost, lb, lists, dists, goals,
+                                     search, (ptr, idx), neighbors, deadline, max_expansions,
+                                     work)
         if ok and new_cost < old_cost:
             for a, p in news.items():
                 costs[a] = len(p) - 1
             soc -= old_cost - new_cost
-            won[rule] += 1
-            gained[rule] += old_cost - new_cost
-            size_won[which] += 1
-            # reward: SoC gained per 1,000 states expanded (a cost measure that does not
-            # depend on the machine, so the choices stay deterministic)
-            gain = 1000.0 * (old_cost - new_cost) / (work[0] + 100)
-            weights[rule] = (1 - reaction) * weights[rule] + reaction * gain
-            size_w[which] = (1 - reaction) * size_w[which] + reaction * gain
+            tally.improved(rule, which, old_cost - new_cost, work[0])
             elapsed = time.monotonic() - t0
             history.append((elapsed, soc))
             if on_improve is not None:
@@ -448,15 +403,122 @@ def refine(neighbors: Sequence[Sequence[int]], paths: Sequence[Sequence[int]],
                 plan.remove(a)
             for a in group:
                 plan.add(a, olds[a])
-            weights[rule] = max(1e-3, (1 - reaction) * weights[rule])
-            size_w[which] = max(1e-3, (1 - reaction) * size_w[which])
+            tally.failed(rule, which)
     stats = {"iterations": it, "improvements": len(history) - 1, "stopped": stopped,
-             "sizes": {str(k): {"tried": size_tried[j], "improved": size_won[j],
-                                "weight": round(size_w[j], 4)} for j, k in enumerate(sizes)},
-             "rules": {r: {"tried": tried[k], "improved": won[k], "gained": gained[k],
-                           "weight": round(weights[k], 4)} for k, r in enumerate(RULES)},
-             "wall_s": time.monotonic() - t0}
+             **tally.stats(), "wall_s": time.monotonic() - t0}
     return RefineResult(list(plan.paths), costs, history, stats)
+
+
+class _Tally:
+    """The adaptive choice of :func:`refine`: a weight per rule (:data:`RULES`) and per
+    neighbourhood size, each moved by :data:`REACTION` towards the reward of its
+    improvements (or down on a failure), and what each was tried, won and gained."""
+
+    def __init__(self, sizes: list[int]) -> None:
+        self.sizes = sizes
+        self.size_w = [1.0] * len(sizes)
+        self.weights = [1.0] * len(RULES)
+        self.tried = [0] * len(RULES)
+        self.won = [0] * len(RULES)
+        self.gained = [0] * len(RULES)
+        self.size_tried = [0] * len(sizes)
+        self.size_won = [0] * len(sizes)
+
+    def pick(self, rng: np.random.Generator) -> tuple[int, int]:
+        """A rule and a size index, drawn by weight (and counted as tried)."""
+        total_w = sum(self.weights)
+        rule = int(rng.choice(len(RULES), p=[w / total_w for w in self.weights]))
+        total_w = sum(self.size_w)
+        which = int(rng.choice(len(self.sizes), p=[w / total_w for w in self.size_w]))
+        self.tried[rule] += 1
+        self.size_tried[which] += 1
+        return rule, which
+
+    def improved(self, rule: int, which: int, gained: int, work: int) -> None:
+        reaction = REACTION
+        self.won[rule] += 1
+        self.gained[rule] += gained
+        self.size_won[which] += 1
+        # reward: SoC gained per 1,000 states expanded (a cost measure that does not
+        # depend on the machine, so the choices stay deterministic)
+        gain = 1000.0 * gained / (work + 100)
+        self.weights[rule] = (1 - reaction) * self.weights[rule] + reaction * gain
+        self.size_w[which] = (1 - reaction) * self.size_w[which] + reaction * gain
+
+    def failed(self, rule: int, which: int) -> None:
+        reaction = REACTION
+        self.weights[rule] = max(1e-3, (1 - reaction) * self.weights[rule])
+        self.size_w[which] = max(1e-3, (1 - reaction) * self.size_w[which])
+
+    def stats(self) -> dict:
+        return {"sizes": {str(k): {"tried": self.size_tried[j], "improved": self.size_won[j],
+                                   "weight": round(self.size_w[j], 4)}
+                          for j, k in enumerate(self.sizes)},
+                "rules": {r: {"tried": self.tried[k], "improved": self.won[k],
+                              "gained": self.gained[k], "weight": round(self.weights[k], 4)}
+                          for k, r in enumerate(RULES)}}
+
+
+def _new_plan(search: str, neighbors: Sequence[Sequence[int]], trimmed: list[list[int]]):
+    """The kept paths as ``search`` needs them: a dense occupancy table and the graph as
+    CSR arrays (``"nb"``), or the interval search's table (``"sipp"``; no arrays)."""
+    if search == "nb":
+        from .kernels import DensePlan, csr
+        ptr, idx = csr(neighbors)
+        return DensePlan(len(neighbors), trimmed), ptr, idx
+    return _Plan(len(neighbors), trimmed), None, None
+
+
+def _neighbourhood(rule: int, plan, dists: Sequence[np.ndarray], costs: list[int],
+                   lb: list[int], tabu: set[int], size: int, rng: np.random.Generator,
+                   neighbors: Sequence[Sequence[int]], crossings: list[int]) -> list[int]:
+    """The agents ``rule`` picks to re-plan together (:data:`RULES`), topped up at random
+    to at least two."""
+    num = len(costs)
+    if rule == 1:
+        group = _agent_based(plan, dists, costs, lb, tabu, size, rng, neighbors)
+    elif rule == 2 and crossings:
+        group = _map_based(plan, crossings, neighbors, size, rng)
+    else:
+        group = rng.choice(num, size, replace=False).tolist()
+    if len(group) < 2 and num > 1:
+        # too few to gain anything: top up at random
+        extra = [a for a in rng.permutation(num).tolist() if a not in group]
+        group += extra[:size - len(group)]
+    return group
+
+
+def _replan(order: list[int], plan, olds: dict, old_cost: int, lb: list[int], lists: list,
+            dists: Sequence[np.ndarray], goals: Sequence[int], search: str, csr_arrays,
+            neighbors: Sequence[Sequence[int]], deadline: float, max_expansions: int,
+            work: list[int]) -> tuple[bool, dict[int, list[int]], int]:
+    """Re-plan the removed agents in ``order``, each added to ``plan`` as found, each under
+    the cost that can still beat ``old_cost``: (all found, the new paths, their cost)."""
+    ptr, idx = csr_arrays
+    rest_lb = sum(lb[a] for a in order)
+    new_cost = 0
+    news: dict[int, list[int]] = {}
+    for a in order:
+        rest_lb -= lb[a]
+        ub = old_cost - 1 - new_cost - rest_lb
+        d = lists[a]
+        if search == "nb":
+            if d is None:
+                d = lists[a] = np.ascontiguousarray(dists[a], dtype=np.int32)
+            # a compiled search does not look at the clock: look before each one
+            path = None if time.monotonic() > deadline else plan.search(
+                ptr, idx, olds[a][0], goals[a], d, ub, max_expansions, work)
+        else:
+            if d is None:
+                d = lists[a] = dists[a].tolist()
+            path = _sipp(neighbors, plan, olds[a][0], goals[a], d, ub, deadline,
+                         max_expansions, work)
+        if path is None:
+            return False, news, new_cost
+        news[a] = path
+        new_cost += len(path) - 1
+        plan.add(a, path)
+    return True, news, new_cost
 
 
 def _agent_based(plan, dists: Sequence[np.ndarray], costs: list[int],

@@ -90,7 +90,13 @@ from ..reservation import FOREVER, ReservationTable
 from ..sweep import turn_aware
 from .astar import AStarPlanner, _reconstruct, goal_held, nearest_free_anchor
 from .conflicts import PairConflict, find_conflicts, path_fits
-from .frontier import ConflictFrontier, avoidance_hits, free_check, move_conflicts
+from .frontier import (
+    ConflictFrontier,
+    arrivals,
+    avoidance_hits,
+    free_check,
+    goal_free_tick,
+)
 from .turning_astar import turning_astar
 
 __all__ = ["CBSPlanner", "Constraints", "PairConflict", "constrained_astar", "find_conflicts",
@@ -133,21 +139,6 @@ class Constraints:
 # ----------------------------------------------------------------------------- low level
 
 
-def _goal_free_tick(res: ReservationTable, me: int, goal_cells: tuple[int, ...],
-                    cons: Constraints) -> int | None:
-    """Earliest tick from which the AGV may stay at the goal for good: after every fixed
-    AGV's last use of the goal's cells, after every vertex constraint on them, and after its
-    own "finish after" constraint (None: never)."""
-    t_free = max((res.last_use(c, me) for c in goal_cells), default=-1) + 1
-    if t_free >= FOREVER:
-        return None
-    t_free = max(t_free, cons.finish_after + 1)
-    for t, cells in cons.vertex.items():
-        if t >= t_free and not cells.isdisjoint(goal_cells):
-            t_free = t + 1
-    return t_free
-
-
 def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest, t0: int,
                       constraints: Constraints | None = None,
                       avoid: tuple[dict[int, dict[int, int]], dict[int, int]] | None = None,
@@ -177,7 +168,7 @@ def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentReq
     goal_cells = fp(goal)
     if any(c in never for c in goal_cells):
         return None, 0  # it could not stay there for good
-    t_free = _goal_free_tick(res, me, goal_cells, cons)
+    t_free = goal_free_tick(res, me, goal_cells, cons)
     if t_free is None:
         return None, 0
     h_table = graph.dist_to(graph.cell(goal))
@@ -197,37 +188,24 @@ def constrained_astar(graph: MotionGraph, res: ReservationTable, agent: AgentReq
     neighbors = graph.neighbors
     # (f, conflicts) ordered: see planning.frontier.
     open_ = ConflictFrontier(start, t0, t0 + h(start), t_max)
-    closed, push = open_.closed, open_.push
-    expansions = 0
-    while (top := open_.pop()) is not None:
-        node, t, conf = top
+    push = open_.push
+    arrive = arrivals(open_, res, fp, ok, hits, edge, me, m, UNREACHABLE)
+    for node, t, conf in open_.expanding(max_expansions, t_limit,
+                                         lambda v, t: v == goal and t >= t_free):
         key = (node, t)
-        if node == goal and t >= t_free:
-            return _reconstruct(open_.parent, node, t, me), expansions
-        expansions += 1
-        if expansions > max_expansions:
-            break
-        if t >= t_limit:
-            continue
         here = fp(node)
         if ok(here, t + 1):  # wait one tick
             push(node, t + 1, conf + hits(here, t + 1), h(node), key)
         for nxt in (neighbors[node] if node == start or expandable[node] else ()):
             if loaded_sinks and nxt != goal and not expandable[nxt]:
                 continue  # never drive into another shelf's home
-            t_arr = t + m
-            if (nxt, t_arr) in closed:
-                continue
             hn = h(nxt)
-            if hn >= UNREACHABLE:
-                continue
-            there = fp(nxt)
-            if not ok(there, t_arr):
-                continue
-            extra = move_conflicts(res, node, nxt, here, there, t, m, ok, hits, edge, me)
+            extra = arrive(node, nxt, nxt, here, t, hn)
             if extra is not None:
-                push(nxt, t_arr, conf + extra + hits(there, t_arr), hn, key)
-    return None, expansions
+                push(nxt, t + m, conf + extra, hn, key)
+    if open_.goal is not None:
+        return _reconstruct(open_.parent, *open_.goal, me), open_.expansions
+    return None, open_.expansions
 
 
 # ----------------------------------------------------------------------------- conflicts

@@ -12,12 +12,13 @@ the reservations and constraints and counts the conflicts of its inner ticks.
 from __future__ import annotations
 
 import heapq
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 
 from ..graph import UNREACHABLE
 from ..reservation import FOREVER, ReservationTable
 
-__all__ = ["ConflictFrontier", "avoidance_hits", "free_check", "move_conflicts", "swaps"]
+__all__ = ["ConflictFrontier", "arrivals", "avoidance_hits", "free_check", "goal_free_tick",
+           "move_conflicts", "swaps"]
 
 Key = tuple[int, int]
 """A search state ``(sid, tick)``."""
@@ -28,7 +29,7 @@ class ConflictFrontier:
     at state ``(sid, t0)`` whose f-value is ``f0``; states with ``t + h > t_max`` are never
     pushed (they could not end by the search's deadline)."""
 
-    __slots__ = ("heap", "parent", "best", "closed", "t_max")
+    __slots__ = ("heap", "parent", "best", "closed", "t_max", "goal", "expansions")
 
     def __init__(self, sid: int, t0: int, f0: int, t_max: int) -> None:
         self.heap: list[tuple[int, int, int, int, int]] = [(f0, 0, -t0, sid, t0)]
@@ -36,6 +37,8 @@ class ConflictFrontier:
         self.best: dict[Key, int] = {(sid, t0): 0}
         self.closed: set[Key] = set()
         self.t_max = t_max
+        self.goal: Key | None = None
+        self.expansions = 0
 
     def push(self, sid: int, t: int, conf: int, hn: int, frm: Key) -> None:
         """Offer state ``(sid, t)`` reached from ``frm`` with ``conf`` conflicts so far and
@@ -60,6 +63,28 @@ class ConflictFrontier:
             closed.add(key)
             return sid, t, conf
         return None
+
+    def expanding(self, max_expansions: int, t_limit: int,
+                  at_goal: Callable[[int, int], bool]) -> Iterator[tuple[int, int, int]]:
+        """The states to expand, best first, as :meth:`pop` gives them: the search loop of
+        every space-time A* on this frontier. It ends at the first state ``at_goal(sid, t)``
+        accepts (kept in :attr:`goal`; None when it ends otherwise), after
+        ``max_expansions`` expansions or when the open list is empty; a state at or after
+        ``t_limit`` counts as expanded but is not yielded. :attr:`expansions`: the states
+        expanded, once it has ended."""
+        expansions = 0
+        while (top := self.pop()) is not None:
+            sid, t, _ = top
+            if at_goal(sid, t):
+                self.goal = (sid, t)
+                break
+            expansions += 1
+            if expansions > max_expansions:
+                break
+            if t >= t_limit:
+                continue
+            yield top
+        self.expansions = expansions
 
 
 def swaps(res: ReservationTable, here: tuple[int, ...], there: tuple[int, ...], t: int,
@@ -150,3 +175,43 @@ def avoidance_hits(cat: dict[int, dict[int, int]], cat_rest: dict[int, int],
         return n
 
     return hits
+
+
+def goal_free_tick(res: ReservationTable, me: int, goal_cells: tuple[int, ...],
+                   cons=None) -> int | None:
+    """Earliest tick from which the AGV may stay at the goal for good: after every fixed
+    AGV's last use of the goal's cells and, with CBS constraints ``cons``
+    (:class:`~warerover_phys.planning.search.cbs.Constraints`), after every vertex
+    constraint on them and after its own "finish after" constraint (None: never)."""
+    t_free = max((res.last_use(c, me) for c in goal_cells), default=-1) + 1
+    if t_free >= FOREVER:
+        return None
+    if cons is not None:
+        t_free = max(t_free, cons.finish_after + 1)
+        for t, cells in cons.vertex.items():
+            if t >= t_free and not cells.isdisjoint(goal_cells):
+                t_free = t + 1
+    return t_free
+
+
+def arrivals(open_: ConflictFrontier, res: ReservationTable, fp: Callable, ok: Callable,
+             hits: Callable, edge, me: int, m: int, far: int) -> Callable:
+    """The move test of every space-time A* on ``open_``: ``arrive(node, nxt, nsid, here, t,
+    hn)`` is the conflicts of the move ``node -> nxt`` started at tick ``t`` from the cells
+    ``here`` into state ``nsid`` (its heuristic ``hn``), counted until it arrives, or None
+    when that state is closed, cannot reach the goal (``hn >= far``), its cells are not
+    free on arrival or the move breaks a constraint (:func:`move_conflicts`)."""
+    closed = open_.closed
+
+    def arrive(node: int, nxt: int, nsid: int, here: tuple[int, ...], t: int,
+               hn: int) -> int | None:
+        t_arr = t + m
+        if (nsid, t_arr) in closed or hn >= far:
+            return None
+        there = fp(nxt)
+        if not ok(there, t_arr):
+            return None
+        extra = move_conflicts(res, node, nxt, here, there, t, m, ok, hits, edge, me)
+        return None if extra is None else extra + hits(there, t_arr)
+
+    return arrive

@@ -34,12 +34,20 @@ turn_aware`): for the default 0.7 m bodies on 1 m cells nothing changes.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from ..base import AgentRequest, State, TimedPath, footprint_nodes
 from ..graph import UNREACHABLE, MotionGraph
 from ..reservation import FOREVER, ReservationTable
 from ..rotation import UNREACHABLE_T, graph_rotation_dist
 from ..sweep import DIR_OF, lock_keys, move_dir, sweep_cells
-from .frontier import ConflictFrontier, avoidance_hits, free_check, move_conflicts
+from .frontier import (
+    ConflictFrontier,
+    arrivals,
+    avoidance_hits,
+    free_check,
+    goal_free_tick,
+)
 
 __all__ = ["turning_astar", "turn_ok", "heading_index", "request_turn_fields"]
 
@@ -132,28 +140,18 @@ def turning_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest
     if no_turn and (start, heading_index(agent.heading)) not in graph.turn_dist(
             no_turn, goal, goal_dead):
         return None, 0  # no way there without turning where it may not
-    t_free = max((res.last_use(c, me) for c in goal_cells), default=-1) + 1
-    if t_free >= FOREVER:
+    t_free = goal_free_tick(res, me, goal_cells, constraints)
+    if t_free is None:
         return None, 0
-    if constraints is not None:
-        t_free = max(t_free, constraints.finish_after + 1)
-        for t, cells in vertex.items():
-            if t >= t_free and not cells.isdisjoint(goal_cells):
-                t_free = t + 1
     t_max = constraints.finish_by if constraints is not None else FOREVER
     h_table = graph.dist_to(graph.cell(goal))
     h0 = graph.distance(graph.cell(start), graph.cell(goal))
     if h0 >= UNREACHABLE or max(t_free, t0 + h0 * m) > t_max:
         return None, 0
-    if cbs:
-        last = constraints.last_tick(t0) + 1 if constraints is not None else t0
-        t_limit = max(t_free, t0 + h0 * m, last) + h0 * m + 64
-        n_cons = len(constraints) if constraints is not None else 0
-        max_expansions = min(max_expansions, 40 * (h0 * m + 25 + n_cons))
-    else:
-        t_limit = max(t_free, t0 + h0 * m) + h0 * m + 64
-        if budget_per_move is not None:
-            max_expansions = min(max_expansions, budget_per_move * (h0 * m + 25))
+    last = constraints.last_tick(t0) + 1 if cbs and constraints is not None else t0
+    t_limit = max(t_free, t0 + h0 * m, last) + h0 * m + 64
+    n_cons = len(constraints) if cbs and constraints is not None else 0
+    max_expansions = _budget(cap, h0 * m, cbs, n_cons, budget_per_move)
 
     def h(node: int) -> int:
         v = int(h_table[node])
@@ -161,70 +159,105 @@ def turning_astar(graph: MotionGraph, res: ReservationTable, agent: AgentRequest
 
     rot = agent.turn_ticks
     if rot is not None:
-        r_table = graph_rotation_dist(graph, goal, m, rot[0], rot[1])
-        r_min = r_table.min(axis=1)
-
-        def hr(node: int, hd: int) -> int:
-            v = int(r_table[node, hd] if hd < 4 else r_min[node])
-            if v < UNREACHABLE_T:
-                return v
-            return h(node) + (rot[1] if node == start else 0)
-
+        hr = _rotation_h(graph, agent, m, h)
         h_start = hr(start, heading_index(agent.heading))
         t_limit += h_start - h0 * m
-        if cbs:
-            max_expansions = min(cap, 40 * (h_start + 25 + n_cons))
-        elif budget_per_move is not None:
-            max_expansions = min(cap, budget_per_move * (h_start + 25))
+        max_expansions = _budget(cap, h_start, cbs, n_cons, budget_per_move)
 
-    loaded_sinks = graph.has_sinks
-    expandable = graph.expandable_flat
-    neighbors = graph.neighbors
     s0 = start * 5 + heading_index(agent.heading)
     if rot is not None:
         return _rotating_search(graph, agent, t0, s0, t_free, t_max, t_limit, max_expansions,
                                 hr, ok, hits, can_turn, edge, dead, fp, m, res, me)
+    return _plain_search(graph, agent, t0, s0, t_free, t_max, t_limit, max_expansions, h, ok,
+                         hits, can_turn, edge, dead, fp, m, res, me)
+
+
+def _budget(cap: int, span: int, cbs: bool, n_cons: int, budget_per_move: int | None) -> int:
+    """Expansions allowed a search whose shortest path takes ``span`` ticks: the budgets of
+    :func:`~warerover_phys.planning.search.cbs.constrained_astar` with ``cbs``, else
+    ``budget_per_move`` per tick of it (None: ``cap``), never over ``cap``."""
+    if cbs:
+        return min(cap, 40 * (span + 25 + n_cons))
+    if budget_per_move is not None:
+        return min(cap, budget_per_move * (span + 25))
+    return cap
+
+
+def _rotation_h(graph: MotionGraph, agent: AgentRequest, m: int, h):
+    """The heuristic with rotations: ticks to the goal from (anchor, heading), turns counted
+    (:func:`~warerover_phys.planning.rotation.graph_rotation_dist`); ``h`` (plus a half
+    turn at the start) where that table has no entry."""
+    rot, start = agent.turn_ticks, agent.start
+    r_table = graph_rotation_dist(graph, agent.goal, m, rot[0], rot[1])
+    r_min = r_table.min(axis=1)
+
+    def hr(node: int, hd: int) -> int:
+        v = int(r_table[node, hd] if hd < 4 else r_min[node])
+        if v < UNREACHABLE_T:
+            return v
+        return h(node) + (rot[1] if node == start else 0)
+
+    return hr
+
+
+def _plain_search(graph: MotionGraph, agent: AgentRequest, t0: int, s0: int, t_free: int,
+                  t_max: int, t_limit: int, max_expansions: int, h, ok, hits, can_turn,
+                  edge, dead, fp, m: int, res: ReservationTable, me: int,
+                  ) -> tuple[TimedPath | None, int]:
+    """The search of :func:`turning_astar` without rotations: states ``anchor * 5 +
+    heading`` (the last move's direction, 4 while unknown); a move that changes the heading
+    needs a turn in place that ``can_turn`` allows, and takes no extra time."""
+    goal, start, goal_dead = agent.goal, agent.start, agent.goal_dead
     open_ = ConflictFrontier(s0, t0, t0 + h(start), t_max)
-    closed, push = open_.closed, open_.push
-    expansions = 0
-    while (top := open_.pop()) is not None:
-        sid, t, conf = top
+    push = open_.push
+    arrive = arrivals(open_, res, fp, ok, hits, edge, me, m, UNREACHABLE)
+    for sid, t, conf in open_.expanding(max_expansions, t_limit,
+                                        _goal_test(goal, t_free, goal_dead)):
         key = (sid, t)
         node, hd = divmod(sid, 5)
-        if node == goal and t >= t_free and (goal_dead is None or hd not in goal_dead):
-            return _reconstruct(open_.parent, key, me), expansions
-        expansions += 1
-        if expansions > max_expansions:
-            break
-        if t >= t_limit:
-            continue
         here = fp(node)
         if ok(here, t + 1):  # wait one tick
             push(sid, t + 1, conf + hits(here, t + 1), h(node), key)
-        for nxt in (neighbors[node] if node == start or expandable[node] else ()):
-            if loaded_sinks and nxt != goal and not expandable[nxt]:
-                continue  # never drive into another shelf's home
-            d = move_dir(node, nxt, cols)
-            if nxt == goal and goal_dead is not None:
-                if d in goal_dead:
-                    continue  # it would start its work there facing the wrong way
-            elif (nxt, d) in dead:
-                continue
-            t_arr = t + m
+        for nxt, d in _moves(graph, node, start, goal, goal_dead, dead):
             nsid = nxt * 5 + d
-            if (nsid, t_arr) in closed:
-                continue
             hn = h(nxt)
-            if hn >= UNREACHABLE:
-                continue
-            there = fp(nxt)
-            if not ok(there, t_arr):
-                continue
-            extra = move_conflicts(res, node, nxt, here, there, t, m, ok, hits, edge, me)
+            extra = arrive(node, nxt, nsid, here, t, hn)
             if extra is None or (d != hd and not can_turn(node, t)):
                 continue
-            push(nsid, t_arr, conf + extra + hits(there, t_arr), hn, key)
-    return None, expansions
+            push(nsid, t + m, conf + extra, hn, key)
+    if open_.goal is not None:
+        return _reconstruct(open_.parent, open_.goal, me), open_.expansions
+    return None, open_.expansions
+
+
+def _moves(graph: MotionGraph, node: int, start: int, goal: int, goal_dead, dead):
+    """The moves ``(next anchor, direction)`` from ``node`` the searches may take: out of
+    an expandable node (or the start), never into another shelf's home, never into a dead
+    end, never into the goal facing a way ``goal_dead`` forbids."""
+    expandable = graph.expandable_flat
+    if not (node == start or expandable[node]):
+        return
+    loaded_sinks, cols = graph.has_sinks, graph.cols
+    for nxt in graph.neighbors[node]:
+        if loaded_sinks and nxt != goal and not expandable[nxt]:
+            continue  # never drive into another shelf's home
+        d = move_dir(node, nxt, cols)
+        if nxt == goal and goal_dead is not None:
+            if d in goal_dead:
+                continue  # it would start its work there facing the wrong way
+        elif (nxt, d) in dead:
+            continue
+        yield nxt, d
+
+
+def _goal_test(goal: int, t_free: int, goal_dead) -> Callable[[int, int], bool]:
+    """The goal test of the searches on states ``anchor * 5 + heading``: at the goal from
+    ``t_free`` on, not facing a way ``goal_dead`` forbids."""
+    def at_goal(sid: int, t: int) -> bool:
+        node, hd = divmod(sid, 5)
+        return node == goal and t >= t_free and (goal_dead is None or hd not in goal_dead)
+
+    return at_goal
 
 
 def _reconstruct(parent: dict, key: tuple[int, int], agv: int,
@@ -264,25 +297,14 @@ def _rotating_search(graph: MotionGraph, agent: AgentRequest, t0: int, s0: int, 
     quarter and half turns in place that take ``agent.turn_ticks``."""
     assert agent.turn_ticks is not None
     q1, q2 = agent.turn_ticks
-    cols, goal, start = graph.cols, agent.goal, agent.start
-    goal_dead = agent.goal_dead
-    loaded_sinks = graph.has_sinks
-    expandable = graph.expandable_flat
-    neighbors = graph.neighbors
+    goal, start, goal_dead = agent.goal, agent.start, agent.goal_dead
     open_ = ConflictFrontier(s0, t0, t0 + hr(start, s0 % 5), t_max)
-    closed, push = open_.closed, open_.push
-    expansions = 0
-    while (top := open_.pop()) is not None:
-        sid, t, conf = top
+    push = open_.push
+    arrive = arrivals(open_, res, fp, ok, hits, edge, me, m, UNREACHABLE_T)
+    for sid, t, conf in open_.expanding(max_expansions, t_limit,
+                                        _goal_test(goal, t_free, goal_dead)):
         key = (sid, t)
         node, hd = divmod(sid, 5)
-        if node == goal and t >= t_free and (goal_dead is None or hd not in goal_dead):
-            return _reconstruct(open_.parent, key, me, rotations=True), expansions
-        expansions += 1
-        if expansions > max_expansions:
-            break
-        if t >= t_limit:
-            continue
         here = fp(node)
         if ok(here, t + 1):  # wait one tick
             push(sid, t + 1, conf + hits(here, t + 1), hr(node, hd), key)
@@ -294,29 +316,15 @@ def _rotating_search(graph: MotionGraph, agent: AgentRequest, t0: int, s0: int, 
                     push(node * 5 + h2, t + q,
                          conf + sum(hits(here, t + i) for i in range(1, q + 1)),
                          hr(node, h2), key)
-        for nxt in (neighbors[node] if node == start or expandable[node] else ()):
-            if loaded_sinks and nxt != goal and not expandable[nxt]:
-                continue  # never drive into another shelf's home
-            d = move_dir(node, nxt, cols)
+        for nxt, d in _moves(graph, node, start, goal, goal_dead, dead):
             if hd < 4 and d != hd:
                 continue  # only along the heading
-            if nxt == goal and goal_dead is not None:
-                if d in goal_dead:
-                    continue
-            elif (nxt, d) in dead:
-                continue
-            t_arr = t + m
             nsid = nxt * 5 + d
-            if (nsid, t_arr) in closed:
-                continue
             hn = hr(nxt, d)
-            if hn >= UNREACHABLE_T:
-                continue
-            there = fp(nxt)
-            if not ok(there, t_arr):
-                continue
-            extra = move_conflicts(res, node, nxt, here, there, t, m, ok, hits, edge, me)
+            extra = arrive(node, nxt, nsid, here, t, hn)
             if extra is None or (hd == 4 and not can_turn(node, t)):
                 continue
-            push(nsid, t_arr, conf + extra + hits(there, t_arr), hn, key)
-    return None, expansions
+            push(nsid, t + m, conf + extra, hn, key)
+    if open_.goal is not None:
+        return _reconstruct(open_.parent, open_.goal, me, rotations=True), open_.expansions
+    return None, open_.expansions
