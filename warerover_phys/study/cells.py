@@ -96,6 +96,10 @@ class LifelongTask:
         return [self.key]
 
 
+GUARDS = ("cell_timeout_s", "plan_grace_s")
+"""Execution settings that only guard the wall clock: a cell's key leaves them out."""
+
+
 def _key(*parts: Any) -> str:
     return json.dumps(list(parts), sort_keys=True, separators=(",", ":"), default=str)
 
@@ -115,7 +119,7 @@ def expand(spec: StudySpec) -> list[Cell]:
     """Every one-shot cell of the study, in file order (seed outermost), less the
     excluded ones."""
     out = []
-    ex = spec.execution.model_dump(mode="json")
+    ex = spec.execution.model_dump(mode="json", exclude=set(GUARDS))
     for seed in spec.seeds:
         for inst in spec.instances:
             for n, (j, scen) in itertools.product(inst.agents, enumerate(inst.scens, 1)):

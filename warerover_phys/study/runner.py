@@ -136,7 +136,7 @@ def run_study(spec: StudySpec, out_dir: str | Path, *, workers: int | None = Non
         results.open_for_append()
         try:
             # the biggest tasks first: the pool's last minutes are not one long task alone
-            tasks.sort(key=lambda t: -getattr(t, "n", 0) * len(t.keys))
+            tasks.sort(key=task_cost, reverse=True)
             if tasks and ray_address is not None:
                 run_ray(tasks, ray_address, workers, sink, fn=run_any, fail=fail_task)
             elif tasks:
@@ -146,6 +146,19 @@ def run_study(spec: StudySpec, out_dir: str | Path, *, workers: int | None = Non
             summary.wall_s = time.perf_counter() - t0
         write_tables(summary.out_dir)
     return summary
+
+
+EXEC_S_PER_AGENT = 0.02
+"""Seconds of one CPU to execute one agent's plan on physics, about (the trade-offs study
+measured 0.005-0.025: longer plans on bigger maps cost more)."""
+
+
+def task_cost(task: PlanTask | LifelongTask) -> float:
+    """A task's expected seconds of work, to start the big ones first: its solver's time
+    limit (an anytime solver spends all of it) and its cells' executions."""
+    if isinstance(task, LifelongTask):
+        return 0.0
+    return task.entry.time_limit_s + len(task.cells) * task.n * EXEC_S_PER_AGENT
 
 
 def load_results(out_dir: str | Path) -> tuple[list[dict[str, Any]], dict[str, Any] | None]:

@@ -189,6 +189,13 @@ class Execution(_Model):
     """A cell stops after ``factor x plan makespan + 200`` ticks (recorded as incomplete)."""
     options: dict[str, Any] = Field(default_factory=dict)
     """Other executor fields (``no_slip``, ``comm_latency_s``, ``adg`` ...)."""
+    cell_timeout_s: PosFloat | None = 300.0
+    """Wall-clock guard of one cell's execution (and motion schedule): past it the cell
+    is a row with status ``timeout`` (None: no guard). Not part of a cell's identity."""
+    plan_grace_s: PosFloat | None = 60.0
+    """Wall-clock guard of obtaining and repairing a plan: ``2 x time_limit_s +
+    plan_grace_s`` seconds, then the task's cells are rows with status ``timeout`` (None:
+    no guard). Not part of a cell's identity."""
 
     @model_validator(mode="after")
     def _steps(self) -> Execution:
