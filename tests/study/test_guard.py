@@ -73,3 +73,27 @@ def test_the_guards_do_not_change_the_cells_keys(tmp_path):
     assert [c.key for c in a] == [c.key for c in b]
     c = expand(load_study(write_spec(tmp_path, "c.yaml", execution={"dt_s": 0.05})))
     assert [x.key for x in a] != [x.key for x in c]
+
+
+def test_max_minutes_stops_the_run_and_a_second_run_finishes_it(tmp_path):
+    from collections import Counter
+
+    from typer.testing import CliRunner
+
+    from warerover_phys.cli import app
+
+    path = write_spec(tmp_path, seeds=[0, 1])
+    total = len(expand(load_study(path)))
+    out = tmp_path / "out"
+    result = CliRunner().invoke(app, ["study", str(path), "--out", str(out), "--workers", "1",
+                                      "--max-minutes", "0.00001", "--json"])
+    assert result.exit_code == 0, result.output
+    first = json.loads(result.stdout)
+    assert first["ran"] == 0 and first["left"] == total == first["cells"]
+    assert not (out / "results.jsonl").read_text().strip()
+    bad = CliRunner().invoke(app, ["study", str(path), "--out", str(out), "--max-minutes", "0"])
+    assert bad.exit_code == 2 and "--max-minutes: must be above 0" in bad.output
+    summary = run_study(load_study(path), out, workers=1, max_wall_s=600)
+    assert summary.ran == total and summary.left == 0
+    counts = Counter(r["key"] for r in _rows(out))
+    assert set(counts.values()) == {1} and len(counts) == total

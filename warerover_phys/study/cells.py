@@ -72,6 +72,9 @@ class PlanTask:
     out_dir: str
     solvers: dict[str, str] = field(default_factory=dict)
     """Solver name -> binary path (resolved by :func:`resolve_solvers`)."""
+    deadline: float | None = None
+    """The run's deadline (``time.time()``): past it the task starts no plan and no cell,
+    and a cell it cuts short gets no row (a resumed study runs them)."""
 
     @property
     def keys(self) -> list[str]:

@@ -77,7 +77,9 @@ def run_plan_task(task: PlanTask) -> list[dict[str, Any]]:
     """One row per cell of ``task``; never raises for an error of a plan or a cell."""
     t0 = time.perf_counter()
     c0 = _cpu()
-    guard = WallGuard(plan_guard_s(task), "obtaining and repairing the plan")
+    if _past(task):
+        return []
+    guard = WallGuard(_within(plan_guard_s(task), task), "obtaining and repairing the plan")
     try:
         with wall_guard(guard):
             outcome = obtain_plan(task)
@@ -86,6 +88,8 @@ def run_plan_task(task: PlanTask) -> list[dict[str, Any]]:
         if outcome.plan is None and guard.expired():  # a solver swallowed the guard's error
             raise guard.timeout()
     except Exception as err:  # noqa: BLE001 - recorded in the rows
+        if guard.stopped(err) and _past(task):
+            return []  # the run's deadline: no rows, a resumed study runs the cells
         if guard.stopped(err):
             return [{**r, "status": "timeout", "stage": "solve",
                      "solve_s": time.perf_counter() - t0} for r in fail_task(task, guard.error)]
@@ -94,17 +98,21 @@ def run_plan_task(task: PlanTask) -> list[dict[str, Any]]:
     rows = []
     schedules: dict[str, Any] = {}
     for cell in task.cells:
+        if _past(task):
+            break
         w0, c0 = time.perf_counter(), _cpu()
         row = {**_base(task, cell), **_plan_figures(outcome, task), "plan_cpu_s": solve_cpu}
         if outcome.plan is None or isinstance(prepared, str):
             error = outcome.error if outcome.plan is None else prepared
             row.update(status="failed", stage=outcome.stage or "repair", error=error)
         else:
-            guard = WallGuard(task.execution.cell_timeout_s, "the execution")
+            guard = WallGuard(_within(task.execution.cell_timeout_s, task), "the execution")
             try:
                 with wall_guard(guard):
                     row.update(_execute_cell(task, cell, prepared, schedules, guard))
             except Exception as err:  # noqa: BLE001 - one cell's failure is its row
+                if guard.stopped(err) and _past(task):
+                    break  # the run's deadline: no row, a resumed study runs the cell
                 if guard.stopped(err):
                     row.update(status="timeout", stage="execute", error=guard.error)
                 else:
@@ -160,6 +168,19 @@ def _timed_plan(task: PlanTask, prepared: dict[str, Any], types: list[AgvTypeSpe
     return TimedPlan(layout=prepared["layout"], types=types, tick_s=task.execution.tick_s,
                      paths=prepared["paths"], dwells={}, source=f"study plan {task.plan_id}",
                      repairs=prepared["repairs"], given_finish=prepared["given_finish"])
+
+
+def _past(task: PlanTask) -> bool:
+    """Whether the run's deadline (``--max-minutes``) has passed."""
+    return task.deadline is not None and time.time() >= task.deadline
+
+
+def _within(limit_s: float | None, task: PlanTask) -> float | None:
+    """A guard's limit, cut to the time left before the run's deadline."""
+    if task.deadline is None:
+        return limit_s
+    left = max(0.0, task.deadline - time.time())
+    return left if limit_s is None else min(limit_s, left)
 
 
 def plan_guard_s(task: PlanTask) -> float | None:

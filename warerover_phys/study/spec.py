@@ -47,10 +47,11 @@ import os
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from ..config import AgvTypeSpec, DelaySpec, _from_validation_error, read_yaml
+from ..config import AgvTypeSpec, DelaySpec
 from ..errors import ScenarioError
+from ..sweep.spec import read_spec_file
 
 __all__ = ["StudySpec", "StudyError", "PlannerEntry", "SolverEntry", "Mismatch", "Execution",
            "InstanceEntry", "LifelongEntry", "load_study", "content_hash", "DIMENSIONS",
@@ -310,16 +311,7 @@ class StudySpec(_Model):
 def load_study(path: str | Path) -> StudySpec:
     """Read and validate a study file; a :class:`StudyError` names the file, field and
     value. Checks that the maps, scenario files and plan folders exist."""
-    path = Path(path)
-    try:
-        data = read_yaml(path, "study")
-    except ScenarioError as err:
-        raise StudyError(err.message, file=err.file, field=err.field, value=err.value) from None
-    try:
-        spec = StudySpec.model_validate({**data, "source": str(path)})
-    except ValidationError as err:
-        e = _from_validation_error(err, str(path))
-        raise StudyError(e.message, file=e.file, field=e.field, value=e.value) from None
+    spec = read_spec_file(path, "study", StudySpec, StudyError)
     _check_files(spec)
     return spec
 
