@@ -8,10 +8,7 @@ import csv
 import itertools
 import json
 import os
-import signal
-import subprocess
 import sys
-import time
 from collections import Counter
 from pathlib import Path
 
@@ -19,6 +16,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 import yaml
+from pool_helpers import kill_mid_run, on_local_ray, outlived
 from typer.testing import CliRunner
 
 from warerover_phys.cli import app
@@ -96,46 +94,15 @@ def test_mismatch_slows_the_same_plan(tmp_path):
         assert rows[n, "slower"]["planned_soc_s"] == rows[n, "exact"]["planned_soc_s"]
 
 
-def _children(pid: int) -> set[int]:
-    out: set[int] = set()
-    for task in Path(f"/proc/{pid}/task").glob("*"):
-        try:
-            out |= {int(c) for c in (task / "children").read_text().split()}
-        except OSError:
-            pass
-    return out
-
-
 def test_sigkill_mid_study_then_resume_runs_each_cell_once(tmp_path):
     path = write_spec(tmp_path, seeds=[0, 1, 2, 3, 4])
     total = len(expand(load_study(path)))
     out = tmp_path / "out"
     results = out / "results.jsonl"
-    proc = subprocess.Popen([sys.executable, "-m", "warerover_phys", "study", str(path),
-                             "--out", str(out), "--workers", "2", "-q"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                            env={**os.environ, "NO_COLOR": "1"})
-    deadline = time.monotonic() + 120
-    try:
-        while time.monotonic() < deadline:
-            if results.exists() and results.read_bytes().count(b"\n") >= 4:
-                break
-            assert proc.poll() is None, "the study ended before it could be killed"
-            time.sleep(0.02)
-        workers = _children(proc.pid)
-        proc.send_signal(signal.SIGKILL)
-        proc.wait(10)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    before = results.read_bytes().count(b"\n")
+    before, workers = kill_mid_run(["study", str(path), "--out", str(out), "--workers", "2"],
+                                   results, timeout_s=120)
     assert 4 <= before < total, "kill the study mid-way"
-    deadline = time.monotonic() + 15
-    while workers and time.monotonic() < deadline:
-        workers = {w for w in workers if Path(f"/proc/{w}").exists()
-                   and "zombie" not in Path(f"/proc/{w}/status").read_text().lower()}
-        time.sleep(0.1)
-    assert not workers, f"worker processes {workers} outlived the killed study"
+    assert not outlived(workers), "worker processes outlived the killed study"
     with open(results, "ab") as fh:  # a write cut short by the kill
         fh.write(b'{"key": "[\\"oneshot')
     summary = run_study(load_study(path), out, workers=2)
@@ -418,15 +385,11 @@ UNTIMED = ("host", "pid", "finished", "cell_wall_s", "cell_cpu_s", "task_wall_s"
 
 @pytest.mark.slow
 def test_pool_and_ray_give_the_same_rows(tmp_path):
-    ray = pytest.importorskip("ray")
+    pytest.importorskip("ray")
     spec = load_study(write_spec(tmp_path, planners={"lacam": {"solver": "lacam"}}))
     run_study(spec, tmp_path / "pool", workers=2)
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
-    try:
-        summary = run_study(spec, tmp_path / "ray", ray_address="auto")
-        pids = {r["pid"] for r in lines(tmp_path / "ray")}
-    finally:
-        ray.shutdown()
+    summary, pids = on_local_ray(lambda: run_study(spec, tmp_path / "ray", ray_address="auto"),
+                                 tmp_path / "ray" / "results.jsonl")
     assert summary.ran == 4 and summary.failed == 0 and os.getpid() not in pids
 
     def untimed(out):

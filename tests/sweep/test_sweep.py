@@ -11,16 +11,15 @@ import json
 import math
 import os
 import re
-import signal
 import subprocess
 import sys
-import time
 from collections import Counter
 from pathlib import Path
 from typing import Any
 
 import pytest
 import yaml
+from pool_helpers import kill_mid_run, on_local_ray, outlived
 from typer.testing import CliRunner
 
 from warerover_phys.cli import app
@@ -233,16 +232,12 @@ def test_pool_and_ray_give_identical_metrics(tmp_path):
     pool = run_sweep(spec, tmp_path / "pool", workers=2)
     assert pool.ran == pool.total == 4 and pool.failed == 0
     try:
-        import ray
+        import ray  # noqa: F401
     except ImportError:
         pytest.skip("ray is not installed (pip install 'warerover-phys[ray]'); the pool half "
                     "of this test ran")
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
-    try:
-        on_ray = run_sweep(spec, tmp_path / "ray", ray_address="auto")
-        pids = {r["pid"] for r in result_lines(tmp_path / "ray")}
-    finally:
-        ray.shutdown()
+    on_ray, pids = on_local_ray(lambda: run_sweep(spec, tmp_path / "ray", ray_address="auto"),
+                                tmp_path / "ray" / "results.jsonl")
     assert on_ray.ran == 4 and on_ray.failed == 0
     assert os.getpid() not in pids  # ran in Ray workers, not here
     a = {r["key"]: r for r in result_lines(tmp_path / "pool")}
@@ -257,16 +252,6 @@ def test_pool_and_ray_give_identical_metrics(tmp_path):
     assert untimed(a[ep.key]["metrics"]) == untimed(direct)
 
 
-def _children(pid: int) -> set[int]:
-    out: set[int] = set()
-    for task in Path(f"/proc/{pid}/task").glob("*"):
-        try:
-            out |= {int(c) for c in (task / "children").read_text().split()}
-        except OSError:
-            pass
-    return out
-
-
 @pytest.mark.slow  # a sweep killed and resumed: make test-all
 def test_sigkill_mid_sweep_then_resume_runs_each_episode_once(tmp_path):
     path = write_sweep(tmp_path, set={**SMALL_SET, "orders.oneshot.count": 10},
@@ -275,32 +260,10 @@ def test_sigkill_mid_sweep_then_resume_runs_each_episode_once(tmp_path):
     total = len(expand(load_sweep(path)))
     out = tmp_path / "out"
     results = out / "results.jsonl"
-    env = {**os.environ, "NO_COLOR": "1"}
-    proc = subprocess.Popen([sys.executable, "-m", "warerover_phys", "sweep", str(path),
-                             "--out", str(out), "--workers", "2", "-q"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
-    deadline = time.monotonic() + 60
-    try:
-        while time.monotonic() < deadline:
-            if results.exists() and results.read_bytes().count(b"\n") >= 4:
-                break
-            assert proc.poll() is None, "the sweep ended before it could be killed"
-            time.sleep(0.02)
-        workers = _children(proc.pid)
-        proc.send_signal(signal.SIGKILL)
-        proc.wait(10)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    before = results.read_bytes().count(b"\n")
+    before, workers = kill_mid_run(["sweep", str(path), "--out", str(out), "--workers", "2"],
+                                   results)
     assert 4 <= before < total, "kill the sweep mid-way"
-    # the orphaned pool workers notice their parent is gone and exit
-    deadline = time.monotonic() + 15
-    while workers and time.monotonic() < deadline:
-        workers = {w for w in workers if Path(f"/proc/{w}").exists()
-                   and "zombie" not in Path(f"/proc/{w}/status").read_text().lower()}
-        time.sleep(0.1)
-    assert not workers, f"worker processes {workers} outlived the killed sweep"
+    assert not outlived(workers), "worker processes outlived the killed sweep"
     # a write cut short by the kill leaves a partial last line: simulate one
     with open(results, "ab") as fh:
         fh.write(b'{"key": "[\\"Ho\\",[[\\"max_t')

@@ -417,6 +417,9 @@ class PlanFollower:
 
     def _start(self, i: int, t: float) -> None:
         st = self.st
+        # It is awake: a decide in mid-turn may have put it to sleep just before its turn
+        # ended and it started in the same step (a stale flag would keep it asleep later).
+        self._asleep[i] = False
         a = self.adg.start(i) if self.spec.adg else self._force_start(i)
         x, y = cell_centre(a.src, st.k[i], st.cols, st.cell_m)
         st.origin[i] = (x, y)

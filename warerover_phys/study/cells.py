@@ -72,6 +72,9 @@ class PlanTask:
     out_dir: str
     solvers: dict[str, str] = field(default_factory=dict)
     """Solver name -> binary path (resolved by :func:`resolve_solvers`)."""
+    deadline: float | None = None
+    """The run's deadline (``time.time()``): past it the task starts no plan and no cell,
+    and a cell it cuts short gets no row (a resumed study runs them)."""
 
     @property
     def keys(self) -> list[str]:
@@ -96,6 +99,10 @@ class LifelongTask:
         return [self.key]
 
 
+GUARDS = ("cell_timeout_s", "plan_grace_s")
+"""Execution settings that only guard the wall clock: a cell's key leaves them out."""
+
+
 def _key(*parts: Any) -> str:
     return json.dumps(list(parts), sort_keys=True, separators=(",", ":"), default=str)
 
@@ -115,7 +122,7 @@ def expand(spec: StudySpec) -> list[Cell]:
     """Every one-shot cell of the study, in file order (seed outermost), less the
     excluded ones."""
     out = []
-    ex = spec.execution.model_dump(mode="json")
+    ex = spec.execution.model_dump(mode="json", exclude=set(GUARDS))
     for seed in spec.seeds:
         for inst in spec.instances:
             for n, (j, scen) in itertools.product(inst.agents, enumerate(inst.scens, 1)):

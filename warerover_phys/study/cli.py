@@ -42,6 +42,10 @@ def study(target: Annotated[str, typer.Argument(
               help="The binary of a solver the study's commands name, e.g. "
                    "lacam3=/work/lacam3-build/main (wins over the study file and its env "
                    "variable; repeatable).")] = None,
+          max_minutes: Annotated[float | None, typer.Option(
+              "--max-minutes", metavar="M",
+              help="Stop after M minutes of wall clock: no plan or cell starts later, a cell "
+                   "cut short gets no row; running again finishes the rest.")] = None,
           retry_failed: Annotated[bool, typer.Option(
               "--retry-failed", help="Run the cells recorded as failed again (their plans "
                                      "are solved again).")] = False,
@@ -72,7 +76,10 @@ def study(target: Annotated[str, typer.Argument(
             raise WareroverError("study: --out DIR is required (where the results go)")
         if workers is not None and workers < 1:
             raise WareroverError(f"--workers: must be at least 1 (got {workers})")
-        _run(Path(target), out, workers, ray, _solvers(solver), retry_failed, json_out, quiet)
+        if max_minutes is not None and not max_minutes > 0:
+            raise WareroverError(f"--max-minutes: must be above 0 (got {max_minutes})")
+        _run(Path(target), out, workers, ray, _solvers(solver), retry_failed, json_out, quiet,
+             None if max_minutes is None else 60 * max_minutes)
     except WareroverError as err:
         _fail(err)
     except OSError as err:
@@ -80,7 +87,8 @@ def study(target: Annotated[str, typer.Argument(
 
 
 def _run(spec_file: Path, out: Path, workers: int | None, ray: str | None,
-         solvers: dict[str, str], retry_failed: bool, json_out: bool, quiet: bool) -> None:
+         solvers: dict[str, str], retry_failed: bool, json_out: bool, quiet: bool,
+         max_wall_s: float | None = None) -> None:
     import os
 
     from ..cli.sweep import _Progress
@@ -95,7 +103,7 @@ def _run(spec_file: Path, out: Path, workers: int | None, ray: str | None,
     try:
         summary = run_study(spec, out, workers=n, ray_address=ray, retry_failed=retry_failed,
                             solvers=solvers, on_start=lambda s, k: progress.start(s, k, where),
-                            on_row=progress.row)
+                            on_row=progress.row, max_wall_s=max_wall_s)
     except KeyboardInterrupt:
         progress.stop()
         err_console.print(f"interrupted: {progress.done} cell(s) of this run recorded in {out}; "
@@ -107,11 +115,16 @@ def _run(spec_file: Path, out: Path, workers: int | None, ray: str | None,
     if json_out:
         typer.echo(json.dumps({"cells": summary.total, "done_before": summary.done_before,
                                "ran": summary.ran, "failed": summary.failed,
-                               "failed_total": summary.failed_total,
+                               "failed_total": summary.failed_total, "left": summary.left,
                                "wall_s": round(summary.wall_s, 3),
                                "results": str(summary.out_dir / "results.parquet")}))
         return
     failed = (f", {summary.failed} without a result in this run" if summary.failed else "")
+    if summary.left:
+        typer.echo(f"stopped at --max-minutes: {summary.ran} cells run in {summary.wall_s:.1f} s"
+                   f"{failed}; {summary.left} of {summary.total} cells left without a row in "
+                   f"{summary.out_dir}: run the same command again to finish them")
+        return
     typer.echo(f"done: {summary.total} cells in {summary.out_dir} — {summary.ran} run now in "
                f"{summary.wall_s:.1f} s{failed}. Next: warerover study report {out}")
 

@@ -26,6 +26,7 @@ import numpy as np
 from ..config import AgvTypeSpec
 from ..errors import WareroverError
 from .cells import Cell, LifelongTask, PlanTask, cell_id
+from .guard import WallGuard, wall_guard
 from .planners import PlanOutcome, obtain_plan
 
 __all__ = ["run_plan_task", "fail_task", "run_lifelong_task", "cell_row", "ROW_PARTS"]
@@ -76,28 +77,48 @@ def run_plan_task(task: PlanTask) -> list[dict[str, Any]]:
     """One row per cell of ``task``; never raises for an error of a plan or a cell."""
     t0 = time.perf_counter()
     c0 = _cpu()
+    if _past(task):
+        return []
+    guard = WallGuard(_within(plan_guard_s(task), task), "obtaining and repairing the plan")
     try:
-        outcome = obtain_plan(task)
-        prepared = _prepare(task, outcome) if outcome.plan is not None else None
+        with wall_guard(guard):
+            outcome = obtain_plan(task)
+            prepared = _prepare(task, outcome) if outcome.plan is not None else None
         solve_cpu = _cpu() - c0
+        if outcome.plan is None and guard.expired():  # a solver swallowed the guard's error
+            raise guard.timeout()
     except Exception as err:  # noqa: BLE001 - recorded in the rows
+        if guard.stopped(err) and _past(task):
+            return []  # the run's deadline: no rows, a resumed study runs the cells
+        if guard.stopped(err):
+            return [{**r, "status": "timeout", "stage": "solve",
+                     "solve_s": time.perf_counter() - t0} for r in fail_task(task, guard.error)]
         tb = "".join(traceback.format_exception(err)[-8:])
         return [{**r, "traceback": tb} for r in fail_task(task, f"{type(err).__name__}: {err}")]
     rows = []
     schedules: dict[str, Any] = {}
     for cell in task.cells:
+        if _past(task):
+            break
         w0, c0 = time.perf_counter(), _cpu()
         row = {**_base(task, cell), **_plan_figures(outcome, task), "plan_cpu_s": solve_cpu}
         if outcome.plan is None or isinstance(prepared, str):
             error = outcome.error if outcome.plan is None else prepared
             row.update(status="failed", stage=outcome.stage or "repair", error=error)
         else:
+            guard = WallGuard(_within(task.execution.cell_timeout_s, task), "the execution")
             try:
-                row.update(_execute_cell(task, cell, prepared, schedules))
+                with wall_guard(guard):
+                    row.update(_execute_cell(task, cell, prepared, schedules, guard))
             except Exception as err:  # noqa: BLE001 - one cell's failure is its row
-                row.update(status="failed", stage="execute",
-                           error=f"{type(err).__name__}: {err}",
-                           traceback="".join(traceback.format_exception(err)[-8:]))
+                if guard.stopped(err) and _past(task):
+                    break  # the run's deadline: no row, a resumed study runs the cell
+                if guard.stopped(err):
+                    row.update(status="timeout", stage="execute", error=guard.error)
+                else:
+                    row.update(status="failed", stage="execute",
+                               error=f"{type(err).__name__}: {err}",
+                               traceback="".join(traceback.format_exception(err)[-8:]))
         row["cell_wall_s"] = time.perf_counter() - w0
         row["cell_cpu_s"] = _cpu() - c0
         row["finished"] = _now()
@@ -149,8 +170,27 @@ def _timed_plan(task: PlanTask, prepared: dict[str, Any], types: list[AgvTypeSpe
                      repairs=prepared["repairs"], given_finish=prepared["given_finish"])
 
 
+def _past(task: PlanTask) -> bool:
+    """Whether the run's deadline (``--max-minutes``) has passed."""
+    return task.deadline is not None and time.time() >= task.deadline
+
+
+def _within(limit_s: float | None, task: PlanTask) -> float | None:
+    """A guard's limit, cut to the time left before the run's deadline."""
+    if task.deadline is None:
+        return limit_s
+    left = max(0.0, task.deadline - time.time())
+    return left if limit_s is None else min(limit_s, left)
+
+
+def plan_guard_s(task: PlanTask) -> float | None:
+    """The wall-clock guard of obtaining and repairing the task's plan (seconds)."""
+    grace = task.execution.plan_grace_s
+    return None if grace is None else 2 * task.entry.time_limit_s + grace
+
+
 def _execute_cell(task: PlanTask, cell: Cell, prepared: dict[str, Any],
-                  schedules: dict[str, Any]) -> dict[str, Any]:
+                  schedules: dict[str, Any], guard: WallGuard) -> dict[str, Any]:
     from ..execute import executor_spec
     from ..gap.open_loop import execute_timed, motion_timed, open_loop_report
 
@@ -163,7 +203,8 @@ def _execute_cell(task: PlanTask, cell: Cell, prepared: dict[str, Any],
                          trajectory_hz=ex.trajectory_hz, options=ex.options)
     horizon = max(len(p.states) for p in prepared["paths"].values())
     run = execute_timed(plan, spec, seed=cell.seed,
-                        max_ticks=int(ex.max_ticks_factor * horizon) + 200)
+                        max_ticks=int(ex.max_ticks_factor * horizon) + 200,
+                        progress=guard.check)
     report, agents, actions = open_loop_report(run)
     unit = {"planned_soc_unit_s": report["planned_sum_of_costs_s"],
             "planned_makespan_unit_s": report["planned_makespan_s"]}

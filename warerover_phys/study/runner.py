@@ -17,12 +17,19 @@ import json
 import os
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from ..sweep.lock import sweep_lock
 from ..sweep.results import RESULTS_NAME, ResultsFile
-from ..sweep.runner import SweepSummary, _term_as_interrupt, run_pool, run_ray
+from ..sweep.runner import (
+    SweepSummary,
+    _term_as_interrupt,
+    dispatch,
+    row_sink,
+    write_spec_json,
+)
 from .cells import (
     LifelongTask,
     PlanTask,
@@ -59,8 +66,6 @@ def plan_study(spec: StudySpec, out_dir: str | Path, *, retry_failed: bool = Fal
                ) -> tuple[list[PlanTask | LifelongTask], StudySummary, ResultsFile]:
     """Validate, read what ``out_dir`` holds, and return the tasks with cells still to run
     (each task narrowed to those cells)."""
-    from dataclasses import replace
-
     from .planners import forget
 
     out_dir = Path(out_dir).resolve()
@@ -71,10 +76,7 @@ def plan_study(spec: StudySpec, out_dir: str | Path, *, retry_failed: bool = Fal
     rows = results.load()
     retry: set[str] = set()
     if retry_failed:
-        retry = {k for k, r in rows.items() if k in keys and r.get("status") != "ok"}
-        if retry:
-            results.rewrite([r for k, r in rows.items() if k not in retry])
-            rows = {k: r for k, r in rows.items() if k not in retry}
+        rows, retry = results.drop_failed(rows, keys)
     todo = [c for c in cells if c.key not in rows]
     needs = {n for p in spec.planners.values() for n in p.solver_names()}
     found = resolve_solvers(spec, solvers) if needs and todo else {}
@@ -96,56 +98,56 @@ def plan_study(spec: StudySpec, out_dir: str | Path, *, retry_failed: bool = Fal
     return tasks, summary, results
 
 
-def _write_spec(spec: StudySpec, out_dir: Path) -> None:
-    out_dir.mkdir(parents=True, exist_ok=True)
-    data = {**spec.model_dump(mode="json"), "source": spec.source}
-    tmp = out_dir / (SPEC_NAME + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
-    os.replace(tmp, out_dir / SPEC_NAME)
-
-
 def run_study(spec: StudySpec, out_dir: str | Path, *, workers: int | None = None,
               ray_address: str | None = None, retry_failed: bool = False,
               solvers: dict[str, str] | None = None,
               on_start: Callable[[StudySummary, int], None] | None = None,
-              on_row: Callable[[dict[str, Any]], None] | None = None) -> StudySummary:
+              on_row: Callable[[dict[str, Any]], None] | None = None,
+              max_wall_s: float | None = None) -> StudySummary:
     """Run the cells of ``spec`` that ``out_dir`` has no row for, then rewrite the tidy
     table. ``workers``: local processes (default: CPU count); ``ray_address``: on Ray
     (``auto``, ``local`` or an address). ``solvers``: binaries by name (``--solver``).
-    Raises :class:`KeyboardInterrupt` through (what finished is on disk; SIGTERM alike) and
+    ``max_wall_s``: the run's deadline, from now: past it no plan or cell starts and a cell
+    it cuts short gets no row (``summary.left`` says how many; running again finishes
+    them). Raises :class:`KeyboardInterrupt` through (what finished is on disk; SIGTERM alike) and
     a :class:`~warerover_phys.errors.WareroverError` when another run holds the folder."""
     with sweep_lock(out_dir), _term_as_interrupt():
         t0 = time.perf_counter()
+        deadline = None if max_wall_s is None else time.time() + max_wall_s
         tasks, summary, results = plan_study(spec, out_dir, retry_failed=retry_failed,
                                              solvers=solvers)
-        _write_spec(spec, summary.out_dir)
+        if deadline is not None:
+            tasks = [replace(t, deadline=deadline) if isinstance(t, PlanTask) else t
+                     for t in tasks]
+        write_spec_json(spec, summary.out_dir, SPEC_NAME)
         if on_start is not None:
             on_start(summary, sum(len(t.keys) for t in tasks))
         workers = max(1, workers or os.cpu_count() or 1)
-
-        def sink(rows: list[dict[str, Any]]) -> None:
-            for row in rows:
-                results.append(row)
-                summary.ran += 1
-                if row["status"] != "ok":
-                    summary.failed += 1
-                    summary.failed_total += 1
-                if on_row is not None:
-                    on_row(row)
-
+        one = row_sink(results, summary, on_row)
         results.open_for_append()
         try:
             # the biggest tasks first: the pool's last minutes are not one long task alone
-            tasks.sort(key=lambda t: -getattr(t, "n", 0) * len(t.keys))
-            if tasks and ray_address is not None:
-                run_ray(tasks, ray_address, workers, sink, fn=run_any, fail=fail_task)
-            elif tasks:
-                run_pool(tasks, workers, sink, fn=run_any, fail=fail_task)
+            tasks.sort(key=task_cost, reverse=True)
+            dispatch(tasks, ray_address, workers, lambda rows: [one(r) for r in rows],
+                     fn=run_any, fail=fail_task)
         finally:
             results.close()
             summary.wall_s = time.perf_counter() - t0
         write_tables(summary.out_dir)
     return summary
+
+
+EXEC_S_PER_AGENT = 0.02
+"""Seconds of one CPU to execute one agent's plan on physics, about (the trade-offs study
+measured 0.005-0.025: longer plans on bigger maps cost more)."""
+
+
+def task_cost(task: PlanTask | LifelongTask) -> float:
+    """A task's expected seconds of work, to start the big ones first: its solver's time
+    limit (an anytime solver spends all of it) and its cells' executions."""
+    if isinstance(task, LifelongTask):
+        return 0.0
+    return task.entry.time_limit_s + len(task.cells) * task.n * EXEC_S_PER_AGENT
 
 
 def load_results(out_dir: str | Path) -> tuple[list[dict[str, Any]], dict[str, Any] | None]:

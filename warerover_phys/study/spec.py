@@ -47,10 +47,11 @@ import os
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from ..config import AgvTypeSpec, DelaySpec, _from_validation_error, read_yaml
+from ..config import AgvTypeSpec, DelaySpec
 from ..errors import ScenarioError
+from ..sweep.spec import read_spec_file
 
 __all__ = ["StudySpec", "StudyError", "PlannerEntry", "SolverEntry", "Mismatch", "Execution",
            "InstanceEntry", "LifelongEntry", "load_study", "content_hash", "DIMENSIONS",
@@ -189,6 +190,13 @@ class Execution(_Model):
     """A cell stops after ``factor x plan makespan + 200`` ticks (recorded as incomplete)."""
     options: dict[str, Any] = Field(default_factory=dict)
     """Other executor fields (``no_slip``, ``comm_latency_s``, ``adg`` ...)."""
+    cell_timeout_s: PosFloat | None = 300.0
+    """Wall-clock guard of one cell's execution (and motion schedule): past it the cell
+    is a row with status ``timeout`` (None: no guard). Not part of a cell's identity."""
+    plan_grace_s: PosFloat | None = 60.0
+    """Wall-clock guard of obtaining and repairing a plan: ``2 x time_limit_s +
+    plan_grace_s`` seconds, then the task's cells are rows with status ``timeout`` (None:
+    no guard). Not part of a cell's identity."""
 
     @model_validator(mode="after")
     def _steps(self) -> Execution:
@@ -303,16 +311,7 @@ class StudySpec(_Model):
 def load_study(path: str | Path) -> StudySpec:
     """Read and validate a study file; a :class:`StudyError` names the file, field and
     value. Checks that the maps, scenario files and plan folders exist."""
-    path = Path(path)
-    try:
-        data = read_yaml(path, "study")
-    except ScenarioError as err:
-        raise StudyError(err.message, file=err.file, field=err.field, value=err.value) from None
-    try:
-        spec = StudySpec.model_validate({**data, "source": str(path)})
-    except ValidationError as err:
-        e = _from_validation_error(err, str(path))
-        raise StudyError(e.message, file=e.file, field=e.field, value=e.value) from None
+    spec = read_spec_file(path, "study", StudySpec, StudyError)
     _check_files(spec)
     return spec
 

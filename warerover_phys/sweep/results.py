@@ -149,6 +149,17 @@ class ResultsFile:
             os.fsync(fh.fileno())
         os.replace(tmp, self.path)
 
+    def drop_failed(self, rows: dict[str, dict[str, Any]], keys: set[str],
+                    ) -> tuple[dict[str, dict[str, Any]], set[str]]:
+        """``--retry-failed``: take the rows of ``keys`` whose status is not ``ok`` out of
+        the file (rewritten) and of ``rows`` (``load()``'s); returns the rows left and the
+        keys taken out."""
+        retry = {k for k, r in rows.items() if k in keys and r.get("status") != "ok"}
+        if retry:
+            self.rewrite([r for k, r in rows.items() if k not in retry])
+            rows = {k: r for k, r in rows.items() if k not in retry}
+        return rows, retry
+
     def close(self) -> None:
         if self._fd is not None:
             os.close(self._fd)

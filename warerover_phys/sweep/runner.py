@@ -39,7 +39,7 @@ from .results import RESULTS_NAME, ResultsFile
 from .spec import Episode, SweepSpec, compile_scenarios, expand
 
 __all__ = ["Task", "SweepSummary", "run_task", "run_sweep", "plan_sweep", "pool_map",
-           "run_pool", "run_ray", "SPEC_NAME"]
+           "run_pool", "run_ray", "SPEC_NAME", "write_spec_json", "row_sink", "dispatch"]
 
 log = logging.getLogger(__name__)
 
@@ -78,6 +78,11 @@ class SweepSummary:
     @property
     def results(self) -> Path:
         return self.out_dir / RESULTS_NAME
+
+    @property
+    def left(self) -> int:
+        """Episodes (cells) still without a row: a run stopped at its deadline."""
+        return self.total - self.done_before - self.ran
 
 
 def _now() -> str:
@@ -134,10 +139,7 @@ def plan_sweep(spec: SweepSpec, out_dir: str | Path, *, retry_failed: bool = Fal
     if len(keys) != len(episodes):
         raise WareroverError(f"{spec.source}: two episodes of the sweep have the same key")
     if retry_failed:
-        retry = {k for k, r in rows.items() if k in keys and r.get("status") != "ok"}
-        if retry:
-            results.rewrite([r for k, r in rows.items() if k not in retry])
-            rows = {k: r for k, r in rows.items() if k not in retry}
+        rows = results.drop_failed(rows, keys)[0]
     todo = [ep for ep in episodes if ep.key not in rows]
     scenarios = compile_scenarios(spec, todo)
     paths = spec.plugin_paths()
@@ -155,12 +157,41 @@ def _task(spec: SweepSpec, ep: Episode, scenario: Scenario, paths: tuple[str, ..
                 sys_path=paths)
 
 
-def _write_spec(spec: SweepSpec, out_dir: Path) -> None:
+def write_spec_json(spec: Any, out_dir: Path, name: str = SPEC_NAME) -> None:
+    """Keep ``spec`` (a pydantic model with a ``source``) as ``out_dir/name``, written to a
+    temporary file and renamed (a sweep's ``sweep.json``, a study's ``study.json``)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     data = {**spec.model_dump(mode="json"), "source": spec.source}
-    tmp = out_dir / (SPEC_NAME + ".tmp")
+    tmp = out_dir / (name + ".tmp")
     tmp.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
-    os.replace(tmp, out_dir / SPEC_NAME)
+    os.replace(tmp, out_dir / name)
+
+
+def row_sink(results: ResultsFile, summary: SweepSummary,
+             on_row: Callable[[dict[str, Any]], None] | None) -> Callable[[dict[str, Any]], None]:
+    """What takes each finished row: appended to ``results``, counted in ``summary`` (ran,
+    failed: any status but ``ok``), handed to ``on_row``."""
+
+    def sink(row: dict[str, Any]) -> None:
+        results.append(row)
+        summary.ran += 1
+        if row["status"] != "ok":
+            summary.failed += 1
+            summary.failed_total += 1
+        if on_row is not None:
+            on_row(row)
+
+    return sink
+
+
+def dispatch(tasks: list[Any], ray_address: str | None, workers: int,
+             sink: Callable[[Any], None], **kw: Any) -> None:
+    """Run ``tasks`` on Ray (``ray_address``) or the local process pool (``kw``: ``fn``,
+    ``fail`` of :func:`run_pool`)."""
+    if tasks and ray_address is not None:
+        run_ray(tasks, ray_address, workers, sink, **kw)
+    elif tasks:
+        run_pool(tasks, workers, sink, **kw)
 
 
 def run_sweep(spec: SweepSpec, out_dir: str | Path, *, workers: int | None = None,
@@ -205,27 +236,13 @@ def _run_locked(spec: SweepSpec, out_dir: str | Path, *, workers: int | None,
                 on_row: Callable[[dict[str, Any]], None] | None) -> SweepSummary:
     t0 = time.perf_counter()
     tasks, summary, results = plan_sweep(spec, out_dir, retry_failed=retry_failed)
-    _write_spec(spec, summary.out_dir)
+    write_spec_json(spec, summary.out_dir)
     if on_start is not None:
         on_start(summary, len(tasks))
     workers = max(1, workers or os.cpu_count() or 1)
-
-    def sink(row: dict[str, Any]) -> None:
-        results.append(row)
-        summary.ran += 1
-        if row["status"] != "ok":
-            summary.failed += 1
-            summary.failed_total += 1
-        if on_row is not None:
-            on_row(row)
-
     results.open_for_append()
     try:
-        if tasks:
-            if ray_address is not None:
-                run_ray(tasks, ray_address, workers, sink)
-            else:
-                run_pool(tasks, workers, sink)
+        dispatch(tasks, ray_address, workers, row_sink(results, summary, on_row))
     finally:
         results.close()
         summary.wall_s = time.perf_counter() - t0

@@ -38,7 +38,7 @@ import json
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
@@ -47,7 +47,9 @@ from ..errors import ScenarioError
 from ..registry import check_plugins
 
 __all__ = ["SweepSpec", "ScenarioEntry", "Episode", "SweepError", "load_sweep", "expand",
-           "episode_key", "compile_scenarios", "narrow"]
+           "episode_key", "compile_scenarios", "narrow", "read_spec_file"]
+
+M = TypeVar("M", bound=BaseModel)
 
 MAX_EPISODES = 1_000_000
 """Most episodes one sweep may hold (scenarios x grid combinations x seeds)."""
@@ -213,16 +215,23 @@ def episode_key(label: str, overrides: Any, seed: int) -> str:
 
 def load_sweep(path: str | Path) -> SweepSpec:
     """Read and validate a sweep file; a :class:`SweepError` names the file, field and value."""
+    return read_spec_file(path, "sweep", SweepSpec, SweepError)
+
+
+def read_spec_file(path: str | Path, kind: str, model: type[M], error: type[ScenarioError],
+                   ) -> M:
+    """Read the YAML file ``path`` (a ``kind`` file: sweep, study) and validate it as
+    ``model`` with its ``source``; an ``error`` names the file, field and value."""
     path = Path(path)
     try:
-        data = read_yaml(path, "sweep")
+        data = read_yaml(path, kind)
     except ScenarioError as err:
-        raise SweepError(err.message, file=err.file, field=err.field, value=err.value) from None
+        raise error(err.message, file=err.file, field=err.field, value=err.value) from None
     try:
-        return SweepSpec.model_validate({**data, "source": str(path)})
+        return model.model_validate({**data, "source": str(path)})
     except ValidationError as err:
         e = _from_validation_error(err, str(path))
-        raise SweepError(e.message, file=e.file, field=e.field, value=e.value) from None
+        raise error(e.message, file=e.file, field=e.field, value=e.value) from None
 
 
 def narrow(spec: SweepSpec, *, repetitions: int | None = None,
