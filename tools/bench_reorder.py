@@ -117,7 +117,9 @@ def run_one(job: dict) -> dict:
             "real_time_factor": s["real_time_factor"], "wall_s": wall, "cpu_s": cpu,
             "sim_s": report["executed_makespan_s"],
             "agv_contacts": s["agv_contacts"], "deadlocks": s["deadlocks"],
-            "execution_problems": problems[:5], "load": os.getloadavg()[0]}
+            "execution_problems": problems[:5], "load": os.getloadavg()[0],
+            "audit_s_per_agv": {k[len("reorder_audit_"):-2]: v / n for k, v in s.items()
+                                if k.startswith("reorder_audit_")}}
 
 
 KEY = ("map", "planner", "agents", "delays", "mode", "seed", "dt_s", "options")
