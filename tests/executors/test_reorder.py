@@ -38,18 +38,19 @@ def corridor(mode: str, delay_s: float, paths=PATHS, **options) -> PhysicsExecut
     """Execute the corridor plan with AGV 0 held by a delay for its first ``delay_s``."""
     layout = build_layout(LayoutSpec(grid=GRID))
     ex = PhysicsExecutor(ExecutorSpec(name="physics", reorder=mode, **options))
+    n = len(paths)
     ex.bind(ExecutorSetup(layout=layout, tick_s=1.0, rng=np.random.default_rng(0),
                           agvs=tuple(AgvBody(i, 1, AgvTypeSpec(), paths[i].states[0])
-                                     for i in range(2))))
+                                     for i in range(n))))
     ex.delayed_until[0] = delay_s
     ex.test_events = []
     plans = MappingProxyType(paths)
     for tick in range(60):
-        rep = ex.step(TickView(tick=tick, plans=plans, behind=(0, 0), failed=frozenset(),
-                               loaded=(False, False), carried=(None, None),
-                               task_state=(0, 0)))
+        rep = ex.step(TickView(tick=tick, plans=plans, behind=(0,) * n, failed=frozenset(),
+                               loaded=(False,) * n, carried=(None,) * n,
+                               task_state=(0,) * n))
         ex.test_events += rep.events
-        if all(ex.adg.done(i) for i in range(2)) and (ex.mode == 0).all():
+        if all(ex.adg.done(i) for i in range(n)) and (ex.mode == 0).all():
             return ex
     raise AssertionError("the corridor plan did not finish")
 
@@ -130,6 +131,12 @@ def test_the_audit_splits_the_waits_by_what_holds_them():
     assert sum(got.values()) == pytest.approx(held.summary()["delay_dependency_wait_s"],
                                               abs=1.0)
     assert held.summary()["reorder_switches"] == 0
+    # a chain: AGV 2 waits behind AGV 1, which waits behind the delayed AGV 0
+    chain = {0: TimedPath(0, 0, ((2, 2), (3, 3), (4, 4), (5, 5))),
+             1: TimedPath(1, 0, ((1, 1), (1, 1), (2, 2), (3, 3), (4, 4))),
+             2: TimedPath(2, 0, ((0, 0), (0, 0), (0, 0), (1, 1), (2, 2), (3, 3)))}
+    got = audit(corridor("greedy", 8.0, paths=chain))
+    assert got["chain_held_delayed"] > 5 and got["held_delayed"] > 5 and not got.get("switched")
 
 
 def test_reorder_settings_are_checked():
