@@ -117,7 +117,9 @@ def run_one(job: dict) -> dict:
             "real_time_factor": s["real_time_factor"], "wall_s": wall, "cpu_s": cpu,
             "sim_s": report["executed_makespan_s"],
             "agv_contacts": s["agv_contacts"], "deadlocks": s["deadlocks"],
-            "execution_problems": problems[:5], "load": os.getloadavg()[0]}
+            "execution_problems": problems[:5], "load": os.getloadavg()[0],
+            "audit_s_per_agv": {k[len("reorder_audit_"):-2]: v / n for k, v in s.items()
+                                if k.startswith("reorder_audit_")}}
 
 
 KEY = ("map", "planner", "agents", "delays", "mode", "seed", "dt_s", "options")
@@ -200,6 +202,50 @@ def print_table(summary: list[dict]) -> None:
             _pm(r["cpu_ratio"], ".2f"), r["contacts"], r["problems"])))
 
 
+AUDIT = {  # the audit's reasons (executors.reorder.Reorderer.audit), grouped
+    "switchable": ("switched", "declined", "refused", "overlap"),
+    "held: delayed AGV": ("held_delayed",),
+    "held: AGV driving off": ("held_moving",),
+    "unmovable visit": ("claimed", "sweep", "plan_end", "unmovable"),
+    "itself delayed": ("delayed",),
+    "other": ("other",),
+}
+
+
+def audit_groups(audit: dict[str, float]) -> dict[str, float]:
+    """Seconds per AGV by :data:`AUDIT` group; a chain's wait (``chain_X``) goes with the
+    group of ``X`` (as ``chain: ...``), ``chain_moving`` with the AGVs driving off."""
+    out = {g: 0.0 for g in AUDIT} | {f"chain: {g}": 0.0 for g in AUDIT}
+    for k, v in audit.items():
+        chain = k.startswith("chain_")
+        name = k[len("chain_"):] if chain else k
+        name = "held_moving" if name == "moving" else name
+        g = next((g for g, ks in AUDIT.items() if name in ks), "other")
+        out[f"chain: {g}" if chain else g] += v
+    return out
+
+
+def print_audit(rows: list[dict]) -> None:
+    """Where the dependency wait goes (seconds per AGV, mean ± 95% CI over seeds), per
+    (map, planner, agents, delays, mode, options) of the runs that carry an audit."""
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        if r.get("audit_s_per_agv"):
+            k = (r["map"], r["planner"], r["agents"], r["delays"], r["mode"],
+                 json.dumps(r["options"], sort_keys=True))
+            groups.setdefault(k, []).append(r)
+    names = [*AUDIT, *(f"chain: {g}" for g in AUDIT)]
+    head = ("map", "planner", "N", "delays", "mode", "options", "seeds", "dep. wait/AGV (s)",
+            *names)
+    print(" | ".join(head))
+    print(" | ".join("---" for _ in head))
+    for k, rs in sorted(groups.items()):
+        by = [audit_groups(r["audit_s_per_agv"]) for r in rs]
+        print(" | ".join(str(x) for x in (
+            *k, len(rs), _pm(ci95([r["dependency_wait_s_per_agv"] for r in rs])),
+            *(_pm(ci95([b[n] for b in by])) for n in names))))
+
+
 def load_rows(path: Path) -> list[dict]:
     if not path.exists():
         return []
@@ -243,7 +289,11 @@ def main(argv: list[str] | None = None) -> int:
                     help="seconds per plan (lacam3 -t, warerover solve --time-limit)")
     ap.add_argument("--out", type=Path, default=Path("runs/bench_reorder/runs.jsonl"))
     ap.add_argument("--table", action="store_true", help="only print the table of --out")
+    ap.add_argument("--audit", action="store_true",
+                    help="also print where the dependency wait goes (runs with an audit)")
     ap.add_argument("--json", type=Path, help="also write the summary here")
+    ap.add_argument("--more", type=Path, nargs="*", default=[],
+                    help="more run files for the table (batches run side by side)")
     ap.add_argument("--max-runs", type=int, help="stop after this many new runs")
     args = ap.parse_args(argv)
     if not args.table:
@@ -273,8 +323,12 @@ def main(argv: list[str] | None = None) -> int:
                       f"{row['mode']} seed {row['seed']}: AET {row['aet_s']:.1f} s, "
                       f"wall {row['wall_s']:.0f} s (load {row['load']:.1f})",
                       file=sys.stderr, flush=True)
-    summary = summarise(load_rows(args.out))
+    rows = [r for path in [args.out, *args.more] for r in load_rows(path)]
+    summary = summarise(rows)
     print_table(summary)
+    if args.audit:
+        print()
+        print_audit(rows)
     if args.json:
         args.json.write_text(json.dumps(summary, indent=1, sort_keys=True, default=float))
     return 0

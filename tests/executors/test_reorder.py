@@ -34,22 +34,23 @@ PATHS = {0: TimedPath(0, 0, ((8, 8), (2, 2), (3, 3), (4, 4), (5, 5))),
          1: TimedPath(1, 0, ((0, 0), (1, 1), (1, 1), (2, 2), (3, 3), (9, 9)))}
 
 
-def corridor(mode: str, delay_s: float, **options) -> PhysicsExecutor:
+def corridor(mode: str, delay_s: float, paths=PATHS, **options) -> PhysicsExecutor:
     """Execute the corridor plan with AGV 0 held by a delay for its first ``delay_s``."""
     layout = build_layout(LayoutSpec(grid=GRID))
     ex = PhysicsExecutor(ExecutorSpec(name="physics", reorder=mode, **options))
+    n = len(paths)
     ex.bind(ExecutorSetup(layout=layout, tick_s=1.0, rng=np.random.default_rng(0),
-                          agvs=tuple(AgvBody(i, 1, AgvTypeSpec(), PATHS[i].states[0])
-                                     for i in range(2))))
+                          agvs=tuple(AgvBody(i, 1, AgvTypeSpec(), paths[i].states[0])
+                                     for i in range(n))))
     ex.delayed_until[0] = delay_s
     ex.test_events = []
-    plans = MappingProxyType(PATHS)
+    plans = MappingProxyType(paths)
     for tick in range(60):
-        rep = ex.step(TickView(tick=tick, plans=plans, behind=(0, 0), failed=frozenset(),
-                               loaded=(False, False), carried=(None, None),
-                               task_state=(0, 0)))
+        rep = ex.step(TickView(tick=tick, plans=plans, behind=(0,) * n, failed=frozenset(),
+                               loaded=(False,) * n, carried=(None,) * n,
+                               task_state=(0,) * n))
         ex.test_events += rep.events
-        if all(ex.adg.done(i) for i in range(2)) and (ex.mode == 0).all():
+        if all(ex.adg.done(i) for i in range(n)) and (ex.mode == 0).all():
             return ex
     raise AssertionError("the corridor plan did not finish")
 
@@ -89,15 +90,53 @@ def test_no_switch_that_does_not_win_the_margin():
 
 def test_milp_chooses_the_switch_and_falls_back_to_greedy_without_an_optimum():
     greedy = corridor("greedy", 8.0)
-    milp = corridor("milp", 8.0)
+    milp = corridor("milp", 8.0, reorder_milp_band_s=None)
     assert switches(milp) == switches(greedy)
     assert milp.summary()["reorder_milp_solves"] >= 1
     assert milp.summary()["reorder_milp_fallbacks"] == 0
+    # The lone candidate wins ~8 s, far beyond the margin: clear-cut, no program
+    clear = corridor("milp", 8.0)
+    assert switches(clear) == switches(greedy)
+    assert clear.summary()["reorder_milp_solves"] == 0
+    assert clear.summary()["reorder_milp_clear"] >= 1
     # A time limit the solver cannot meet: every decision falls back to the greedy rule.
-    late = corridor("milp", 8.0, reorder_time_limit_s=1e-9)
+    late = corridor("milp", 8.0, reorder_time_limit_s=1e-9, reorder_milp_band_s=None)
     assert late.summary()["reorder_milp_fallbacks"] >= 1
     assert switches(late) == switches(greedy)
     np.testing.assert_array_equal(late.last_finish, greedy.last_finish)
+
+
+def audit(ex: PhysicsExecutor) -> dict[str, float]:
+    s = ex.summary()
+    return {k[len("reorder_audit_"):-2]: v for k, v in s.items()
+            if k.startswith("reorder_audit_")}
+
+
+def test_the_audit_splits_the_waits_by_what_holds_them():
+    # declined: a switch was possible but not worth the margin; the whole wait is there
+    declined = corridor("greedy", 8.0, reorder_margin_s=30.0)
+    got = audit(declined)
+    wait = declined.summary()["delay_dependency_wait_s"]
+    # (then it waits while AGV 0 drives off the cells: held_moving)
+    assert set(got) == {"declined", "held_moving"} and got["declined"] > 5
+    assert sum(got.values()) == pytest.approx(wait, abs=1.0)
+    # switched: the wait ends at the first decision that finds it
+    assert set(audit(corridor("greedy", 8.0))) == {"switched"}
+    # held: AGV 1 drives right behind AGV 0, which is delayed standing on the next cell
+    behind = {0: TimedPath(0, 0, ((1, 1), (2, 2), (3, 3), (4, 4), (5, 5))),
+              1: TimedPath(1, 0, ((0, 0), (0, 0), (1, 1), (2, 2), (3, 3), (4, 4)))}
+    held = corridor("greedy", 8.0, paths=behind)
+    got = audit(held)
+    assert got["held_delayed"] > 5 and not got.get("declined") and not got.get("switched")
+    assert sum(got.values()) == pytest.approx(held.summary()["delay_dependency_wait_s"],
+                                              abs=1.0)
+    assert held.summary()["reorder_switches"] == 0
+    # a chain: AGV 2 waits behind AGV 1, which waits behind the delayed AGV 0
+    chain = {0: TimedPath(0, 0, ((2, 2), (3, 3), (4, 4), (5, 5))),
+             1: TimedPath(1, 0, ((1, 1), (1, 1), (2, 2), (3, 3), (4, 4))),
+             2: TimedPath(2, 0, ((0, 0), (0, 0), (0, 0), (1, 1), (2, 2), (3, 3)))}
+    got = audit(corridor("greedy", 8.0, paths=chain))
+    assert got["chain_held_delayed"] > 5 and got["held_delayed"] > 5 and not got.get("switched")
 
 
 def test_reorder_settings_are_checked():

@@ -37,7 +37,6 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from itertools import islice
 from typing import TYPE_CHECKING
 
@@ -47,6 +46,7 @@ from ..planning.base import footprint_nodes
 from ..planning.motion import MotionModel, quarter_turns
 from .control import wrap
 from .fleet_state import DRIVE, TURN
+from .reorder_types import Estimate
 from .switch import SEGMENT_LIMIT, Group, SwitchableGraph
 
 if TYPE_CHECKING:
@@ -66,39 +66,11 @@ WAIT_LOOKAHEAD = 32
 """Actions of the AGV waited for that an estimate looks at (beyond: not counted)."""
 
 
-@dataclass(frozen=True)
-class Estimate:
-    """A candidate switch with its estimated effect (seconds)."""
-
-    group: Group
-    wait_s: float
-    """How long the waiting AGV would wait without the switch."""
-    costs_s: dict[int, float]
-    """Per AGV it passes: how long that AGV would wait for it with the switch."""
-    times: dict[int, tuple[list[float], list[float]]]
-    """Per AGV of the group: estimated start and finish times of its next actions."""
-    behind: dict[int, int]
-    """Per AGV of the group: the AGVs waiting on it (directly or down a chain): they win
-    or lose as it does."""
-
-    @property
-    def cost_s(self) -> float:
-        return sum(self.costs_s.values())
-
-    @property
-    def gain_s(self) -> float:
-        """The estimated seconds won by the fleet: the waiting AGV's wait less the costs
-        to the AGVs it passes, each times itself and the AGVs waiting on it."""
-        b = self.behind
-        return self.wait_s * (1 + b.get(self.group.second, 0)) - sum(
-            c * (1 + b.get(a, 0)) for a, c in self.costs_s.items())
-
-
 class Reorderer:
     """Switches edges of the follower's dependency graph (see the module doc)."""
 
     wait_depth = WAIT_DEPTH
-    """:data:`WAIT_DEPTH`, read by :mod:`.reorder_milp` (which does not import this module)."""
+    """:data:`WAIT_DEPTH`, read by :mod:`.reorder_milp` (:class:`~.reorder_types.Decider`)."""
 
     def __init__(self, st: FleetState, adg: ActionGraph, spec: ExecutorSpec,
                  holds: dict[int, dict[int, int]], acc: Accounting, *,
@@ -110,6 +82,7 @@ class Reorderer:
         self.horizon = int(spec.reorder_horizon)
         self.node_limit = int(spec.reorder_node_limit)
         self.time_limit_s = spec.reorder_time_limit_s
+        self.milp_band_s = spec.reorder_milp_band_s
         self.graph = SwitchableGraph(adg, check=check)
         self.slow = slowdown(spec.delays)
         """Driving times are stretched by this factor: the share of time random delays
@@ -120,6 +93,7 @@ class Reorderer:
         self._behind: dict[int, int] = {}
         self._next_s = 0.0
         self._models: dict[int, tuple[tuple[float, float, float], MotionModel]] = {}
+        self._memo: dict[tuple[int, int], tuple] = {}
         self.decisions = 0
         self.candidates = 0
         self.gain_s = 0.0
@@ -129,6 +103,16 @@ class Reorderer:
         machine does not inflate)."""
         self.milp_solves = 0
         self.milp_fallbacks = 0
+        self.milp_clear = 0
+        """``milp``: lone candidates decided by the greedy rule (clear-cut)."""
+        self.audit: dict[str, float] = {}
+        """Simulated AGV-seconds the waiting AGVs spent, sampled at the decisions, by what
+        held them: ``switched``, ``declined`` (not worth it, or declined before),
+        ``refused`` (a cycle), ``overlap`` (its cells in another candidate),
+        ``held_delayed`` / ``held_moving`` / ``claimed`` / ``sweep`` / ``plan_end`` /
+        ``unmovable`` / ``other`` (no candidate: :meth:`_why_not`), ``chain_X`` (held by an
+        AGV that waits in turn, down a chain to one whose wait is ``X``; ``chain_moving``:
+        to one not looked at, e.g. driving), ``delayed`` (delayed or failed itself)."""
 
     # ----------------------------------------------------------------- decisions
 
@@ -144,18 +128,24 @@ class Reorderer:
         waiting = np.flatnonzero(st.waiting).tolist()
         cands = np.flatnonzero(st.waiting & ~delayed & ~st.failed).tolist()
         self._behind = self._chains(waiting)
+        self._memo.clear()
         ests: list[Estimate] = []
         used: set[int] = set()
         keys: dict[int, tuple] = {}
+        why: dict[int, str] = {}
+        on: dict[int, int] = {}
         for j in cands:
             g = self.graph.candidate(j, SEGMENT_LIMIT)
             if g is None:
+                why[j], on[j] = self._why_not(j, delayed)
                 continue
             key = self._key(g)
             if key in self._declined:
+                why[j] = "declined"
                 continue
             ids = {id(v) for pair in g.pairs for v in pair}
             if ids & used:
+                why[j] = "overlap"
                 continue
             used |= ids
             keys[j] = key
@@ -172,9 +162,16 @@ class Reorderer:
             if self.graph.switch(e.group):
                 made += 1
                 self._record(e, t)
+            else:
+                why[e.group.second] = "refused"
         for e in ests:  # declined or refused: not again until something it depends on moves
-            if e.group.second not in self._switched_now:
-                self._declined.add(keys[e.group.second])
+            j = e.group.second
+            why.setdefault(j, "switched" if j in self._switched_now else "declined")
+            if j not in self._switched_now:
+                self._declined.add(keys[j])
+        for j in waiting:
+            why.setdefault(j, "delayed")
+        self._account(why, on)
         self._switched_now.clear()
         self.wall_s += time.perf_counter() - wall0
         self.cpu_s += time.process_time() - cpu0
@@ -198,6 +195,48 @@ class Reorderer:
         passed = sorted({u.agv for u, _ in g.pairs})
         return (g.second, *heads, *passed, *(float(st.delayed_until[a]) for a in passed),
                 *(bool(st.waiting[a]) for a in passed))
+
+    def _account(self, why: dict[int, str], on: dict[int, int]) -> None:
+        """Add the decision's waits to :attr:`audit`; a wait behind an AGV that waits in
+        turn (``held_waiting``) goes to the end of the chain's reason (``chain_...``)."""
+        for j, w in why.items():
+            if w == "held_waiting":
+                seen = {j}
+                h = on[j]
+                while why.get(h) == "held_waiting" and h not in seen:
+                    seen.add(h)
+                    h = on[h]
+                w = "chain_" + why.get(h, "moving")
+            self.audit[w] = self.audit.get(w, 0.0) + self.every_s
+
+    def _why_not(self, j: int, delayed: np.ndarray) -> tuple[str, int]:
+        """Why waiting AGV ``j`` has no candidate (the audit, :attr:`audit`): the visit
+        ahead of its own at a cell its next action enters is ``held`` by its AGV
+        (standing on it or driving off it: ``held_delayed`` if that AGV is delayed or
+        failed, ``held_waiting`` if it waits in turn, else ``held_moving``), or may not
+        move (``claimed``: its AGV drives through without stopping; ``sweep``: a turn's
+        swept cell; ``plan_end``: its AGV's plan ends there; ``unmovable``: a visit
+        between, or one at a later cell of the group), or none of these (``other``);
+        and the AGV of that visit (-1: none)."""
+        rec = self.adg._agents[j]
+        if rec.running is not None or not rec.pending:
+            return "other", -1
+        queues, st = self.adg._queues, self.st
+        for v in rec.pending[0].enter_visits:
+            if self.adg._first(v):
+                continue
+            q = queues[v.cell]
+            ahead = [x for x in q[:q.index(v)] if x.agv != j]
+            if not ahead:
+                continue
+            h = ahead[0]
+            if not h.entered:
+                return ("claimed" if h.claimed else "sweep" if h.sweep or h.shelf
+                        else "plan_end" if h.leave is None else "unmovable"), h.agv
+            if delayed[h.agv] or st.failed[h.agv]:
+                return "held_delayed", h.agv
+            return ("held_waiting" if st.waiting[h.agv] else "held_moving"), h.agv
+        return "other", -1
 
     def worth(self, e: Estimate) -> bool:
         """The greedy rule: the switch wins more than the margin."""
@@ -321,7 +360,19 @@ class Reorderer:
         """Estimated start and finish times of AGV ``a``'s next ``upto + 1`` actions (a
         running one not included), driving without waiting on anyone: collinear moves as
         one run from rest to rest, a turn in place before a change of direction, planned
-        dwells."""
+        dwells. Memoised within a decision (nothing moves while one is made: the switches
+        come after every estimate)."""
+        memo = self._memo.get((a, depth))
+        if memo is not None and memo[0] == t and (memo[1] >= upto or memo[2]):
+            return memo[3][:upto + 1], memo[4][:upto + 1]
+        starts, ends = self._times(a, upto, t, depth)
+        if memo is None or memo[0] != t or upto > memo[1]:
+            self._memo[(a, depth)] = (t, upto, len(starts) <= upto, starts, ends)
+        return starts, ends
+
+    def _times(self, a: int, upto: int, t: float, depth: int
+               ) -> tuple[list[float], list[float]]:
+        """:meth:`times` (not memoised)."""
         st = self.st
         m = self.model(a)
         slow = self.slow
@@ -374,9 +425,11 @@ class Reorderer:
             "reorder_cpu_s": self.cpu_s,
             "reorder_cpu_ms_per_tick": 1000.0 * self.cpu_s / ticks,
         }
+        out.update({f"reorder_audit_{k}_s": v for k, v in sorted(self.audit.items())})
         if self.mode == "milp":
             out["reorder_milp_solves"] = self.milp_solves
             out["reorder_milp_fallbacks"] = self.milp_fallbacks
+            out["reorder_milp_clear"] = self.milp_clear
         return out
 
 
