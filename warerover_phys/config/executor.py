@@ -142,6 +142,10 @@ class ExecutorSpec(_Model):
     reorder_time_limit_s: PosFloat | None = None
     """``milp``: wall-clock seconds per program as well (None: none). Set, results may
     depend on the machine's speed."""
+    reorder_milp_band_s: NonNegFloat | None = 2.0
+    """``milp``: a lone candidate (no other shares an AGV with it) whose estimated gain is
+    further than this from the margin is decided by the greedy rule, without a program
+    (None: every candidate goes to the program)."""
 
     @model_validator(mode="after")
     def _physics_fields(self) -> ExecutorSpec:
