@@ -75,6 +75,19 @@ def _junit(path: Path, top: int) -> dict:
             "heaviest_files": [{"file": f, "s": round(t, 1)} for f, t in files]}
 
 
+def _cpu(folder: Path, top: int) -> dict:
+    """The sum of the tests' CPU times and the ``top`` dearest, from tools/pytest_cpu.py."""
+    rows = [json.loads(line) for f in sorted(folder.glob("*.jsonl")) for line in f.open()]
+    rows.sort(key=lambda r: -r["cpu_s"])
+    per_worker = defaultdict(float)
+    for f in sorted(folder.glob("*.jsonl")):
+        per_worker[f.stem] = round(sum(json.loads(line)["cpu_s"] for line in f.open()), 1)
+    return {"sum_of_test_cpu_s": round(sum(r["cpu_s"] for r in rows), 1),
+            "test_cpu_per_worker_s": dict(per_worker),
+            "dearest_cpu": [{"test": r["test"], "cpu_s": r["cpu_s"], "wall_s": r["wall_s"]}
+                            for r in rows[:top]]}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--ref", default="HEAD", help="what to clone (default: HEAD)")
@@ -112,11 +125,17 @@ def main(argv: list[str] | None = None) -> int:
     nb.mkdir()
     env = {k: v for k, v in os.environ.items() if k not in ("CI", "HYPOTHESIS_PROFILE")}
     env["NUMBA_CACHE_DIR"] = str(nb)  # an empty compile cache: every kernel compiles
-    junit = work / "junit.xml"
-    result["make_test"] = _timed(["make", "test", f"TEST_ARGS=--junitxml={junit}"], repo, env,
-                                 work / "make_test.log")
+    junit, cpu_dir = work / "junit.xml", work / "cpu"
+    shutil.rmtree(cpu_dir, ignore_errors=True)
+    # tools/pytest_cpu.py (from this checkout) records each test's CPU time.
+    env["PYTHONPATH"] = os.pathsep.join([str(REPO / "tools"), env.get("PYTHONPATH", "")])
+    env["PYTEST_CPU_OUT"] = str(cpu_dir)
+    result["make_test"] = _timed(
+        ["make", "test", f"TEST_ARGS=--junitxml={junit} -p pytest_cpu"], repo, env,
+        work / "make_test.log")
     if junit.exists():
         result["make_test"].update(_junit(junit, args.top))
+    result["make_test"].update(_cpu(cpu_dir, args.top))
     result["workdir"] = str(work)
     ok = result["make_test"]["rc"] == 0
     if ok and not args.keep and not args.in_place and args.workdir is None:
