@@ -25,8 +25,10 @@ PYTEST_DEFAULT = $(BIN)/python -m pytest -n auto --dist loadfile
 # 5 minutes, which five of them overran on a loaded two-core machine (load ~20).
 PYTEST_SLOW = $(BIN)/python -m pytest -n auto --dist worksteal -m slow --timeout=1800
 
+# TEST_ARGS: more pytest options for make test (tools/test_time.py passes --junitxml).
+TEST_ARGS ?=
 test: $(STAMP)
-	$(PYTEST_DEFAULT)
+	$(PYTEST_DEFAULT) $(TEST_ARGS)
 
 test-slow: $(STAMP)
 	$(PYTEST_SLOW)

@@ -16,6 +16,9 @@ ordinary budgets near the profile's; every count outside that range says why on 
 above it: few where an example runs an episode or a planner on a floor, many where an
 example is one cheap call over a wide input space (a parser, a kernel, a distance).
 
+**Slow cases.** Besides ``@pytest.mark.slow`` on a test, the cases listed in
+``tests/slow_cases.txt`` (``tests/longcases.py``) are marked slow at collection.
+
 **Skips.** The terminal summary names every skipped test with its reason (xdist folds
 ``-rs`` lines by location, which hides which tests were left out). Under ``CI`` a skip is a
 failure (CI runs everything: a missing browser, binary or extra must turn it red, not
@@ -26,6 +29,7 @@ from __future__ import annotations
 
 import os
 import re
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, settings
@@ -67,6 +71,17 @@ settings.load_profile(profile_name())
 def pytest_report_header(config) -> str:
     return f"hypothesis profile: {profile_name()}; CI: {in_ci()} (skips fail)" if in_ci() \
         else f"hypothesis profile: {profile_name()}"
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    """The cases listed in ``tests/slow_cases.txt`` join the slow set (before ``-m``
+    selects: this hook runs first)."""
+    if not Path(__file__).with_name("longcases.py").exists():
+        return  # this file run alone on a small suite (tests/test_ci_policy.py)
+    from longcases import mark_slow_cases, slow_cases
+
+    mark_slow_cases(items, slow_cases())
 
 
 def _skip_reason(rep) -> str:

@@ -45,8 +45,14 @@ SPECIAL_COMMANDS = {
 }
 
 
-@pytest.mark.parametrize("kind", ["fifo", "zero"])
-@pytest.mark.parametrize("command", sorted(SPECIAL_COMMANDS))
+def _special_cases() -> list:
+    """Every command with a FIFO in make test; /dev/zero only for ``run`` there, for the
+    others in make test-all (each case is a process of its own, about a second)."""
+    return [(c, k) if k == "fifo" or c == "run" else pytest.param(c, k, marks=pytest.mark.slow)
+            for c in sorted(SPECIAL_COMMANDS) for k in ("fifo", "zero")]
+
+
+@pytest.mark.parametrize("command,kind", _special_cases())
 def test_special_files_are_refused_before_they_are_read(box, kind, command):
     """A FIFO would block the reader for ever; /dev/zero never ends (stat says 0 bytes for
     both): refused unopened, within 10 s, the message saying what the file is."""
@@ -87,8 +93,14 @@ SEED_COMMANDS = {
 }
 
 
-@pytest.mark.parametrize("seed", ["-1", str(2**63)])
-@pytest.mark.parametrize("command", sorted(SEED_COMMANDS))
+def _seed_cases() -> list:
+    """Every command with seed -1 in make test; 2**63 only for ``run`` there, for the others
+    in make test-all (both values meet the same range check)."""
+    return [(c, s) if s == "-1" or c == "run" else pytest.param(c, s, marks=pytest.mark.slow)
+            for c in sorted(SEED_COMMANDS) for s in ("-1", str(2**63))]
+
+
+@pytest.mark.parametrize("command,seed", _seed_cases())
 def test_one_seed_rule_for_every_command(box, command, seed):
     inputs, work = box
     args = [inputs / "plan.txt" if a == "PLAN" else a for a in SEED_COMMANDS[command]]

@@ -113,6 +113,7 @@ def test_values_accepted_silently_are_refused(box, args, needles):
     refuse(work, *[inputs / "plan.txt" if a == "PLAN" else a for a in args], needles=needles)
 
 
+@pytest.mark.slow  # a Robot Runners instance loaded in a subprocess: make test-all
 def test_a_huge_numtasksreveal_is_refused(box):
     inputs, work = box
     doc = json.loads(LORR.read_text())
@@ -138,6 +139,7 @@ def test_gap_seed_ranges_are_capped_before_any_list_is_made(box):
     refuse(work, "gap", HOMO, "--seeds", f"0..{2**62}", needles=["--seeds"], timeout=10)
 
 
+@pytest.mark.slow  # an episode run before the refusal: make test-all
 def test_a_video_of_too_many_frames_is_refused_before_the_first(box):
     inputs, work = box
     rec = inputs / "rec"
@@ -209,6 +211,7 @@ def test_two_agents_on_one_start_are_refused_at_once(box):
 
 # ----------------------------------------------------------------------------- interrupts
 
+@pytest.mark.slow  # 8 s of refinement before the interrupt: make test-all
 def test_ctrl_c_in_solve_refine_is_one_line_and_130(box):
     """The search runs compiled code: Python's KeyboardInterrupt surfaced there as a
     SystemError with two tracebacks."""

@@ -57,9 +57,14 @@ def _study_spec(tmp: Path) -> Path:
 
 
 CASES = list(_commands(Path("/nonexistent")).keys())
+# Cases whose command's --json output is also read in make test elsewhere (test_gap_cli's
+# plan run), or that run several seeds, a time-limited refinement or two commands:
+# make test-all.
+SLOW_CASES = {"gap --seeds", "gap --plan", "solve --refine", "check-trajectory"}
 
 
-@pytest.mark.parametrize("case", CASES)
+@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.slow) if c in SLOW_CASES
+                                  else c for c in CASES])
 def test_json_is_one_document_on_stdout(tmp_path, case):
     """Every command that has ``--json`` (this list is checked against the command line's
     options below)."""

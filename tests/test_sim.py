@@ -118,6 +118,7 @@ def test_every_pattern_runs_on_every_paper_scenario(scenario, pattern):
         assert result.world.orders[e["order"]].station == e["station"]
 
 
+@pytest.mark.slow  # a 300-AGV floor per order pattern: make test-all
 @pytest.mark.parametrize("pattern", slow_after(1, PATTERNS))
 def test_every_pattern_runs_on_industrial(pattern):
     sc = load("industrial.yaml", ("orders.pattern", pattern), ("max_ticks", 12))

@@ -249,6 +249,7 @@ def test_random_small_instances_finish_without_contacts(scenario):
     assert m["agv_contacts"] == 0, m
 
 
+@pytest.mark.slow  # a physics episode through the CLI as a subprocess: make test-all
 def test_run_on_physics_writes_trajectories_and_gap_report(tmp_path):
     import json
     import subprocess

@@ -406,6 +406,7 @@ def assert_same_episode(sets: list, seed: int, max_ticks: int | None = None) -> 
     return hits
 
 
+@pytest.mark.slow  # whole fault episodes, once per checker: make test-all
 def test_fault_episodes_identical_with_either_checker():
     """Three short episodes (80 ticks) of the issue 13 abort configuration (physics, CBS,
     delays, frequent failures): every corridor check's hits, every event and every metric

@@ -141,6 +141,7 @@ def test_oneshot_solves_and_validates(map_name, scen, agents):
     assert validate_states(states, m.obstacles) == []
 
 
+@pytest.mark.slow  # two one-shot solves compared: make test-all
 def test_oneshot_same_seed_same_paths():
     a = _oneshot("random-32-32-10", "random-32-32-10-random-1.scen", 40, seed=2)[2]
     b = _oneshot("random-32-32-10", "random-32-32-10-random-1.scen", 40, seed=2)[2]
@@ -336,6 +337,7 @@ def test_old_weights_version_1_still_load_and_plan(tmp_path):
 
 # ------------------------------------------------------------------ sweeps, execute, training
 
+@pytest.mark.slow  # a sweep of learned-planner episodes: make test-all
 def test_learned_in_a_sweep(tmp_path):
     """``planner.name: learned`` as a sweep axis: every episode runs and succeeds."""
     import json
