@@ -208,15 +208,21 @@ def _key(scenario: str, planner: str, seed: int, delays: bool) -> str:
     return f"{scenario}|{planner}|{seed}|{delays}"
 
 
-def run_episodes(jobs: list[tuple], workers: int, log: Path, resume: bool) -> list[dict]:
+def run_episodes(jobs: list[tuple], workers: int, log: Path, resume: bool,
+                 run: bool = True) -> list[dict]:
     """Run ``jobs`` in ``workers`` processes; each row is appended to ``log`` (JSON lines)
-    as it comes, and with ``resume`` the rows already there are kept and not run again."""
+    as it comes, and with ``resume`` the rows already there are kept and not run again.
+    ``run=False`` only reads ``log``: the rows of ``jobs`` already there."""
     rows = []
-    if resume and log.exists():
+    if (resume or not run) and log.exists():
         rows = [json.loads(line) for line in log.read_text().splitlines() if line.strip()]
+    keys = {_key(j[0] + (f"+{j[1]}" if j[1] else ""), j[2], j[3], j[4]): j for j in jobs}
+    rows = [r for r in rows if _key(r["scenario"], r["planner"], r["seed"], r["delays"])
+            in keys]
     done = {_key(r["scenario"], r["planner"], r["seed"], r["delays"]) for r in rows}
-    todo = [j for j in jobs if _key(j[0] + (f"+{j[1]}" if j[1] else ""), j[2], j[3], j[4])
-            not in done]
+    todo = [j for k, j in keys.items() if k not in done] if run else []
+    if not todo:
+        return rows
     log.parent.mkdir(parents=True, exist_ok=True)
     with ProcessPoolExecutor(max_workers=workers) as pool, \
             log.open("a" if resume else "w") as out:
@@ -252,6 +258,9 @@ def main() -> int:
                     help="the rows (and, as they come, JSON lines beside it: NAME.jsonl)")
     ap.add_argument("--resume", action="store_true",
                     help="keep the episodes already in NAME.jsonl, run the others")
+    ap.add_argument("--table-only", action="store_true",
+                    help="run nothing: the table of the episodes in NAME.jsonl (those of "
+                         "--scenarios x --planners x --seeds x --delays)")
     args = ap.parse_args()
     delays = {"off": [False], "on": [True], "both": [False, True]}[args.delays]
     jobs = []
@@ -263,8 +272,12 @@ def main() -> int:
                      for p in args.planners for d in delays for s in range(args.seeds)]
     jobs.sort(key=lambda j: j[3])  # seed by seed: a run cut short covers every case
     rows, plan_rows = run_episodes(jobs, args.jobs, args.json.with_suffix(".jsonl"),
-                                   args.resume), []
-    if args.plans:
+                                   args.resume, run=not args.table_only), []
+    plan_log = args.json.with_suffix(".plans.jsonl")
+    if args.plans and not args.table_only:
+        plan_log.parent.mkdir(parents=True, exist_ok=True)
+        plan_log.write_text("")
+    if args.plans and not args.table_only:
         for n in args.agents:  # one at a time: the 1,000-agent runs want the memory
             for stem, solver in (("plan", "lacam3"), ("own", "lacam")):
                 f = args.plans / f"{stem}{n}.txt"
@@ -273,6 +286,8 @@ def main() -> int:
                     continue
                 for no_slip in (True, False):
                     plan_rows.append(plan_run((f, solver, no_slip, args.plan_dt)))
+                    with plan_log.open("a") as out:  # kept if the run is cut short
+                        out.write(json.dumps(plan_rows[-1], default=float) + "\n")
                     print(plan_table(plan_rows[-1:]).splitlines()[-1], file=sys.stderr,
                           flush=True)
     args.json.parent.mkdir(parents=True, exist_ok=True)
