@@ -275,6 +275,8 @@ def main() -> int:
     ap.add_argument("--agents", type=int, nargs="+", default=[100, 500, 1000])
     ap.add_argument("--plan-dt", type=float, default=0.02)
     ap.add_argument("--plans-only", action="store_true")
+    ap.add_argument("--models", nargs="+", choices=["no_slip", "default"],
+                    default=["no_slip", "default"], help="the robot models to run plans on")
     ap.add_argument("--json", type=Path, default=ROOT / "tools" / "out" / "diffdrive.json",
                     help="the rows (and, as they come, JSON lines beside it: NAME.jsonl)")
     ap.add_argument("--resume", action="store_true",
@@ -307,7 +309,7 @@ def main() -> int:
                 if not f.exists():
                     print(f"{f}: missing, skipped", file=sys.stderr)
                     continue
-                for no_slip in (True, False):
+                for no_slip in [m == "no_slip" for m in args.models]:
                     plan_rows.append(plan_run((f, solver, no_slip, args.plan_dt)))
                     with plan_log.open("a") as out:  # kept if the run is cut short
                         out.write(json.dumps(plan_rows[-1], default=float) + "\n")
