@@ -15,13 +15,15 @@ Variants: ``paper_heterogeneous`` and ``warerover_hetero`` also run as ``*+2x2di
 2x2 type on differential drive with a 1.4 m body (a 1.6 m one sweeps a disc of radius
 1.13 m turning in place, beyond its 2 m footprint: it touches walls on any robot model).
 
-Plans (``--plans DIR``): ``DIR/planN.txt`` (lacam3) and ``DIR/ownN.txt`` (the project's
-LaCAM) for ``--agents``, on ``warehouse-10-20-10-2-1``, executed as ``warerover execute``
+Plans (``--plans DIR``): ``DIR/planN.txt`` (lacam3) and ``DIR/ownN.txt`` or
+``DIR/lacam-planN.txt`` (the project's LaCAM; ``tools/bench_execute.py --solver lacam --plans
+DIR`` makes them) for ``--agents``, on ``warehouse-10-20-10-2-1``, executed as ``warerover execute``
 does with the default 1x1 fleet, once with ``robot: diffdrive``'s settings and once with
 the default model; poses recorded at 10 Hz (the overlap checks run on those samples; the
 peaks are the executor's per-step monitors). ``--plans-only`` skips the episodes. Rows are
 also appended to ``NAME.jsonl`` beside ``--json`` as they come; ``--resume`` keeps those and
-runs the rest.
+runs the rest; ``--table-only`` runs nothing and prints the table of the rows there (a run
+cut short: ``--seeds N`` keeps seeds 0 to N-1). Plan rows go to ``NAME.plans.jsonl``.
 
 Columns: ``eps`` episodes, ``SR`` mean success rate, ``contacts`` / ``static`` AGV-AGV and
 AGV-wall contacts (independent: samples with an overlap; ``exec``: the executor's
@@ -184,6 +186,25 @@ def table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def summary(rows: list[dict]) -> str:
+    """One sentence over every episode: seeds covered, contacts, agreement, largest peaks."""
+    per_seed: dict[int, int] = {}
+    for r in rows:
+        per_seed[r["seed"]] = per_seed.get(r["seed"], 0) + 1
+    bad = sum(1 for r in rows if r["agv_overlap_samples"] or r["static_overlap_samples"] or
+              r["exec"]["agv_contacts"] or r["exec"]["static_contacts"] or
+              r["exec"]["limit_violations"])
+    peak = {k: max((r[k] for r in rows if r.get(k) is not None), default=None) for k in PEAKS}
+    clear = [r["min_agv_clearance_m"] for r in rows if r["min_agv_clearance_m"] is not None]
+    return (f"{len(rows)} episodes ({dict(sorted(per_seed.items()))} per seed), {bad} with a "
+            f"contact, an overlap or a limit violation; independent and executor figures "
+            f"agree in {sum(agree(r) for r in rows)} of {len(rows)}; largest peaks / limit: "
+            + ", ".join(f"{k[5:-6].replace('_', ' ')} {_fmt(v, 12)}" for k, v in peak.items())
+            + f"; largest lateral speed "
+            f"{max(r['peak_lateral_speed_mps'] for r in rows):.1e} m/s; smallest AGV-AGV "
+            f"clearance {_fmt(min(clear) if clear else None)} m")
+
+
 def plan_table(rows: list[dict]) -> str:
     head = (f"{'plan':14s} {'solver':7s} {'model':8s} {'agents':>6s} {'ms exec':>7s} "
             f"{'contacts':>9s} {'static':>9s} {'viol':>4s} {'speed':>7s} {'accel':>7s} "
@@ -208,15 +229,21 @@ def _key(scenario: str, planner: str, seed: int, delays: bool) -> str:
     return f"{scenario}|{planner}|{seed}|{delays}"
 
 
-def run_episodes(jobs: list[tuple], workers: int, log: Path, resume: bool) -> list[dict]:
+def run_episodes(jobs: list[tuple], workers: int, log: Path, resume: bool,
+                 run: bool = True) -> list[dict]:
     """Run ``jobs`` in ``workers`` processes; each row is appended to ``log`` (JSON lines)
-    as it comes, and with ``resume`` the rows already there are kept and not run again."""
+    as it comes, and with ``resume`` the rows already there are kept and not run again.
+    ``run=False`` only reads ``log``: the rows of ``jobs`` already there."""
     rows = []
-    if resume and log.exists():
+    if (resume or not run) and log.exists():
         rows = [json.loads(line) for line in log.read_text().splitlines() if line.strip()]
+    keys = {_key(j[0] + (f"+{j[1]}" if j[1] else ""), j[2], j[3], j[4]): j for j in jobs}
+    rows = [r for r in rows if _key(r["scenario"], r["planner"], r["seed"], r["delays"])
+            in keys]
     done = {_key(r["scenario"], r["planner"], r["seed"], r["delays"]) for r in rows}
-    todo = [j for j in jobs if _key(j[0] + (f"+{j[1]}" if j[1] else ""), j[2], j[3], j[4])
-            not in done]
+    todo = [j for k, j in keys.items() if k not in done] if run else []
+    if not todo:
+        return rows
     log.parent.mkdir(parents=True, exist_ok=True)
     with ProcessPoolExecutor(max_workers=workers) as pool, \
             log.open("a" if resume else "w") as out:
@@ -248,10 +275,15 @@ def main() -> int:
     ap.add_argument("--agents", type=int, nargs="+", default=[100, 500, 1000])
     ap.add_argument("--plan-dt", type=float, default=0.02)
     ap.add_argument("--plans-only", action="store_true")
+    ap.add_argument("--models", nargs="+", choices=["no_slip", "default"],
+                    default=["no_slip", "default"], help="the robot models to run plans on")
     ap.add_argument("--json", type=Path, default=ROOT / "tools" / "out" / "diffdrive.json",
                     help="the rows (and, as they come, JSON lines beside it: NAME.jsonl)")
     ap.add_argument("--resume", action="store_true",
                     help="keep the episodes already in NAME.jsonl, run the others")
+    ap.add_argument("--table-only", action="store_true",
+                    help="run nothing: the table of the episodes in NAME.jsonl (those of "
+                         "--scenarios x --planners x --seeds x --delays)")
     args = ap.parse_args()
     delays = {"off": [False], "on": [True], "both": [False, True]}[args.delays]
     jobs = []
@@ -263,16 +295,24 @@ def main() -> int:
                      for p in args.planners for d in delays for s in range(args.seeds)]
     jobs.sort(key=lambda j: j[3])  # seed by seed: a run cut short covers every case
     rows, plan_rows = run_episodes(jobs, args.jobs, args.json.with_suffix(".jsonl"),
-                                   args.resume), []
-    if args.plans:
+                                   args.resume, run=not args.table_only), []
+    plan_log = args.json.with_suffix(".plans.jsonl")
+    if args.plans and not args.table_only:
+        plan_log.parent.mkdir(parents=True, exist_ok=True)
+        plan_log.write_text("")
+    if args.plans and not args.table_only:
         for n in args.agents:  # one at a time: the 1,000-agent runs want the memory
             for stem, solver in (("plan", "lacam3"), ("own", "lacam")):
                 f = args.plans / f"{stem}{n}.txt"
+                if not f.exists() and stem == "own":  # tools/bench_execute.py --solver lacam
+                    f = args.plans / f"lacam-plan{n}.txt"
                 if not f.exists():
                     print(f"{f}: missing, skipped", file=sys.stderr)
                     continue
-                for no_slip in (True, False):
+                for no_slip in [m == "no_slip" for m in args.models]:
                     plan_rows.append(plan_run((f, solver, no_slip, args.plan_dt)))
+                    with plan_log.open("a") as out:  # kept if the run is cut short
+                        out.write(json.dumps(plan_rows[-1], default=float) + "\n")
                     print(plan_table(plan_rows[-1:]).splitlines()[-1], file=sys.stderr,
                           flush=True)
     args.json.parent.mkdir(parents=True, exist_ok=True)
@@ -281,6 +321,7 @@ def main() -> int:
                                     default=float) + "\n")
     if rows:
         print(table(rows))
+        print(summary(rows))
     if plan_rows:
         print(plan_table(plan_rows))
     bad = [r for r in rows + plan_rows if r["agv_overlap_samples"] or
