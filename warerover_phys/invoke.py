@@ -163,7 +163,7 @@ def splice(old: TimedPath | None, new: TimedPath, t_r: int, now: State) -> Timed
     (what it still has to drive; earlier states are history): the end of the first run of
     ``now`` in ``old``, since a path may come back to ``now`` (a side step and back) and
     the AGV behind its plan has not made that side step yet (the executor skips what it has
-    already driven, :meth:`~warerover_phys.executors.follow.PlanFollower._cut`).
+    already driven, :meth:`~warerover_phys.executors.follow_sync.PlanSync._cut`).
     None if ``old`` does not reach ``new``'s first state at t_eff (it was changed meanwhile:
     the AGV keeps ``old`` and is planned again)."""
     first = new.states[0]
