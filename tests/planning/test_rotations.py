@@ -146,8 +146,9 @@ def floors(draw):
     blocked = set(draw(st.permutations(cells))[:draw(st.integers(0, 3))])
     blocked -= {(rows - 1, 0), (rows - 1, 1)}  # next to the shelf and station row
     free = [c for c in cells if c not in blocked]
-    seen, todo = {free[0]}, [free[0]]
-    while todo:  # keep the component of the first free cell
+    first = (rows - 1, 1)  # beside the station: the AGVs must reach it
+    seen, todo = {first}, [first]
+    while todo:  # keep the component of the cell beside the station
         r, c = todo.pop()
         for dr, dc in DIRS:
             n = (r + dr, c + dc)
@@ -155,7 +156,7 @@ def floors(draw):
                 seen.add(n)
                 todo.append(n)
     free = sorted(seen)
-    assume(len(free) >= 4)  # obstacles may cut the first free cell off from the rest
+    assume(len(free) >= 4)  # obstacles may cut that cell off from most of the floor
     n = draw(st.integers(2, min(4, len(free) // 2)))
     starts = draw(st.permutations(free))[:n]  # no rejection sampling: unique by design
     goals = draw(st.permutations(free))[:n]
