@@ -171,8 +171,11 @@ def _builtin(task: PlanTask, obstacles: np.ndarray, starts: list, goals: list) -
     if entry.refine and "refine" in res.stats:
         stats["first_soc"] = res.stats["refine"].get("first_soc")
     if not res.success:
-        return PlanOutcome(None, res.wall_s, res.lower_bound, f"no solution within"
-                           f" {entry.time_limit_s:g} s", "solve", stats)
+        # (a planner may give up before its limit: prioritized A* when an agent finds no
+        # path or its search hits the expansion cap)
+        return PlanOutcome(None, res.wall_s, res.lower_bound, "no solution found (stopped "
+                           f"after {res.wall_s:.1f} s of its {entry.time_limit_s:g} s limit)",
+                           "solve", stats)
     return PlanOutcome(Plan(tuple(tuple(p) for p in res.paths)), res.wall_s, res.lower_bound,
                        stats=stats)
 
