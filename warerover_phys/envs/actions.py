@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from .core import GridMAPF
+    from .state import EnvState
 
 
 HEADING_STEP = np.array([[0, 1], [1, 0], [0, -1], [-1, 0]], dtype=np.int64)
@@ -38,7 +38,7 @@ class LearnedDriver:
     as :func:`~warerover_phys.planning.learned.planner.learned_oneshot`, so a one-shot episode
     driven by it moves exactly as that planner does with the same ``seed``)."""
 
-    def __init__(self, core: GridMAPF, policy=None, seed: int = 0) -> None:
+    def __init__(self, core: EnvState, policy=None, seed: int = 0) -> None:
         from ..planning.learned.planner import LearnedController, load_policy
 
         self.core = core

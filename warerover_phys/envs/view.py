@@ -7,10 +7,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from .core import GridMAPF
+    from .state import EnvState
 
 
-def render_ansi(core: GridMAPF) -> str:
+def render_ansi(core: EnvState) -> str:
     """Text frame: ``@`` obstacle, ``.`` free, ``A`` agent, ``*`` agent on its goal,
     ``g`` a goal."""
     grid = np.where(core.free, ".", "@").astype("<U1")
@@ -21,7 +21,7 @@ def render_ansi(core: GridMAPF) -> str:
     return "\n".join("".join(row) for row in grid)
 
 
-def render_rgb(core: GridMAPF, cell_px: int = 8) -> np.ndarray:
+def render_rgb(core: EnvState, cell_px: int = 8) -> np.ndarray:
     """RGB frame ``(rows * cell_px, cols * cell_px, 3)`` uint8: obstacles black, agents
     blue (green on their goal), goals light red."""
     img = np.full((core.rows, core.cols, 3), 255, dtype=np.uint8)
