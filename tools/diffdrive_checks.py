@@ -177,23 +177,29 @@ def _merge(total: dict, part: dict, offset: int) -> None:
                 total[at] = [k + offset, a, b]
 
 
-def check_npz(d, diff: np.ndarray, walls: bool = True, max_polygons: int = 1_000_000) -> dict:
+def check_npz(d, diff: np.ndarray, walls: bool = True, max_polygons: int = 1_000_000,
+              overlap_stride: int = 1) -> dict:
     """Every check on one ``trajectories.npz`` (a mapping of its arrays; ``diff``: the
-    no-slip AGVs), in chunks of samples of at most ``max_polygons`` bodies."""
+    no-slip AGVs), in chunks of samples of at most ``max_polygons`` bodies. The peaks use
+    every sample; the overlaps every ``overlap_stride``-th (1: all), which bounds the cost
+    of the shapely checks when every physics step of a large fleet is recorded."""
     x, y = np.asarray(d["x"], dtype=float), np.asarray(d["y"], dtype=float)
     heading = np.asarray(d["heading"], dtype=float)
     body = np.asarray(d["body_m"], dtype=float)
     t_count, n = x.shape
-    chunk = max(3, max_polygons // max(n, 1))
+    chunk = max(3, max_polygons * overlap_stride // max(n, 1))
+    chunk += -chunk % overlap_stride  # every chunk starts on a checked sample
     total: dict = {"min_agv_clearance_m": None, "min_agv_clearance_at": None,
                    "min_static_clearance_m": None}
     worst: dict = {}
     for k0 in range(0, t_count, chunk):
-        sl = slice(k0, min(t_count, k0 + chunk))
+        sl = slice(k0, min(t_count, k0 + chunk), overlap_stride)
         polys = body_polygons(x[sl], y[sl], heading[sl], body)
         part = agv_overlaps(polys, x[sl], y[sl], body)
         if walls:
             part.update(static_overlaps(polys, np.asarray(d["grid"]), float(d["cell_m"])))
+        if part.get("min_agv_clearance_at") is not None:  # a sample index of the chunk
+            part["min_agv_clearance_at"][0] *= overlap_stride
         _merge(total, part, k0)
         del polys
         # peaks over the chunk and the two samples after it (the differences across)
@@ -211,4 +217,5 @@ def check_npz(d, diff: np.ndarray, walls: bool = True, max_polygons: int = 1_000
         for key in ("static_overlap_samples", "static_overlap_agvs", "min_static_clearance_m"):
             total.pop(key, None)
     worst.setdefault("peak_wheel_speed_ratio", None)
-    return {"samples": int(t_count), **total, **worst}
+    return {"samples": int(t_count), "overlap_samples": len(range(0, t_count, overlap_stride)),
+            **total, **worst}

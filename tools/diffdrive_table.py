@@ -20,7 +20,9 @@ Plans (``--plans DIR``): ``DIR/planN.txt`` (lacam3) and ``DIR/ownN.txt`` or
 DIR`` makes them) for ``--agents``, on ``warehouse-10-20-10-2-1``, executed as ``warerover execute``
 does with the default 1x1 fleet, once with ``robot: diffdrive``'s settings and once with
 the default model; poses recorded at 10 Hz (the overlap checks run on those samples; the
-peaks are the executor's per-step monitors). ``--plans-only`` skips the episodes. Rows are
+peaks are the executor's per-step monitors), or with ``--plan-every-step`` at every physics
+step (peaks from every step, overlaps from every ``--plan-overlap-stride``-th, both
+checked against the executor's). ``--plans-only`` skips the episodes. Rows are
 also appended to ``NAME.jsonl`` beside ``--json`` as they come; ``--resume`` keeps those and
 runs the rest; ``--table-only`` runs nothing and prints the table of the rows there (a run
 cut short: ``--seeds N`` keeps seeds 0 to N-1). Plan rows go to ``NAME.plans.jsonl``.
@@ -106,7 +108,7 @@ def plan_run(job: tuple) -> dict:
     )
     from warerover_phys.plans import read_plan
 
-    plan_file, solver, no_slip, dt_s = job
+    plan_file, solver, no_slip, dt_s, every_step, stride, checks = job
     layout, _, _ = load_floor(MAP)
     plan = read_plan(plan_file)
     sizes = [1] * plan.num_agents
@@ -119,16 +121,24 @@ def plan_run(job: tuple) -> dict:
     assert not no_slip or types[0].max_wheel_speed_mps is not None
     t0, c0 = time.perf_counter(), time.process_time()
     res = execute_plan(plan, layout, types, executor="physics", seed=0, repairs=repairs,
-                       dt_s=dt_s, trajectory_hz=10.0, options=options)
+                       dt_s=dt_s, trajectory_hz=1.0 / dt_s if every_step else 10.0,
+                       options=options)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     m = res.metrics
-    d = {k: np.asarray(v) for k, v in res.trajectory.items()}
-    row = check_npz(d, np.ones(plan.num_agents, dtype=bool))
-    for k in PEAKS:  # 10 Hz differences say little about per-step peaks: the executor's
-        row[k] = m.get(k)
-    row["peak_lateral_speed_mps"] = m.get("peak_lateral_speed_mps")
+    row: dict = {"agv_overlap_samples": None, "static_overlap_samples": None,
+                 "min_agv_clearance_m": None}  # --no-plan-checks: the timing alone
+    if checks:
+        d = {k: np.asarray(v) for k, v in res.trajectory.items()}
+        row = check_npz(d, np.ones(plan.num_agents, dtype=bool),
+                        overlap_stride=stride if every_step else 1)
+        del d
+    if not every_step:  # 10 Hz differences say little about per-step peaks: the executor's
+        for k in PEAKS:
+            row[k] = m.get(k)
+        row["peak_lateral_speed_mps"] = m.get("peak_lateral_speed_mps")
     row.update(plan=plan_file.name, solver=solver, agents=plan.num_agents, no_slip=no_slip,
-               dt_s=dt_s, wall_s=round(wall, 1), cpu_s=round(cpu, 1),
+               dt_s=dt_s, peaks_from="poses, every step" if every_step else "executor",
+               wall_s=round(wall, 1), cpu_s=round(cpu, 1),
                load_avg=round(os.getloadavg()[0], 2),
                real_time_factor=m.get("real_time_factor"),
                rtf_cpu=m["ticks"] * m["tick_s"] / cpu,
@@ -136,13 +146,16 @@ def plan_run(job: tuple) -> dict:
                planned_makespan=m.get("planned_makespan_ticks"),
                exec={k: m.get(k) for k in ("agv_contacts", "static_contacts",
                                            "limit_violations", "min_clearance_m",
-                                           "off_reference", *PEAKS)})
+                                           "off_reference", "peak_lateral_speed_mps",
+                                           *PEAKS)})
     return row
 
 
-def agree(row: dict) -> bool:
-    """The independent figures and the executor's say the same."""
+def agree(row: dict) -> bool | None:
+    """The independent figures and the executor's say the same (None: not checked)."""
     ex = row["exec"]
+    if row["agv_overlap_samples"] is None:
+        return None
     same = (row["agv_overlap_samples"] > 0) == (ex["agv_contacts"] > 0) and (
         row.get("static_overlap_samples", 0) > 0) == (ex["static_contacts"] > 0)
     for k in PEAKS:
@@ -150,6 +163,10 @@ def agree(row: dict) -> bool:
         if a is not None and b is not None and abs(a - b) > 1e-6:
             same = False
     return same
+
+
+def _n(v) -> str:
+    return "-" if v is None else str(v)
 
 
 def _fmt(v, digits: int = 4) -> str:
@@ -208,20 +225,23 @@ def summary(rows: list[dict]) -> str:
 def plan_table(rows: list[dict]) -> str:
     head = (f"{'plan':14s} {'solver':7s} {'model':8s} {'agents':>6s} {'ms exec':>7s} "
             f"{'contacts':>9s} {'static':>9s} {'viol':>4s} {'speed':>7s} {'accel':>7s} "
-            f"{'turn':>7s} {'wheel':>7s} {'clear':>7s} {'RTF':>6s} {'RTFcpu':>6s} {'load':>5s}")
+            f"{'turn':>7s} {'wheel':>7s} {'clear':>7s} {'RTF':>6s} {'RTFcpu':>6s} {'load':>5s} "
+            f"peaks agree")
     lines = [head, "-" * len(head)]
     for r in rows:
         ex = r["exec"]
         lines.append(
             f"{r['plan']:14s} {r['solver']:7s} {'no_slip' if r['no_slip'] else 'default':8s} "
             f"{r['agents']:6d} {r['executed_makespan']:7d} "
-            f"{r['agv_overlap_samples']:3d}/{ex['agv_contacts']:<5d}"
-            f"{r['static_overlap_samples']:3d}/{ex['static_contacts']:<5d}"
+            f"{_n(r['agv_overlap_samples']):>3s}/{ex['agv_contacts']:<5d}"
+            f"{_n(r['static_overlap_samples']):>3s}/{ex['static_contacts']:<5d}"
             f"{ex['limit_violations']:4d} {_fmt(r['peak_speed_ratio'], 5):>7s} "
             f"{_fmt(r['peak_accel_ratio'], 5):>7s} {_fmt(r['peak_turn_rate_ratio'], 5):>7s} "
             f"{_fmt(r['peak_wheel_speed_ratio'], 5):>7s} "
             f"{_fmt(r['min_agv_clearance_m']):>7s} {r['real_time_factor']:6.1f} "
-            f"{r['rtf_cpu']:6.1f} {r['load_avg']:5.1f}")
+            f"{r['rtf_cpu']:6.1f} {r['load_avg']:5.1f} "
+            f"{'poses' if r.get('peaks_from', '').startswith('poses') else 'exec':5s} "
+            f"{ {True: 'yes', False: 'NO', None: '-'}[agree(r)]}")
     return "\n".join(lines)
 
 
@@ -275,6 +295,16 @@ def main() -> int:
     ap.add_argument("--agents", type=int, nargs="+", default=[100, 500, 1000])
     ap.add_argument("--plan-dt", type=float, default=0.02)
     ap.add_argument("--plans-only", action="store_true")
+    ap.add_argument("--plan-every-step", action="store_true",
+                    help="record the plan runs' poses at every physics step and recompute "
+                         "the peaks from them (slower: the real-time factor is then not "
+                         "the plain execution's)")
+    ap.add_argument("--plan-checks", action=argparse.BooleanOptionalAction, default=True,
+                    help="--no-plan-checks: time the plan runs only (no independent "
+                         "checks: for real-time factors on a quiet machine)")
+    ap.add_argument("--plan-overlap-stride", type=int, default=5,
+                    help="with --plan-every-step: the overlap checks on every K-th sample "
+                         "(5 at dt 0.02: 10 Hz, as without it; 1: every step)")
     ap.add_argument("--models", nargs="+", choices=["no_slip", "default"],
                     default=["no_slip", "default"], help="the robot models to run plans on")
     ap.add_argument("--json", type=Path, default=ROOT / "tools" / "out" / "diffdrive.json",
@@ -310,7 +340,10 @@ def main() -> int:
                     print(f"{f}: missing, skipped", file=sys.stderr)
                     continue
                 for no_slip in [m == "no_slip" for m in args.models]:
-                    plan_rows.append(plan_run((f, solver, no_slip, args.plan_dt)))
+                    plan_rows.append(plan_run((f, solver, no_slip, args.plan_dt,
+                                                args.plan_every_step,
+                                                args.plan_overlap_stride,
+                                                args.plan_checks)))
                     with plan_log.open("a") as out:  # kept if the run is cut short
                         out.write(json.dumps(plan_rows[-1], default=float) + "\n")
                     print(plan_table(plan_rows[-1:]).splitlines()[-1], file=sys.stderr,

@@ -67,3 +67,39 @@ def test_disagreement_and_contacts_show(tmp_path):
     assert "2 with a contact" not in t.summary([one_sided, off_peak])
     assert "1 with a contact" in t.summary([one_sided, off_peak])
     assert "agree in 0 of 2" in t.summary([one_sided, off_peak])
+
+
+def _two_agvs(samples: int = 41, dt: float = 0.02) -> dict:
+    """AGV 0 accelerates at 1 m/s^2 along x from rest, AGV 1 stands ahead of it: their
+    0.7 m bodies overlap from the moment 0 has come within 0.7 m."""
+    import numpy as np
+
+    t = np.arange(samples) * dt
+    x = np.column_stack([1.0 + 0.5 * t ** 2, np.full(samples, 1.72)])
+    return {"t": t, "x": x, "y": np.full((samples, 2), 1.5), "heading": np.zeros((samples, 2)),
+            "body_m": np.full((2, 2), 0.7), "grid": np.zeros((3, 4), dtype=np.int8),
+            "cell_m": 1.0, "limit_speed_mps": np.full(2, 1.5),
+            "limit_accel_mps2": np.full(2, 1.0), "limit_turn_rate_radps": np.full(2, 2.5)}
+
+
+def test_an_overlap_stride_keeps_the_peaks_and_the_sample_indices():
+    import numpy as np
+
+    sys.path.insert(0, str(ROOT / "tools"))
+    from diffdrive_checks import check_npz
+
+    d = _two_agvs()
+    every = check_npz(d, np.zeros(2, dtype=bool), max_polygons=20)
+    strided = check_npz(d, np.zeros(2, dtype=bool), max_polygons=20, overlap_stride=3)
+    # the peaks read every sample either way: 1 m/s^2 against a limit of 1
+    assert abs(every["peak_accel_ratio"] - 1.0) < 1e-6
+    for k in ("peak_speed_ratio", "peak_accel_ratio", "peak_turn_rate_ratio"):
+        assert strided[k] == every[k]
+    # gap 0.72 - 0.5 t^2 - 0.7 < 0 from t = 0.2 s (sample 10): samples 11..40 overlap
+    assert every["agv_overlap_samples"] == 30 and every["overlap_samples"] == 41
+    assert strided["overlap_samples"] == 14  # samples 0, 3, ..., 39
+    assert strided["agv_overlap_samples"] == len(range(12, 41, 3))
+    # the smallest clearance (0: touching) first at sample 10; every 3rd: at sample 12,
+    # named by its index in the whole trajectory, not in the chunk or the strided samples
+    assert every["min_agv_clearance_at"][0] == 10
+    assert strided["min_agv_clearance_at"][0] == 12

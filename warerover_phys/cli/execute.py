@@ -13,7 +13,7 @@ from rich.console import Console
 from rich.table import Table
 
 from ..errors import WareroverError
-from ..util.console import err_console
+from ..util.console import err_console, fail_os
 from ..util.console import fail as _fail
 from .options import ReorderOpt, _check_video_out
 
@@ -78,7 +78,7 @@ def execute(floor: Annotated[Path, typer.Argument(
     except WareroverError as err:
         _fail(err)
     except OSError as err:
-        _fail(WareroverError(f"{getattr(err, 'filename', '') or ''}: {err.strerror or err}"))
+        fail_os(err)
     m = result.metrics
     if json_out:
         typer.echo(json.dumps(m, indent=2, sort_keys=True, default=float))

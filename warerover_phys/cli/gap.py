@@ -17,7 +17,7 @@ from rich.table import Table
 from ..errors import ScenarioError, WareroverError
 from ..gap.core import check_agv_ids
 from ..inputs import check_seed
-from ..util.console import err_console
+from ..util.console import err_console, fail_os
 from ..util.console import fail as _fail
 
 __all__ = ["run_gap"]
@@ -90,7 +90,7 @@ def run_gap(*, scenario: Path, mode: str, seed: int | None, seeds: str | None,
     except WareroverError as err:
         _fail(err)
     except OSError as err:
-        _fail(WareroverError(f"{getattr(err, 'filename', '') or ''}: {err.strerror or err}"))
+        fail_os(err)
 
 
 def _check_out(out: Path) -> Path:

@@ -9,7 +9,7 @@ import typer
 from rich.markup import escape
 
 from ..errors import WareroverError
-from ..util.console import err_console
+from ..util.console import err_console, fail_os
 from ..util.console import fail as _fail
 from .options import FpsOpt, SizeOpt, SpeedOpt, _Bar, _check_video_out, _show_progress, _video_style
 
@@ -66,7 +66,7 @@ def render(trajectory: Annotated[Path, typer.Argument(
     except ValueError as err:
         _fail(WareroverError(str(err)))
     except OSError as err:
-        _fail(WareroverError(f"{getattr(err, 'filename', '') or ''}: {err.strerror or err}"))
+        fail_os(err)
     typer.echo(f"wrote {out}: {info['frames']} frames at {info['fps']:g} fps, "
                f"{info['speed']:g}x, {info['codec']}, {info['render_fps']:.1f} frames/s "
                f"rendered with {info['workers']} worker{'s' * (info['workers'] > 1)}")

@@ -12,6 +12,7 @@ from rich.table import Table
 
 from ..errors import ScenarioError, WareroverError
 from ..util.console import fail as _fail
+from ..util.console import fail_os
 from .options import (
     ExecOpt,
     FpsOpt,
@@ -76,7 +77,7 @@ def run(scenario: Annotated[Path, typer.Argument(help="Scenario YAML file.")],
     except WareroverError as err:
         _fail(err)
     except OSError as err:
-        _fail(WareroverError(f"{getattr(err, 'filename', '') or ''}: {err.strerror or err}"))
+        fail_os(err)
     m = result.metrics
     if json_out:
         typer.echo(json.dumps(m, indent=2, sort_keys=True))

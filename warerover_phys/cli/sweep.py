@@ -99,7 +99,7 @@ def sweep(sweep_file: Annotated[Path, typer.Argument(metavar="SWEEP.yaml",
     from ..inputs import check_output_dir
     from ..sweep.runner import check_ray_address, run_sweep
     from ..sweep.spec import load_sweep, narrow
-    from ..util.console import err_console
+    from ..util.console import err_console, fail_os
     from ..util.console import fail as _fail
 
     progress = _Progress(err_console, quiet)
@@ -131,7 +131,7 @@ def sweep(sweep_file: Annotated[Path, typer.Argument(metavar="SWEEP.yaml",
         _fail(err)
     except OSError as err:
         progress.stop()
-        _fail(WareroverError(f"{getattr(err, 'filename', '') or ''}: {err.strerror or err}"))
+        fail_os(err)
     progress.stop()
     failed = (f", {summary.failed} failed in this run" if summary.failed else "") + \
         (f" ({summary.failed_total} failed rows in all; --retry-failed reruns them)"
@@ -149,7 +149,7 @@ def report(out_dir: Annotated[Path, typer.Argument(metavar="DIR",
     pattern."""
     from ..errors import WareroverError
     from ..sweep.report import write_report
-    from ..util.console import err_console
+    from ..util.console import err_console, fail_os
     from ..util.console import fail as _fail
 
     try:
@@ -157,7 +157,7 @@ def report(out_dir: Annotated[Path, typer.Argument(metavar="DIR",
     except WareroverError as err:
         _fail(err)
     except OSError as err:
-        _fail(WareroverError(f"{getattr(err, 'filename', '') or ''}: {err.strerror or err}"))
+        fail_os(err)
     typer.echo(result["markdown"])
     for note in result["notes"]:
         err_console.print(f"note: {note}", markup=False, highlight=False, soft_wrap=True)
