@@ -28,6 +28,27 @@ def test_reorder_option_is_checked_on_the_command_line(tmp_path):
         assert_clean_error(r, "--reorder", "sometimes")
 
 
+def test_reorder_without_the_dependency_graph_is_refused(tmp_path):
+    """Reordering switches edges of the physics executor's dependency graph: asked for on
+    the grid executor or with ``adg=false`` it is refused, not silently ignored."""
+    from warerover_phys.config import ExecutorSpec
+
+    plan = tmp_path / "p.txt"
+    plan.write_text("agents=1\nsolution=\n0:(1,1),\n")
+    for extra, named in ((("--executor", "grid"), "--executor grid"),
+                         (("--executor", "physics", "--set", "executor.adg=false"),
+                          "executor.adg=false")):
+        r = run_cli("execute", MAP, "--plan", plan, "--reorder", "greedy", *extra,
+                    "--out", tmp_path / "o", cwd=REPO)
+        assert_clean_error(r, "--reorder greedy", named)
+        assert not (tmp_path / "o").exists()
+    with pytest.raises(ValueError, match="needs name: physics and adg: true"):
+        ExecutorSpec(name="grid", reorder="milp")
+    with pytest.raises(ValueError, match="adg: false"):
+        ExecutorSpec(name="physics", adg=False, reorder="greedy")
+    assert ExecutorSpec(name="physics", reorder="greedy").reorder == "greedy"
+
+
 def test_gap_with_reorder_reports_the_gain(plan40, tmp_path):
     r = run_cli("gap", MAP, "--plan", plan40,
                 "--delays", "bernoulli:0.2", "--seed", "1", "--reorder", "greedy", "--json",

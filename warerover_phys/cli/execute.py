@@ -137,6 +137,12 @@ def _prepare(floor: Path, plan: Path, *, fmt, yx, fleet, executor, seed, delays,
     options = executor_options(sets)
     if reorder is not None:
         options["reorder"] = check_reorder(reorder)
+    mode = options.get("reorder", "none")
+    if mode != "none" and (executor != "physics" or options.get("adg") is False):
+        raise WareroverError(f"--reorder {mode} switches edges of the dependency graph: it "
+                             f"needs --executor physics with executor.adg=true (got "
+                             f"--executor {executor}"
+                             + (", executor.adg=false)" if executor == "physics" else ")"))
     robot = {k: options.pop(k) for k in ("robot",) if k in options}
     executor_spec(executor, dt_s=dt_s, delays=delay_spec, options=options)  # check early
     layout, types_by_name, kinds = load_floor(floor)
