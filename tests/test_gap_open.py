@@ -188,3 +188,45 @@ def test_report_figures_are_consistent():
     assert np.isclose(r["lost_s_fleet_total"], sum(ef) - sum(pf))
     for a in g.agents:
         assert sum(s for _, s in a["top_blockers"]) <= a["dependency_wait_s"] + 1e-9
+
+
+def test_a_move_starts_with_the_plans_cargo():
+    """The cargo an AGV has when a move starts is the plan's at that move's tick: a shelf
+    put down stays behind (no loaded AGV drives into the next shelf's cell: seed 1 counted
+    2 such contacts when the cargo lagged a tick behind a dwell ending mid-tick), a shelf
+    picked up comes along."""
+    from warerover_phys.gap.ideal_plan import repair_rotations
+
+    sc = load_scenario(HOMO).with_seed(1)
+    plan = repair_rotations(record_grid_run(sc, None))
+    log: list = []
+
+    def hook(tick, ex):
+        if not log:
+            step = ex.step
+
+            def logged(view):
+                report = step(view)
+                log.append((view.carried, dict(report.states)))
+                return report
+            ex.step = logged
+            log.append(None)
+
+    run = execute_timed(plan, sc.with_executor("physics").executor, seed=1, before_tick=hook)
+    assert run.summary["static_contacts"] == 0
+    n = plan.num_agents
+    acts = {i: plan.actions(i) for i in range(n)}
+    done = [0] * n
+    before: dict = {}
+    starts = 0
+    for carried, states in log[1:]:
+        for i, (a, b) in states.items():
+            if a != b and before.get(i) != (a, b):  # a move began during this tick
+                j = next(j for j in range(done[i], len(acts[i]))
+                         if (acts[i][j].src, acts[i][j].dst) == (a, b))
+                done[i] = j
+                want = int(plan.carried[acts[i][j].tick, i])
+                assert carried[i] == (None if want < 0 else want), (i, acts[i][j])
+                starts += 1
+        before = states
+    assert starts >= sum(len(a) for a in acts.values()) // 2

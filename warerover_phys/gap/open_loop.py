@@ -194,12 +194,17 @@ class _Progress:
                         break
 
     def _tau(self, i: int, tick: int) -> int:
+        """The plan tick whose cargo the AGV has during executed tick ``tick``. A standing
+        AGV is one tick ahead of its time on the cell: its dwell may end within this tick
+        and its next move start, and that move must carry the plan's cargo at its start
+        (a shelf put down stays behind, a shelf picked up comes along); a tick early is
+        harmless while it stands."""
         acts, k = self.acts[i], self.done[i]
         if self.running[i]:
             return acts[k].tick + 1
         start = acts[k - 1].finish if k else 0
         stop = acts[k].tick if k < len(acts) else self.last
-        return max(0, min(start + (tick - self.since[i]), stop))
+        return max(0, min(start + (tick - self.since[i]) + 1, stop))
 
     def cargo(self, tick: int) -> tuple[tuple, tuple, tuple]:
         plan = self.plan
