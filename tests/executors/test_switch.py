@@ -134,3 +134,23 @@ def test_a_search_over_its_limit_refuses(limit):
     g.finish(1)
     grp = sg.candidate(1)
     assert sg.switch(grp) is (limit > 1)
+
+
+@SETTINGS
+@given(instances())
+def test_the_order_follows_the_plans_time(instance):
+    # The order is built earliest planned start first, so that a switch's edge spans few
+    # actions of it: every edge goes forward in it, and on a fresh plan (every edge from
+    # a tick to a later or equal one) its planned ticks never go down.
+    layout, paths, sizes, _, trajs = instance
+    graph = build_or_skip(paths, sizes, trajs, layout.cols)
+    sg = SwitchableGraph(graph)
+    sg._sync()
+    order = sg._ord
+    assert sg._ok and sorted(order.values()) == list(range(len(order)))
+    for s in order:
+        for t in sg._succ(s):
+            assert order[s] < order[t]
+            assert s.action.tick <= t.action.tick
+    ticks = [s.action.tick for s in sorted(order, key=order.__getitem__)]
+    assert ticks == sorted(ticks)

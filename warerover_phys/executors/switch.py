@@ -41,6 +41,7 @@ cells, and visits whose AGV's plan ends on the cell.
 
 from __future__ import annotations
 
+import heapq
 from dataclasses import dataclass
 from itertools import islice
 from typing import TYPE_CHECKING
@@ -241,16 +242,20 @@ class SwitchableGraph:
         for s in nodes:
             for t in self._succ(s):
                 indeg[t] += 1
-        todo = [s for s in nodes if indeg[s] == 0]
-        todo.reverse()  # pop from the end: AGV id order first
-        order = self._ord
+        # Kahn's algorithm taking the ready action of the earliest planned start first
+        # (then AGV id and place): an order close to the plan's time, so that a switch's
+        # edge spans few actions of it and its search (:meth:`_insert`) stays small.
+        todo = [(s.action.tick, *self._where[s]) for s in nodes if indeg[s] == 0]
+        heapq.heapify(todo)
+        chain, order = self._chain, self._ord
         while todo:
-            s = todo.pop()
+            _, agv, k = heapq.heappop(todo)
+            s = chain[agv][k]
             order[s] = len(order)
             for t in self._succ(s):
                 indeg[t] -= 1
                 if indeg[t] == 0:
-                    todo.append(t)
+                    heapq.heappush(todo, (t.action.tick, *self._where[t]))
         self._ok = len(order) == len(nodes)
 
     def _live_from(self, agv: int) -> int:
