@@ -287,3 +287,25 @@ def test_reordered_fleets_keep_every_plan_and_never_collide(plan40, n, seed, p, 
     assert s["agv_contacts"] == 0 and s["deadlocks"] == 0
     assert check_executed({i: q.states for i, q in paths.items()}, executed,
                           layout.cols) == []
+
+
+def test_a_group_refused_for_a_cycle_is_not_tried_again(plan40, monkeypatch):
+    from warerover_phys.executors.switch import SwitchableGraph
+
+    refused: list[tuple] = []
+    switch = SwitchableGraph.switch
+
+    def spy(self, group):
+        before = self.refused
+        done = switch(self, group)
+        if self.refused > before:
+            refused.append(group.pairs)  # (the visits themselves: identity)
+        return done
+
+    monkeypatch.setattr(SwitchableGraph, "switch", spy)
+    a = gap(plan40, "greedy", seed=3)
+    s = a.run.summary
+    assert len(refused) == s["reorder_refused"] >= 1
+    # (the plan does not change in the run: every group kept lives to its end)
+    assert len(set(refused)) == len(refused)
+    assert s["agv_contacts"] == 0 and s["deadlocks"] == 0 and a.report["completed"]

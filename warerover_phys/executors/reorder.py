@@ -174,7 +174,7 @@ class Reorderer:
                 why[e.group.second] = "refused"
                 if sg.refused > refused:
                     self._cyclic.add(self._cycle_key(e.group))
-        for e in ests:  # declined or refused: not again until something it depends on moves
+        for e in ests:  # declined: not again until something it depends on moves
             j = e.group.second
             why.setdefault(j, "switched" if j in self._switched_now else "declined")
             if j not in self._switched_now:
