@@ -212,9 +212,9 @@ class Reorderer:
         pairs of visits. Whether a group closes a cycle depends on the graph, not on
         delays, so it is not tried again while the plans stay the same. A cycle through
         other AGVs' actions can open as they move on; those few switches are given up for
-        the cycle checks saved (lacam3's 1,000-agent plan, bernoulli 0.1, seed 0, first
-        600 ticks: 13 of 5,645 groups tried again went through, and the checks of the
-        groups tried again took 26.5 of the decisions' 46 CPU seconds). The key holds the
+        the cycle checks saved (lacam3's 1,000-agent plan, bernoulli 0.1, seed 1,
+        ``greedy``: 6,709 checks refused instead of 34,446, 14.2 instead of 41.3 ms of
+        decision CPU per plan tick, AET 1,454.3 s instead of 1,451.6). The key holds the
         visits themselves, not their ``id``, so none is reused while it lives."""
         if len(self._cyclic) > 100_000:
             self._cyclic.clear()
