@@ -90,8 +90,13 @@ class Reorderer:
         self._declined: set[tuple] = set()
         self._declined_version = -1
         self._cyclic: set[tuple] = set()
-        """Groups refused for a cycle (:meth:`_cycle_key`): not tried again while the
-        plans stay the same."""
+        """The pairs of visits of groups refused for a cycle. Whether a group closes a
+        cycle depends on the graph, not on delays, so it is not tried again while the
+        plans stay the same. A cycle through other AGVs' actions can open as they move on;
+        those few switches are given up for the checks saved (lacam3's 1,000-agent plan,
+        bernoulli 0.1, seed 1, ``greedy``: 6,709 checks refused instead of 34,446, 14.2
+        instead of 41.3 ms of decision CPU per plan tick, AET 1,454.3 s instead of
+        1,451.6). The visits themselves are kept, not their ``id``, so none is reused."""
         self._switched_now: set[int] = set()
         self._behind: dict[int, int] = {}
         self._next_s = 0.0
@@ -146,7 +151,7 @@ class Reorderer:
             if key in self._declined:
                 why[j] = "declined"
                 continue
-            if self._cycle_key(g) in self._cyclic:
+            if g.pairs in self._cyclic:
                 why[j] = "refused"
                 continue
             ids = {id(v) for pair in g.pairs for v in pair}
@@ -173,7 +178,9 @@ class Reorderer:
             else:
                 why[e.group.second] = "refused"
                 if sg.refused > refused:
-                    self._cyclic.add(self._cycle_key(e.group))
+                    if len(self._cyclic) > 100_000:
+                        self._cyclic.clear()
+                    self._cyclic.add(e.group.pairs)
         for e in ests:  # declined: not again until something it depends on moves
             j = e.group.second
             why.setdefault(j, "switched" if j in self._switched_now else "declined")
@@ -206,19 +213,6 @@ class Reorderer:
         passed = sorted({u.agv for u, _ in g.pairs})
         return (g.second, *heads, *passed, *(float(st.delayed_until[a]) for a in passed),
                 *(bool(st.waiting[a]) for a in passed))
-
-    def _cycle_key(self, g: Group) -> tuple:
-        """The key under which a group refused for a cycle is kept (:attr:`_cyclic`): its
-        pairs of visits. Whether a group closes a cycle depends on the graph, not on
-        delays, so it is not tried again while the plans stay the same. A cycle through
-        other AGVs' actions can open as they move on; those few switches are given up for
-        the cycle checks saved (lacam3's 1,000-agent plan, bernoulli 0.1, seed 1,
-        ``greedy``: 6,709 checks refused instead of 34,446, 14.2 instead of 41.3 ms of
-        decision CPU per plan tick, AET 1,454.3 s instead of 1,451.6). The key holds the
-        visits themselves, not their ``id``, so none is reused while it lives."""
-        if len(self._cyclic) > 100_000:
-            self._cyclic.clear()
-        return tuple(g.pairs)
 
     def _account(self, why: dict[int, str], on: dict[int, int]) -> None:
         """Add the decision's waits to :attr:`audit`; a wait behind an AGV that waits in
