@@ -34,18 +34,22 @@ PATHS = {0: TimedPath(0, 0, ((8, 8), (2, 2), (3, 3), (4, 4), (5, 5))),
          1: TimedPath(1, 0, ((0, 0), (1, 1), (1, 1), (2, 2), (3, 3), (9, 9)))}
 
 
-def corridor(mode: str, delay_s: float, paths=PATHS, **options) -> PhysicsExecutor:
-    """Execute the corridor plan with AGV 0 held by a delay for its first ``delay_s``."""
+def corridor(mode: str, delay_s: float, paths=PATHS, delay_at: int = 0,
+             **options) -> PhysicsExecutor:
+    """Execute the corridor plan with AGV 0 held by a delay of ``delay_s`` from tick
+    ``delay_at`` (0: before it starts)."""
     layout = build_layout(LayoutSpec(grid=GRID))
     ex = PhysicsExecutor(ExecutorSpec(name="physics", reorder=mode, **options))
     n = len(paths)
     ex.bind(ExecutorSetup(layout=layout, tick_s=1.0, rng=np.random.default_rng(0),
                           agvs=tuple(AgvBody(i, 1, AgvTypeSpec(), paths[i].states[0])
                                      for i in range(n))))
-    ex.delayed_until[0] = delay_s
+    ex.delayed_until[0] = 0.0 if delay_at else delay_s
     ex.test_events = []
     plans = MappingProxyType(paths)
     for tick in range(60):
+        if delay_at and tick == delay_at:
+            ex.delayed_until[0] = tick * 1.0 + delay_s
         rep = ex.step(TickView(tick=tick, plans=plans, behind=(0,) * n, failed=frozenset(),
                                loaded=(False,) * n, carried=(None,) * n,
                                task_state=(0,) * n))
@@ -76,6 +80,27 @@ def test_greedy_lets_the_waiting_agv_pass_first_and_wins_its_wait():
     won = log.reorder_gain[log.agv == 1]
     assert won.sum() * log.dt_s == pytest.approx(sw["wait_s"], abs=log.dt_s)
     assert not plain.cause_log().reorder_gain.any()
+
+
+# AGV 0 drives east along row 0 to (0, 5), claiming the cells of its run; AGV 1 crosses
+# the row after it: up from (1, 3) to (0, 3), west to (0, 2) and down to (1, 2).
+CROSS = {0: TimedPath(0, 0, ((0, 0), (1, 1), (2, 2), (3, 3), (4, 4), (5, 5))),
+         1: TimedPath(1, 0, ((9, 9),) * 5 + ((3, 3), (2, 2), (8, 8)))}
+
+
+def test_a_delayed_driving_agv_gives_back_the_claims_beyond_its_braking():
+    # Held from tick 1 (driving, below its braking distance of a cell), AGV 0 can stop at
+    # (0, 1): it gives back its claims on (0, 2) and (0, 3), and AGV 1 crosses first.
+    plain = corridor("none", 8.0, paths=CROSS, delay_at=1)
+    greedy = corridor("greedy", 8.0, paths=CROSS, delay_at=1)
+    (sw,) = switches(greedy)
+    assert (sw["first"], sw["then"]) == (1, 0) and [0, 3] in sw["cells"]
+    assert plain.last_finish[1] - greedy.last_finish[1] > 5.0
+    assert greedy.summary()["agv_contacts"] == 0 == plain.summary()["agv_contacts"]
+    # AGV 0 stopped on (0, 1), short of the cells it gave back, and finished its plan
+    assert greedy.adg.done(0) and greedy.last_finish[0] >= plain.last_finish[0] - 1e-9
+    # Without the delay it keeps its claims and goes first: nothing to switch
+    assert switches(corridor("greedy", 0.0, paths=CROSS)) == []
 
 
 def test_no_switch_that_does_not_win_the_margin():

@@ -146,6 +146,7 @@ class PlanFollower(PlanSync):
         self.adg.now = t
         if decide:
             if self.reorder is not None:
+                self._give_back_delayed(delayed)
                 self.reorder.decide(t, delayed)
             # Look further ahead for AGVs that would otherwise start braking before the
             # next look (the margin covers two decision intervals).
@@ -180,6 +181,22 @@ class PlanFollower(PlanSync):
                 for i in idx[event]:
                     busy[i] = self._event(int(i), t, left, delayed)
         self.adg.now = t
+
+    def _give_back_delayed(self, delayed: np.ndarray) -> None:
+        """Delayed driving AGVs give back the claims beyond where their braking stops them
+        (with reordering on: the AGVs waiting at those cells may then be switched ahead)."""
+        st, adg = self.st, self.adg
+        for i in np.flatnonzero((st.mode == DRIVE) & delayed).tolist():
+            claimed = adg.claimed(i)
+            if not claimed:
+                continue
+            over = st.s_ref[i] + st.speed[i] ** 2 / (2 * st.amax[i]) - st.cur_end[i]
+            keep = max(0, math.ceil(over / st.cell_m - 1e-9))
+            if keep >= len(claimed):
+                continue
+            adg.unclaim(i, keep)
+            st.stop_s[i] = min(st.stop_s[i], st.cur_end[i] + keep * st.cell_m)
+            self._ext_for[i] = None
 
     def _decide_standing(self, t: float, delayed: np.ndarray, ang: np.ndarray) -> None:
         """Decide, in id order, for the standing AGVs with a next action, except those
