@@ -34,11 +34,11 @@ PATHS = {0: TimedPath(0, 0, ((8, 8), (2, 2), (3, 3), (4, 4), (5, 5))),
          1: TimedPath(1, 0, ((0, 0), (1, 1), (1, 1), (2, 2), (3, 3), (9, 9)))}
 
 
-def corridor(mode: str, delay_s: float, paths=PATHS, delay_at: int = 0,
+def corridor(mode: str, delay_s: float, paths=PATHS, delay_at: int = 0, grid=GRID,
              **options) -> PhysicsExecutor:
     """Execute the corridor plan with AGV 0 held by a delay of ``delay_s`` from tick
     ``delay_at`` (0: before it starts)."""
-    layout = build_layout(LayoutSpec(grid=GRID))
+    layout = build_layout(LayoutSpec(grid=grid))
     ex = PhysicsExecutor(ExecutorSpec(name="physics", reorder=mode, **options))
     n = len(paths)
     ex.bind(ExecutorSetup(layout=layout, tick_s=1.0, rng=np.random.default_rng(0),
@@ -99,8 +99,33 @@ def test_a_delayed_driving_agv_gives_back_the_claims_beyond_its_braking():
     assert greedy.summary()["agv_contacts"] == 0 == plain.summary()["agv_contacts"]
     # AGV 0 stopped on (0, 1), short of the cells it gave back, and finished its plan
     assert greedy.adg.done(0) and greedy.last_finish[0] >= plain.last_finish[0] - 1e-9
-    # Without the delay it keeps its claims and goes first: nothing to switch
+    # Without the delay AGV 0 passes first as planned: nothing to switch
     assert switches(corridor("greedy", 0.0, paths=CROSS)) == []
+    # Claims given back but nothing switched: the plain graph's motion to the last digit
+    never = corridor("greedy", 8.0, paths=CROSS, delay_at=1, reorder_margin_s=1e6)
+    assert switches(never) == []
+    np.testing.assert_array_equal(never.last_finish, plain.last_finish)
+
+
+# AGV 0 drives the whole corridor of row 1 east; AGV 1 crosses it at column 8 after it.
+LONG = ["########.###", "............", "########.###", "SR##########"]
+LONG_PATHS = {0: TimedPath(0, 0, tuple((12 + c, 12 + c) for c in range(12))),
+              1: TimedPath(1, 0, ((8, 8),) * 9 + ((20, 20), (32, 32)))}
+
+
+def test_a_driving_agv_claims_only_what_its_braking_needs():
+    # Far from (1, 8), AGV 0 has not claimed it yet: AGV 1 crosses first and clears the
+    # cell before AGV 0 gets there (plain: it waits until AGV 0 has passed).
+    plain = corridor("none", 0.0, paths=LONG_PATHS, grid=LONG)
+    greedy = corridor("greedy", 0.0, paths=LONG_PATHS, grid=LONG)
+    (sw,) = switches(greedy)
+    assert (sw["first"], sw["then"], sw["cells"]) == (1, 0, [[1, 8]])
+    assert plain.last_finish[1] - greedy.last_finish[1] > 3.0
+    assert greedy.last_finish[0] == pytest.approx(plain.last_finish[0], abs=0.5)
+    assert greedy.summary()["agv_contacts"] == 0 == plain.summary()["agv_contacts"]
+    # Nothing switched: the same motion as the plain graph's, to the last digit
+    never = corridor("greedy", 0.0, paths=LONG_PATHS, grid=LONG, reorder_margin_s=1e6)
+    np.testing.assert_array_equal(never.last_finish, plain.last_finish)
 
 
 def test_no_switch_that_does_not_win_the_margin():

@@ -83,6 +83,8 @@ class PlanFollower(PlanSync):
         self._ext_for: list[Action | None] = [None] * st.n
         """Per AGV the running action at its last :meth:`_extend`, while that answer
         holds."""
+        self._given_back: set[int] = set()
+        """Delayed driving AGVs that gave back claims (:meth:`_give_back_delayed`)."""
         self._left, self._used = np.empty(st.n), np.empty(st.n)
         self._events = np.empty(st.n, dtype=np.int64)
         """Buffers of one physics step (:meth:`advance`)."""
@@ -183,9 +185,16 @@ class PlanFollower(PlanSync):
         self.adg.now = t
 
     def _give_back_delayed(self, delayed: np.ndarray) -> None:
-        """Delayed driving AGVs give back the claims beyond where their braking stops them
-        (with reordering on: the AGVs waiting at those cells may then be switched ahead)."""
+        """With reordering: a delayed driving AGV gives back its claims beyond where its
+        braking stops it, so the AGVs waiting at those cells may be switched ahead of it
+        (its stop point moves back only if one is: :meth:`.reorder.Reorderer.decide`).
+        Once its delay is over it claims again what is released to it."""
         st, adg = self.st, self.adg
+        for i in sorted(self._given_back):
+            if not delayed[i]:
+                self._given_back.discard(i)
+                if st.mode[i] == DRIVE:
+                    self._extend(i)
         for i in np.flatnonzero((st.mode == DRIVE) & delayed).tolist():
             claimed = adg.claimed(i)
             if not claimed:
@@ -195,7 +204,7 @@ class PlanFollower(PlanSync):
             if keep >= len(claimed):
                 continue
             adg.unclaim(i, keep)
-            st.stop_s[i] = min(st.stop_s[i], st.cur_end[i] + keep * st.cell_m)
+            self._given_back.add(i)
             self._ext_for[i] = None
 
     def _decide_standing(self, t: float, delayed: np.ndarray, ang: np.ndarray) -> None:
@@ -391,10 +400,22 @@ class PlanFollower(PlanSync):
             if a.direction != cur.direction or a.seq in holds:
                 break  # a turn, or a planned dwell before this action: stop here
             run += 1
+        capped = False
+        if self.reorder is not None and run:
+            # Reordering: claim (and stop) only as far as the AGV must look ahead not to
+            # brake before its next look, plus a cell; the cells beyond stay switchable.
+            over = (st.s_ref[i] + st.speed[i] ** 2 / (2 * st.amax[i])
+                    + 2 * st.vmax[i] * st.dt * st.decide_every + 0.05 - st.cur_end[i])
+            cap = max(0, math.ceil(over / st.cell_m - 1e-9)) + 1
+            if run > cap:
+                run, capped = cap, True
         if self.spec.adg and run:
             # Committed: no later plan may put another AGV ahead of it on these cells.
             adg.claim(i, run, released=ahead)
         st.stop_s[i] = st.cur_end[i] + run * st.cell_m
+        if capped:
+            self._ext_for[i] = None  # look again as it drives on
+            return
         if self.spec.adg and adg.latency_s == 0:
             if run == len(ahead) and stop is not None:
                 if stop is False:

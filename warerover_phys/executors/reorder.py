@@ -175,6 +175,7 @@ class Reorderer:
             if sg.switch(e.group):
                 made += 1
                 self._record(e, t)
+                self._stop_passed(e.group)
             else:
                 why[e.group.second] = "refused"
                 if sg.refused > refused:
@@ -193,6 +194,16 @@ class Reorderer:
         self.wall_s += time.perf_counter() - wall0
         self.cpu_s += time.process_time() - cpu0
         return made
+
+    def _stop_passed(self, g: Group) -> None:
+        """A driving AGV passed at cells it no longer claims (a delayed AGV that gave them
+        back, :meth:`~.follow.PlanFollower._give_back_delayed`) stops at the end of its
+        claims: they reach past its braking distance."""
+        st = self.st
+        for a in sorted({u.agv for u, _ in g.pairs}):
+            if st.mode[a] == DRIVE:
+                end = st.cur_end[a] + len(self.adg.claimed(a)) * st.cell_m
+                st.stop_s[a] = min(st.stop_s[a], end)
 
     def _key(self, g: Group) -> tuple:
         """A group declined (not worth it, or refused: a cycle) is not looked at again
