@@ -7,7 +7,9 @@ replaced), draws the tick's random delays, and per physics step
 - runs the references through the step and finishes turns and actions at the exact times
   their references end them (the rest of the step goes to the next action);
 - looks ahead of driving AGVs and pushes their stop point to the end of the released
-  collinear run (claiming those actions in the ADG);
+  collinear run (claiming those actions in the ADG); with ``executor.reorder`` only as far
+  as braking before the next look needs, plus a cell, and a delayed AGV gives back the
+  claims beyond its braking (the cells further on stay switchable);
 - turns standing differential-drive AGVs towards their next move, and starts it once the
   ADG says its cells are free (or, with ``adg: false``, at its planned tick: naive
   time-indexed following, for comparison);
