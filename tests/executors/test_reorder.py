@@ -128,6 +128,43 @@ def test_a_driving_agv_claims_only_what_its_braking_needs():
     np.testing.assert_array_equal(never.last_finish, plain.last_finish)
 
 
+def test_a_new_plan_stops_an_agv_that_gave_back_its_claims():
+    # AGV 0, delayed at full speed, gives back its claims (nothing is switched: margin)
+    # but keeps its stop point; a new plan that ends where it will stand must bring its
+    # stop point back with it (else it would drive on past its plan once the delay ends).
+    layout = build_layout(LayoutSpec(grid=LONG))
+    ex = PhysicsExecutor(ExecutorSpec(name="physics", reorder="greedy",
+                                      reorder_margin_s=1e6))
+    ex.bind(ExecutorSetup(layout=layout, tick_s=1.0, rng=np.random.default_rng(0),
+                          agvs=tuple(AgvBody(i, 1, AgvTypeSpec(), LONG_PATHS[i].states[0])
+                                     for i in range(2))))
+    plans = dict(LONG_PATHS)
+    f, st = ex.follow, ex.follow.st
+
+    def step(tick: int) -> None:
+        ex.step(TickView(tick=tick, plans=MappingProxyType(dict(plans)), behind=(0, 0),
+                         failed=frozenset(), loaded=(False, False), carried=(None, None),
+                         task_state=(0, 0)))
+
+    def claims_end() -> float:
+        return st.cur_end[0] + len(ex.adg.claimed(0)) * st.cell_m
+
+    for tick in range(3):
+        step(tick)
+    ex.delayed_until[0] = 3.0 + 5.0
+    step(3)
+    step(4)
+    assert 0 in f._given_back and st.stop_s[0] > claims_end()
+    node = ex.adg.cut_node(0)
+    plans[0] = TimedPath(0, 5, ((node, node),))
+    step(5)
+    assert ex.adg.upcoming(0) == ex.adg.claimed(0)
+    assert st.stop_s[0] <= claims_end() + 1e-9
+    for tick in range(6, 20):
+        step(tick)
+    assert ex.adg.done(0) and ex.summary()["agv_contacts"] == 0
+
+
 def test_no_switch_that_does_not_win_the_margin():
     plain = corridor("none", 8.0)
     greedy = corridor("greedy", 8.0, reorder_margin_s=30.0)  # it would win ~10 s
@@ -359,3 +396,51 @@ def test_a_group_refused_for_a_cycle_is_not_tried_again(plan40, monkeypatch):
     # (the plan does not change in the run: every group kept lives to its end)
     assert len(set(refused)) == len(refused)
     assert s["agv_contacts"] == 0 and s["deadlocks"] == 0 and a.report["completed"]
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_in_the_lifelong_loop_no_agv_drives_towards_a_cell_not_released_to_it(
+        monkeypatch, seed):
+    """``warerover run`` with reordering: the planner changes plans every tick while
+    delayed AGVs give back claims and others are switched ahead. After every plan
+    hand-over and every decision, each driving AGV's stop point lies within the actions
+    released to it (else it would drive into a cell another AGV may take first)."""
+    from warerover_phys import load_scenario
+    from warerover_phys.config import parse_override
+    from warerover_phys.executors.fleet_state import DRIVE
+    from warerover_phys.executors.follow import LOOKAHEAD, PlanFollower
+    from warerover_phys.sim import Simulation
+
+    bad: list[tuple] = []
+    checks = {"n": 0, "given_back": 0}
+
+    def check(f: PlanFollower) -> None:
+        st = f.st
+        checks["n"] += 1
+        checks["given_back"] += len(f._given_back)
+        for i in np.flatnonzero(st.mode == DRIVE).tolist():
+            room = st.cur_end[i] + len(f.adg.released(i, LOOKAHEAD)) * st.cell_m
+            if st.stop_s[i] > room + 1e-6:
+                bad.append((i, float(st.stop_s[i]), float(room)))
+
+    sync, advance = PlanFollower.sync_plans, PlanFollower.advance
+
+    def sync_checked(self, view):
+        sync(self, view)
+        check(self)
+
+    def advance_checked(self, pos, ang, delayed, decide):
+        advance(self, pos, ang, delayed, decide)
+        if decide:
+            check(self)
+
+    monkeypatch.setattr(PlanFollower, "sync_plans", sync_checked)
+    monkeypatch.setattr(PlanFollower, "advance", advance_checked)
+    ov = [parse_override(x) for x in (
+        "executor=physics", "executor.reorder=greedy", "executor.delays.model=bernoulli",
+        "executor.delays.prob=0.2", "max_ticks=150")]
+    sim = Simulation(load_scenario(REPO / "layouts" / "warerover_basic.yaml", ov), seed)
+    m = sim.run().metrics
+    assert bad == []
+    assert checks["given_back"] > 0 and m["reorder_switches"] > 0
+    assert m["agv_contacts"] == 0 and m["static_contacts"] == 0

@@ -209,6 +209,16 @@ class PlanFollower(PlanSync):
             self._given_back.add(i)
             self._ext_for[i] = None
 
+    def _stop_given_back(self) -> None:
+        """AGVs that gave back claims stop at the end of what they still claim (within
+        their braking distance): after a plan change, the cells they gave back may no
+        longer be theirs next."""
+        st = self.st
+        for i in sorted(self._given_back):
+            if st.mode[i] == DRIVE:
+                end = st.cur_end[i] + len(self.adg.claimed(i)) * st.cell_m
+                st.stop_s[i] = min(st.stop_s[i], end)
+
     def _decide_standing(self, t: float, delayed: np.ndarray, ang: np.ndarray) -> None:
         """Decide, in id order, for the standing AGVs with a next action, except those
         asleep: found waiting on the dependency graph before, they sleep until the queue
