@@ -189,7 +189,8 @@ class PlanFollower(PlanSync):
     def _give_back_delayed(self, delayed: np.ndarray) -> None:
         """With reordering: a delayed driving AGV gives back its claims beyond where its
         braking stops it, so the AGVs waiting at those cells may be switched ahead of it
-        (its stop point moves back only if one is: :meth:`.reorder.Reorderer.decide`).
+        (its stop point moves back only if one is, or plans change:
+        :meth:`.reorder.Reorderer.stop_at_claims`).
         Once its delay is over it claims again what is released to it."""
         st, adg = self.st, self.adg
         for i in sorted(self._given_back):
@@ -208,16 +209,6 @@ class PlanFollower(PlanSync):
             adg.unclaim(i, keep)
             self._given_back.add(i)
             self._ext_for[i] = None
-
-    def _stop_given_back(self) -> None:
-        """AGVs that gave back claims stop at the end of what they still claim (within
-        their braking distance): after a plan change, the cells they gave back may no
-        longer be theirs next."""
-        st = self.st
-        for i in sorted(self._given_back):
-            if st.mode[i] == DRIVE:
-                end = st.cur_end[i] + len(self.adg.claimed(i)) * st.cell_m
-                st.stop_s[i] = min(st.stop_s[i], end)
 
     def _decide_standing(self, t: float, delayed: np.ndarray, ang: np.ndarray) -> None:
         """Decide, in id order, for the standing AGVs with a next action, except those

@@ -36,7 +36,7 @@ class PlanSync:
         if self._given_back:
             # New visits may now be ahead of the cells they gave back (or their own plan
             # dropped them): they stop at the end of their claims.
-            self._stop_given_back()
+            self.reorder.stop_at_claims(sorted(self._given_back))
 
     def _sync_one(self, i: int, path: TimedPath, view: TickView) -> None:
         """Hand AGV ``i``'s new plan ``path`` to the ADG (commit cut)."""

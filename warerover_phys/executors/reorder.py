@@ -175,7 +175,7 @@ class Reorderer:
             if sg.switch(e.group):
                 made += 1
                 self._record(e, t)
-                self._stop_passed(e.group)
+                self.stop_at_claims(sorted({u.agv for u, _ in e.group.pairs}))
             else:
                 why[e.group.second] = "refused"
                 if sg.refused > refused:
@@ -195,12 +195,13 @@ class Reorderer:
         self.cpu_s += time.process_time() - cpu0
         return made
 
-    def _stop_passed(self, g: Group) -> None:
-        """A driving AGV passed at cells it no longer claims (a delayed AGV that gave them
-        back, :meth:`~.follow.PlanFollower._give_back_delayed`) stops at the end of its
-        claims: they reach past its braking distance."""
+    def stop_at_claims(self, agvs: list[int]) -> None:
+        """Driving AGVs among ``agvs`` stop at the end of what they claim (within their
+        braking distance). For an AGV that gave back claims
+        (:meth:`~.follow.PlanFollower._give_back_delayed`) when a switch passes it, or
+        when plans change: the cells it gave back may no longer be its next."""
         st = self.st
-        for a in sorted({u.agv for u, _ in g.pairs}):
+        for a in agvs:
             if st.mode[a] == DRIVE:
                 end = st.cur_end[a] + len(self.adg.claimed(a)) * st.cell_m
                 st.stop_s[a] = min(st.stop_s[a], end)
