@@ -376,6 +376,26 @@ def test_reordered_fleets_keep_every_plan_and_never_collide(plan40, n, seed, p, 
                           layout.cols) == []
 
 
+
+@pytest.mark.parametrize("mode", ["greedy", "milp"])
+def test_kept_candidates_and_early_refusals_agree_with_a_fresh_look(plan40, mode,
+                                                                    monkeypatch):
+    # With the check on, every kept candidate is compared with a fresh one, every cycle
+    # the early search finds must be found by the insertions too, and the graph is
+    # checked acyclic after every switch; the run is the same as without the check.
+    from functools import partial
+
+    from warerover_phys.executors import reorder
+
+    plain = gap(plan40, mode, seed=3)
+    monkeypatch.setattr(reorder, "SwitchableGraph",
+                        partial(reorder.SwitchableGraph, check=True))
+    checked = gap(plan40, mode, seed=3)
+    s = checked.run.summary
+    assert s["reorder_switches"] >= 1 and s["reorder_refused"] >= 1
+    assert checked.run.executed == plain.run.executed
+    assert s["reorder_refused"] == plain.run.summary["reorder_refused"]
+
 def test_a_group_refused_for_a_cycle_is_not_tried_again(plan40, monkeypatch):
     from warerover_phys.executors.switch import SwitchableGraph
 

@@ -91,6 +91,51 @@ def test_visits_that_may_not_move_give_no_candidate():
     assert sg.candidate(1) is None
 
 
+
+def test_a_cycle_through_the_last_cell_is_refused_before_any_edge_goes_in(monkeypatch):
+    # The group of the test above, without the tests' check: its cycle runs through the
+    # edge of its last cell, (0, 3), so one search refuses it, and no edge of (0, 2) is
+    # inserted (nor the order renumbered) first.
+    paths = dict(CORRIDOR)
+    paths[1] = TimedPath(1, 0, ((0, 0), (1, 1), (1, 1), (2, 2), (3, 3), (4, 4)))
+    g = build(paths, {0: 1, 1: 1}, COLS)
+    sg = SwitchableGraph(g)
+    g.start(1)
+    g.finish(1)
+    sg._sync()
+    order = dict(sg._ord)
+    inserted = []
+    insert = SwitchableGraph._insert
+    monkeypatch.setattr(SwitchableGraph, "_insert",
+                        lambda self, x, y, journal: inserted.append((x, y)) or insert(
+                            self, x, y, journal))
+    q = g._queues
+    grp = Group(0, 1, tuple((q[c][0], q[c][1]) for c in (2, 3)))
+    assert not sg.switch(grp)
+    assert inserted == [] and sg._ord == order and sg.refused == 1
+    assert [v.agv for v in g.visits(2)] == [0, 1] and [v.agv for v in g.visits(3)] == [0, 1]
+
+
+def test_a_kept_candidate_follows_every_change_of_the_queues_it_read():
+    g = build(CORRIDOR, {0: 1, 1: 1}, COLS)
+    sg = SwitchableGraph(g)  # (no check: the kept answers themselves are tested)
+    g.start(1)
+    g.finish(1)
+    grp = sg.candidate(1)
+    assert grp is not None and sg.candidate(1) is grp  # nothing changed: kept
+    g.claim(0, 1)  # AGV 0 is committed to drive into (0, 2)
+    assert sg.candidate(1) is None
+    g.unclaim(0)
+    again = sg.candidate(1)
+    assert again is not grp and (again.first, again.pairs) == (grp.first, grp.pairs)
+    g.start(0)  # AGV 0 enters (0, 2)
+    assert sg.candidate(1) is None
+    g.finish(0)
+    assert sg.candidate(1) is None  # it stands on it
+    g.start(0)
+    g.finish(0)  # it left (0, 2) for (0, 3): AGV 1 may enter (0, 2), nothing to switch
+    assert g.ready(1) and sg.candidate(1) is None
+
 SETTINGS = settings(max_examples=150, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow,
                                            HealthCheck.filter_too_much])

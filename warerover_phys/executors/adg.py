@@ -59,6 +59,7 @@ from __future__ import annotations
 
 import heapq
 import logging
+from collections import defaultdict
 from collections.abc import Iterable, Mapping
 from itertools import islice
 
@@ -112,6 +113,14 @@ class ActionGraph(PlanBuilding, DeadlockChecks):
         self._heading0 = heading
         self._agents: dict[int, _Agent] = {}
         self._queues: dict[int, list[_Visit]] = {}
+        self.cell_version: defaultdict[int, int] = defaultdict(int)
+        """Per cell: counts the changes of its queue and of its visits' ``entered`` and
+        ``claimed`` (by starting, finishing, claiming, switching; a new plan counts in
+        :attr:`plan_version` instead). What is read of a cell's queue stays the same
+        while its number does (:meth:`.switch.SwitchableGraph.candidate` keeps its
+        answers by them)."""
+        self.load_version = 0
+        """Counts the changes of who carries a shelf (:meth:`set_loaded`)."""
         self._order = 0
         self._waiters: dict[int, list[int]] = {}
         """Cell -> AGVs whose next action waits for that cell's queue head to change."""
@@ -175,6 +184,7 @@ class ActionGraph(PlanBuilding, DeadlockChecks):
         now = {a for a, x in enumerate(loaded) if not x}
         if now != self._unloaded:
             self._unloaded = now
+            self.load_version += 1
             self._plans_changed()
             for cell in list(self._waiters):
                 self._touch(cell)
@@ -297,10 +307,14 @@ class ActionGraph(PlanBuilding, DeadlockChecks):
         released ones), to save a second look at the queues."""
         rec = self._agents.get(agv) or self._rec(agv)
         out = self.released(agv, limit) if released is None else released[:limit]
+        ver = self.cell_version
         for step in islice(rec.pending, len(out)):
+            new = not step.claimed
             step.claimed = True
             for v in step.enter_visits:
                 v.claimed = True
+                if new:
+                    ver[v.cell] += 1
         return out
 
     def claimed(self, agv: int) -> list[Action]:
@@ -322,6 +336,7 @@ class ActionGraph(PlanBuilding, DeadlockChecks):
                 step.claimed = False
                 for v in step.enter_visits:
                     v.claimed = False
+                    self.cell_version[v.cell] += 1
 
     def next_action(self, agv: int) -> Action | None:
         """The first not-started action, if any."""
@@ -529,9 +544,11 @@ class ActionGraph(PlanBuilding, DeadlockChecks):
                                f"({self.next_action(agv)!r}, running {self.current(agv)!r})")
         rec = self._agents[agv]
         step = rec.pending.popleft()
+        ver = self.cell_version
         for v in step.enter_visits:
             v.entered = True
             rec.held[v.cell] = v
+            ver[v.cell] += 1
         rec.running = step
         self._dirty.add(agv)
         return step.action
@@ -551,6 +568,7 @@ class ActionGraph(PlanBuilding, DeadlockChecks):
                 q.remove(v)
             self._n_visits -= 1
             del rec.held[v.cell]
+            self.cell_version[v.cell] += 1
             self._touch(v.cell)
             if self.latency_s > 0:
                 self._heard_at[v.cell] = (agv, self.now + self.latency_s)
