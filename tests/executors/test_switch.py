@@ -79,6 +79,30 @@ def test_a_single_cell_alone_would_close_a_cycle_but_the_run_switches():
     assert sg.switch(grp)
 
 
+
+def test_on_a_held_cell_the_waiting_agv_passes_the_visits_behind_the_holder():
+    # AGV 2 still stands on (0, 3), where AGV 0 (late) and then AGV 1 pass after it. AGV 1
+    # may go first at (0, 2) only if it goes first at (0, 3) too (else it would wait
+    # there for AGV 0, which waits for it at (0, 2)): it passes AGV 0 behind AGV 2.
+    paths = {0: TimedPath(0, 0, ((8, 8), (2, 2), (3, 3), (4, 4), (5, 5))),
+             1: TimedPath(1, 0, ((0, 0), (1, 1), (1, 1), (2, 2), (3, 3), (9, 9))),
+             2: TimedPath(2, 0, ((3, 3), (3, 3), (4, 4), (10, 10)))}
+    g = build(paths, {0: 1, 1: 1, 2: 1}, COLS)
+    sg = SwitchableGraph(g, check=True)
+    g.start(1)
+    g.finish(1)
+    grp = sg.candidate(1)
+    assert (grp.first, grp.second, grp.cells) == (0, 1, (2, 3))
+    assert sg.switch(grp)
+    assert [v.agv for v in g.visits(3)] == [2, 1, 0]
+    g.start(1)
+    g.finish(1)  # AGV 1 on (0, 2): it waits for AGV 2 to leave (0, 3), AGV 0 for it
+    assert not g.ready(1) and not g.ready(0) and g.ready(2)
+    run_to_end(g, 2)
+    run_to_end(g, 1)
+    run_to_end(g, 0)
+    assert (sg.switches, sg.refused) == (1, 0)
+
 def test_visits_that_may_not_move_give_no_candidate():
     g = build(CORRIDOR, {0: 1, 1: 1}, COLS)
     sg = SwitchableGraph(g)

@@ -15,7 +15,11 @@ group's cells it passes the visits ahead of its own too: those AGVs may wait for
 it passed, and ``j`` would wait for them there, a cycle. (Switching only the first cell of
 a corridor that ``i`` and ``j`` both drive through is the plainest such cycle: ``j`` would
 wait for ``i`` on the second cell, ``i`` for ``j`` on the first.) So a whole corridor, or a
-single crossing cell, is switched at once, or nothing.
+single crossing cell, is switched at once, or nothing. On a cell of the group that another
+AGV stands on, ``j`` waits for it and passes the visits behind it. (Until 2026-11-29 it
+passed none there, and waited for them: when ``i`` was among them, the group closed a
+cycle and was refused. LaCAM's 400-agent plan of warehouse-10-20-10-2-1, bernoulli 0.1,
+``greedy``, seed 0: 188 groups refused instead of 722, AET 282.6 instead of 285.2 s.)
 
 **Acyclic, checked.** :class:`SwitchableGraph` keeps a topological order of the remaining
 actions (a number per action: Kahn's algorithm once per plan change,
@@ -139,8 +143,10 @@ class SwitchableGraph:
         visits of other AGVs that have not entered it; ``j`` goes before them. Then, on
         each cell ``j`` enters before it has left every cell of the group, it goes before
         the visits ahead of its own there too (they may wait for those it passed: a
-        cycle), unless such a cell is held (its AGV is on it: ``j`` waits there). None if
-        a visit it must pass may not move, or ``j``'s plan ends on a cell of the group."""
+        cycle); on such a cell that is held (its AGV is on it) ``j`` waits for the holder
+        and passes only the visits behind it, if they may move (else it waits for those
+        too). None if a visit it must pass on its next action's cells may not move, or
+        ``j``'s plan ends on a cell of the group."""
         self._sync()
         adg = self.adg
         rec = adg._agents.get(j)
@@ -182,7 +188,14 @@ class SwitchableGraph:
                     if k == 0 and ahead and not adg._first(w):
                         return None  # a turn that waits for its swept cells
                     continue
-                if not ahead or (k > 0 and any(x.entered for x in ahead)):
+                if k > 0 and any(x.entered for x in ahead):
+                    # a held cell: j waits there for its holder, and passes the visits
+                    # behind it, if it may (else it waits for those too)
+                    rest = [x for x in ahead if not x.entered]
+                    if not rest or w.leave is None or not _movable(rest[0], w, q):
+                        continue
+                    ahead = rest
+                if not ahead:
                     continue
                 if w.leave is None or not _movable(ahead[0], w, q):
                     return None
