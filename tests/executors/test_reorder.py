@@ -191,6 +191,37 @@ def test_milp_chooses_the_switch_and_falls_back_to_greedy_without_an_optimum():
     assert late.summary()["reorder_milp_fallbacks"] >= 1
     assert switches(late) == switches(greedy)
     np.testing.assert_array_equal(late.last_finish, greedy.last_finish)
+    # A program over the size limit is not solved: the greedy rule decides.
+    large = corridor("milp", 8.0, reorder_milp_max_vars=1, reorder_milp_band_s=None)
+    assert large.summary()["reorder_milp_solves"] == 0
+    assert large.summary()["reorder_milp_large"] >= 1
+    assert switches(large) == switches(greedy)
+    np.testing.assert_array_equal(large.last_finish, greedy.last_finish)
+
+
+@pytest.mark.parametrize("limit", [None, 1])
+def test_milp_programs_over_the_size_limit_are_decided_as_greedy_decides(plan40, limit,
+                                                                         monkeypatch):
+    # With every program over the limit, milp decides as greedy does, run for run; with
+    # no limit it solves programs.
+    from warerover_phys.executors.reorder import Reorderer
+
+    init = Reorderer.__init__
+
+    def spec_set(self, st, adg, spec, *args, **kwargs):
+        spec = spec.model_copy(update={"reorder_milp_max_vars": limit,
+                                       "reorder_milp_band_s": None})
+        init(self, st, adg, spec, *args, **kwargs)
+
+    greedy = gap(plan40, "greedy", seed=3)
+    monkeypatch.setattr(Reorderer, "__init__", spec_set)
+    milp = gap(plan40, "milp", seed=3)
+    s = milp.run.summary
+    if limit == 1:
+        assert s["reorder_milp_solves"] == 0 and s["reorder_milp_large"] >= 1
+        assert milp.run.executed == greedy.run.executed
+    else:
+        assert s["reorder_milp_solves"] >= 1 and s["reorder_milp_large"] == 0
 
 
 def audit(ex: PhysicsExecutor) -> dict[str, float]:

@@ -83,6 +83,7 @@ class Reorderer:
         self.node_limit = int(spec.reorder_node_limit)
         self.time_limit_s = spec.reorder_time_limit_s
         self.milp_band_s = spec.reorder_milp_band_s
+        self.milp_max_vars = spec.reorder_milp_max_vars
         self.graph = SwitchableGraph(adg, check=check)
         self.slow = slowdown(spec.delays)
         """Driving times are stretched by this factor: the share of time random delays
@@ -112,6 +113,9 @@ class Reorderer:
         self.milp_solves = 0
         self.milp_fallbacks = 0
         self.milp_clear = 0
+        self.milp_large = 0
+        """``milp``: problems decided by the greedy rule, their program over
+        ``reorder_milp_max_vars``."""
         """``milp``: lone candidates decided by the greedy rule (clear-cut)."""
         self.audit: dict[str, float] = {}
         """Simulated AGV-seconds the waiting AGVs spent, sampled at the decisions, by what
@@ -460,6 +464,7 @@ class Reorderer:
             out["reorder_milp_solves"] = self.milp_solves
             out["reorder_milp_fallbacks"] = self.milp_fallbacks
             out["reorder_milp_clear"] = self.milp_clear
+            out["reorder_milp_large"] = self.milp_large
         return out
 
 

@@ -22,7 +22,8 @@ independent problems: candidates that share an AGV go together. For each problem
   ``reorder_margin_s`` per switch (a switch must pay for itself, as in greedy).
 
 A problem of one candidate whose estimated gain is further than ``reorder_milp_band_s``
-from the margin is clear-cut and decided by the greedy rule without a program.
+from the margin is clear-cut and decided by the greedy rule without a program, and so is
+a problem whose program would have more than ``reorder_milp_max_vars`` variables.
 Solved with :func:`scipy.optimize.milp` (HiGHS) within ``reorder_node_limit``
 branch-and-bound nodes (and ``reorder_time_limit_s`` if set); a problem without a proved
 optimum falls back to the greedy rule. A feasible schedule has no cycle within the window;
@@ -92,7 +93,12 @@ def choose(r: Decider, ests: list[Estimate], t: float) -> list[Estimate]:
             r.milp_clear += 1  # clear-cut: the greedy rule's answer
             chosen += [e for e, _ in inside if r.worth(e)]
             continue
-        picked = _Program(r, inside, t).solve()
+        prog = _Program(r, inside, t)
+        if r.milp_max_vars is not None and len(prog.col) + prog.nb > r.milp_max_vars:
+            r.milp_large += 1  # too large: the greedy rule's answer
+            chosen += [e for e, _ in inside if r.worth(e)]
+            continue
+        picked = prog.solve()
         if picked is None:
             r.milp_fallbacks += 1
             picked = [e for e, _ in inside if r.worth(e)]

@@ -54,9 +54,11 @@ class Decider(Protocol):
     time_limit_s: float | None
     wait_depth: int
     milp_band_s: float | None
+    milp_max_vars: int | None
     milp_solves: int
     milp_fallbacks: int
     milp_clear: int
+    milp_large: int
 
     def worth(self, e: Estimate) -> bool: ...
 
