@@ -401,35 +401,13 @@ class SwitchableGraph:
                         out.append(t)
         return out
 
-    def _reaches(self, y: _Step, x: _Step) -> bool:
-        """Whether ``y`` surely reaches ``x`` (so the edge ``x -> y`` would close a
-        cycle): the forward search of :meth:`_insert` alone, without renumbering; False
-        also when it gives up at the limit."""
+    def _forward(self, y: _Step, x: _Step) -> tuple[list[_Step] | bool, int]:
+        """Pearce-Kelly's forward search from ``y`` over the actions ordered before ``x``:
+        ``(True, _)`` if it reaches ``x`` (the edge ``x -> y`` would close a cycle),
+        ``(False, _)`` if it gives up at the limit, else the actions found and the
+        budget left."""
         order = self._ord
         ox = order[x]
-        if ox < order[y]:
-            return False
-        budget = self.search_limit
-        seen, stack = {y}, [y]
-        while stack:
-            for m in self._succ(stack.pop()):
-                if m is x:
-                    return True
-                if m not in seen and order[m] < ox:
-                    seen.add(m)
-                    stack.append(m)
-            budget -= 1
-            if budget <= 0:
-                return False
-        return False
-
-    def _insert(self, x: _Step, y: _Step, journal: list[tuple[_Step, int]]) -> bool:
-        """Insert the edge ``x -> y`` (Pearce-Kelly); False on a cycle or a search over
-        the limit (the order is then as the journal says to restore)."""
-        order = self._ord
-        ox, oy = order[x], order[y]
-        if ox < oy:
-            return True
         budget = self.search_limit
         fwd, seen, stack = [], {y}, [y]
         while stack:
@@ -437,13 +415,33 @@ class SwitchableGraph:
             fwd.append(n)
             for m in self._succ(n):
                 if m is x:
-                    return False
+                    return True, budget
                 if m not in seen and order[m] < ox:
                     seen.add(m)
                     stack.append(m)
             budget -= 1
             if budget <= 0:
-                return False
+                return False, budget
+        return fwd, budget
+
+    def _reaches(self, y: _Step, x: _Step) -> bool:
+        """Whether ``y`` surely reaches ``x`` (so the edge ``x -> y`` would close a
+        cycle): the forward search of :meth:`_insert` alone, without renumbering; False
+        also when it gives up at the limit."""
+        if self._ord[x] < self._ord[y]:
+            return False
+        return self._forward(y, x)[0] is True
+
+    def _insert(self, x: _Step, y: _Step, journal: list[tuple[_Step, int]]) -> bool:
+        """Insert the edge ``x -> y`` (Pearce-Kelly); False on a cycle or a search over
+        the limit (the order is then as the journal says to restore)."""
+        order = self._ord
+        oy = order[y]
+        if order[x] < oy:
+            return True
+        fwd, budget = self._forward(y, x)
+        if isinstance(fwd, bool):
+            return False
         back, seen_b, stack = [], {x}, [x]
         while stack:
             n = stack.pop()
