@@ -82,6 +82,32 @@ def test_greedy_lets_the_waiting_agv_pass_first_and_wins_its_wait():
     assert not plain.cause_log().reorder_gain.any()
 
 
+def test_a_driving_agv_is_switched_before_it_stops():
+    # AGV 1 drives up to the corridor that the late AGV 0 should pass first. Standing
+    # candidates only: it stops at (0, 1), is switched at the next decision and starts
+    # again. Driving candidates (reorder_ahead_s): it is switched as it drives up, and
+    # goes on without stopping.
+    plain = corridor("none", 8.0)
+    standing = corridor("greedy", 8.0, reorder_ahead_s=0.0)
+    driving = corridor("greedy", 8.0)
+    (s1,), (s2,) = switches(standing), switches(driving)
+    assert not s1["driving"] and s2["driving"] and s2["t_s"] < s1["t_s"]
+    assert (s2["first"], s2["then"], s2["cells"]) == (1, 0, [[0, 2], [0, 3]])
+    assert standing.summary()["delay_dependency_wait_s"] > 0.2
+    assert driving.summary()["delay_dependency_wait_s"] == 0.0
+    assert driving.summary()["reorder_switches_driving"] == 1
+    assert standing.summary()["reorder_switches_driving"] == 0
+    # it saves the stop (about speed / acceleration) on top of the standing switch's gain
+    assert standing.last_finish[1] - driving.last_finish[1] > 1.0
+    assert plain.last_finish[1] - driving.last_finish[1] > 10.0
+    for ex in (plain, standing, driving):  # AGV 0 was late anyway: it loses nothing
+        assert ex.last_finish[0] == pytest.approx(plain.last_finish[0], abs=1e-9)
+        assert ex.summary()["agv_contacts"] == 0
+    log = driving.cause_log()
+    won = log.reorder_gain[log.agv == 1]
+    assert won.sum() * log.dt_s == pytest.approx(s2["wait_s"], abs=log.dt_s)
+
+
 # AGV 0 drives east along row 0 to (0, 5), claiming the cells of its run; AGV 1 crosses
 # the row after it: up from (1, 3) to (0, 3), west to (0, 2) and down to (1, 2).
 CROSS = {0: TimedPath(0, 0, ((0, 0), (1, 1), (2, 2), (3, 3), (4, 4), (5, 5))),
@@ -171,8 +197,16 @@ def test_no_switch_that_does_not_win_the_margin():
     assert switches(greedy) == []
     assert greedy.summary()["reorder_candidates"] >= 1
     np.testing.assert_array_equal(plain.last_finish, greedy.last_finish)
-    # AGV 0 only a moment late (AGV 1 has not stopped yet when it passes): no candidate
-    assert corridor("greedy", 0.5).summary()["reorder_candidates"] == 0
+    # AGV 0 only a moment late: standing, AGV 1 is never a candidate (it has not stopped
+    # yet when AGV 0 passes); driving up to the corridor (reorder_ahead_s) it is, and goes
+    # first without stopping: AGV 0 waits for it, and the two finish sooner in all
+    assert corridor("greedy", 0.5, reorder_ahead_s=0.0).summary()[
+        "reorder_candidates"] == 0
+    late, plain = corridor("greedy", 0.5), corridor("none", 0.5)
+    (sw,) = switches(late)
+    assert sw["driving"] and sw["cost_s"] > 0
+    assert late.last_finish[0] > plain.last_finish[0]
+    assert late.last_finish.sum() < plain.last_finish.sum() - 1.0
 
 
 def test_milp_chooses_the_switch_and_falls_back_to_greedy_without_an_optimum():
@@ -238,8 +272,10 @@ def test_the_audit_splits_the_waits_by_what_holds_them():
     # (then it waits while AGV 0 drives off the cells: held_moving)
     assert set(got) == {"declined", "held_moving"} and got["declined"] > 5
     assert sum(got.values()) == pytest.approx(wait, abs=1.0)
-    # switched: the wait ends at the first decision that finds it
-    assert set(audit(corridor("greedy", 8.0))) == {"switched"}
+    # switched: the wait ends at the first decision that finds it; switched as it drives
+    # up (reorder_ahead_s), AGV 1 does not wait at all
+    assert set(audit(corridor("greedy", 8.0, reorder_ahead_s=0.0))) == {"switched"}
+    assert audit(corridor("greedy", 8.0)) == {}
     # held: AGV 1 drives right behind AGV 0, which is delayed standing on the next cell
     behind = {0: TimedPath(0, 0, ((1, 1), (2, 2), (3, 3), (4, 4), (5, 5))),
               1: TimedPath(1, 0, ((0, 0), (0, 0), (1, 1), (2, 2), (3, 3), (4, 4)))}

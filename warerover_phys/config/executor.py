@@ -132,6 +132,10 @@ class ExecutorSpec(_Model):
     decisions, every 0.1 s)."""
     reorder_margin_s: NonNegFloat = 0.5
     """A switch must win at least this many estimated seconds."""
+    reorder_ahead_s: NonNegFloat = 2.0
+    """A driving AGV whose next collinear action waits on the graph is a candidate too,
+    once it would have to start braking for it within this many seconds at top speed:
+    switched, it drives on instead of stopping (0: only standing AGVs are candidates)."""
     reorder_horizon: PosInt = 8
     """``milp``: actions per AGV in the program's window (at least those of the cells
     it may switch)."""

@@ -9,7 +9,15 @@ looks at the AGVs found waiting on the graph:
 
 1. **Candidates.** For a waiting AGV ``j`` whose next action's cells are reserved for
    AGVs that have not entered them yet (``i``): the :class:`~.switch.Group` of the visits
-   it would pass (:meth:`~.switch.SwitchableGraph.candidate`).
+   it would pass (:meth:`~.switch.SwitchableGraph.candidate`). And for a driving AGV
+   whose stop point is that of a dependency: the first action it has not claimed goes
+   on in its direction, but its cells are reserved for others; once it would have to
+   start braking for it within ``reorder_ahead_s`` seconds at top speed
+   (:meth:`Reorderer.approaching`), the group that lets it drive on. Switched, it does
+   not stop: it saves the wait and the time that stopping and starting again cost
+   (``speed / acceleration``), which its estimate adds to the wait (2026-11-29: of
+   LaCAM's 400-agent plan's switches, bernoulli 0.1, seed 0, 275 of 451 came within a
+   second after the AGV had stopped on a straight run).
 2. **Estimates** from the motion model (:class:`~warerover_phys.planning.motion.MotionModel`
    of each AGV: straight runs from rest to rest, turns in place, planned dwells; stretched
    by the share of time the configured random delays are expected to hold an AGV,
@@ -84,6 +92,7 @@ class Reorderer:
         self.time_limit_s = spec.reorder_time_limit_s
         self.milp_band_s = spec.reorder_milp_band_s
         self.milp_max_vars = spec.reorder_milp_max_vars
+        self.ahead_s = float(spec.reorder_ahead_s)
         self.graph = SwitchableGraph(adg, check=check)
         self.slow = slowdown(spec.delays)
         """Driving times are stretched by this factor: the share of time random delays
@@ -105,6 +114,8 @@ class Reorderer:
         self._memo: dict[tuple[int, int], tuple] = {}
         self.decisions = 0
         self.candidates = 0
+        self.switches_ahead = 0
+        """Switches made for driving AGVs (:meth:`approaching`)."""
         self.gain_s = 0.0
         self.wall_s = 0.0
         self.cpu_s = 0.0
@@ -146,21 +157,28 @@ class Reorderer:
         keys: dict[int, tuple] = {}
         why: dict[int, str] = {}
         on: dict[int, int] = {}
-        for j in cands:
-            g = self.graph.candidate(j, SEGMENT_LIMIT)
+        # standing and driving AGVs (two sets: a driving AGV does not wait) in id order
+        driving = set(self.approaching(delayed)) if self.ahead_s > 0 else set()
+        for j in sorted(driving.union(cands)):
+            ahead = j in driving
+            g = self.graph.candidate(j, SEGMENT_LIMIT, ahead)
             if g is None:
-                why[j], on[j] = self._why_not(j, delayed)
+                if not ahead:
+                    why[j], on[j] = self._why_not(j, delayed)
                 continue
             key = self._key(g)
             if key in self._declined:
-                why[j] = "declined"
+                if not ahead:
+                    why[j] = "declined"
                 continue
             if g.pairs in self._cyclic:
-                why[j] = "refused"
+                if not ahead:
+                    why[j] = "refused"
                 continue
             ids = {id(v) for pair in g.pairs for v in pair}
             if ids & used:
-                why[j] = "overlap"
+                if not ahead:
+                    why[j] = "overlap"
                 continue
             used |= ids
             keys[j] = key
@@ -181,14 +199,16 @@ class Reorderer:
                 self._record(e, t)
                 self.stop_at_claims(sorted({u.agv for u, _ in e.group.pairs}))
             else:
-                why[e.group.second] = "refused"
+                if st.waiting[e.group.second]:
+                    why[e.group.second] = "refused"
                 if sg.refused > refused:
                     if len(self._cyclic) > 100_000:
                         self._cyclic.clear()
                     self._cyclic.add(e.group.pairs)
         for e in ests:  # declined: not again until something it depends on moves
             j = e.group.second
-            why.setdefault(j, "switched" if j in self._switched_now else "declined")
+            if st.waiting[j]:
+                why.setdefault(j, "switched" if j in self._switched_now else "declined")
             if j not in self._switched_now:
                 self._declined.add(keys[j])
         for j in waiting:
@@ -198,6 +218,29 @@ class Reorderer:
         self.wall_s += time.perf_counter() - wall0
         self.cpu_s += time.process_time() - cpu0
         return made
+
+    def approaching(self, delayed: np.ndarray) -> list[int]:
+        """Driving AGVs (not delayed, not failed) that will stop for a dependency: the
+        first action each has not claimed goes on in the direction of the one it drives,
+        with no planned dwell before it, but another AGV's visit ahead of its own holds
+        one of its cells back; and it would have to start braking for it within
+        ``reorder_ahead_s`` seconds at top speed (its stop point, the end of its claims,
+        is at most its braking distance plus ``reorder_ahead_s x max speed`` ahead)."""
+        st, adg = self.st, self.adg
+        near = st.stop_s - st.s_ref <= (st.speed ** 2 / (2 * st.amax)
+                                        + self.ahead_s * st.vmax + 1e-9)
+        out = []
+        for j in np.flatnonzero((st.mode == DRIVE) & ~delayed & ~st.failed & near).tolist():
+            rec = adg._agents.get(j)
+            if rec is None or rec.running is None:
+                continue
+            step = next((s for s in rec.pending if not s.claimed), None)
+            if step is None or step.action.direction != rec.running.action.direction \
+                    or step.action.seq in self.holds.get(j, {}):
+                continue
+            if not all(adg._first(v) for v in step.enter_visits):
+                out.append(j)
+        return out
 
     def stop_at_claims(self, agvs: list[int]) -> None:
         """Driving AGVs among ``agvs`` stop at the end of what they claim (within their
@@ -279,6 +322,8 @@ class Reorderer:
     def _record(self, e: Estimate, t: float) -> None:
         g, st = e.group, self.st
         self._switched_now.add(g.second)
+        driving = not st.waiting[g.second]
+        self.switches_ahead += driving
         wait = max(0.0, e.wait_s)
         self.gain_s += wait
         self.acc.causes.reorder_gain(g.second, int(round(wait / st.dt)))
@@ -287,7 +332,8 @@ class Reorderer:
             "t_s": round(t, 3), "first": g.second, "then": g.first,
             "passed": sorted({u.agv for u, _ in g.pairs}),
             "cells": [list(divmod(c, cols)) for c in g.cells],
-            "wait_s": round(e.wait_s, 3), "cost_s": round(e.cost_s, 3)}))
+            "wait_s": round(e.wait_s, 3), "cost_s": round(e.cost_s, 3),
+            "driving": bool(driving)}))
 
     # ----------------------------------------------------------------- estimates
 
@@ -304,14 +350,23 @@ class Reorderer:
         for a, _, ko, _, _ in rows:
             need[a] = max(need.get(a, 0), ko)
         times = {a: self.times(a, n, t) for a, n in sorted(need.items())}
-        # (j as if its next action were free: the switch makes it so)
+        # (j as if the action it waits for were free: the switch makes it so; its
+        # first, 0 standing, the first it has not claimed driving)
         times[j] = sj, ej = self.times(j, max(r[4] for r in rows), t, WAIT_DEPTH)
-        wait = max(times[a][1][ko] for a, _, ko, kin, _ in rows if kin == 0) - sj[0]
+        k0 = rows[0][3]
+        wait = max(times[a][1][ko] for a, _, ko, kin, _ in rows if kin == k0) - sj[k0]
+        st = self.st
+        brake = 0.0
+        if wait > 0 and st.mode[j] == DRIVE:  # it would stop, and start again
+            brake = min(wait, float(st.speed[j] / st.amax[j]))
         costs: dict[int, float] = {}
         for a, ki, _, _, kjo in rows:
             costs[a] = max(costs.get(a, 0.0), ej[kjo] - times[a][0][ki])
+        for a, c in costs.items():  # a driving AGV that now waits stops, and starts again
+            if c > 0 and st.mode[a] == DRIVE:
+                costs[a] = c + min(c, float(st.speed[a] / st.amax[a]))
         behind = {a: self._behind.get(a, 0) for a in times}
-        return Estimate(g, wait, costs, times, behind)
+        return Estimate(g, wait, costs, times, behind, brake)
 
     def _chains(self, waiting: list[int]) -> dict[int, int]:
         """Per AGV: how many waiting AGVs wait on it, directly or down a chain (each
@@ -449,6 +504,7 @@ class Reorderer:
         out = {
             "reorder": self.mode,
             "reorder_switches": sw.switches,
+            "reorder_switches_driving": self.switches_ahead,
             "reorder_refused": sw.refused,
             "reorder_candidates": self.candidates,
             "reorder_decisions": self.decisions,

@@ -19,7 +19,8 @@ independent problems: candidates that share an AGV go together. For each problem
   before and after the
   pair wait for / come before both;
 - **objective**: the sum over the AGVs of the start of their window's last action, plus
-  ``reorder_margin_s`` per switch (a switch must pay for itself, as in greedy).
+  ``reorder_margin_s`` per switch (a switch must pay for itself, as in greedy), less the
+  stop a switch saves a driving AGV (:attr:`~.reorder_types.Estimate.brake_s`).
 
 A problem of one candidate whose estimated gain is further than ``reorder_milp_band_s``
 from the margin is clear-cut and decided by the greedy rule without a program, and so is
@@ -82,7 +83,8 @@ def choose(r: Decider, ests: list[Estimate], t: float) -> list[Estimate]:
         for e in comp:
             pairs = [(u, w) for u, w in e.group.pairs
                      if idx(u.leave) < cap and idx(w.leave) < cap]
-            if any(idx(w.enter) == 0 and (u, w) not in pairs for u, w in e.group.pairs):
+            first = idx(e.group.pairs[0][1].enter)  # (0, or a driving AGV's first unclaimed)
+            if any(idx(w.enter) == first and (u, w) not in pairs for u, w in e.group.pairs):
                 chosen += [e] if r.worth(e) else []
             else:
                 inside.append((e, pairs))
@@ -248,7 +250,9 @@ class _Program:
         c = np.zeros(n)
         for a in self.agvs:
             c[self.col[(a, self.win[a] - 1)]] = 1.0
-        c[len(self.col):] = r.margin_s
+        # a switch must pay the margin; one that keeps a driving AGV from stopping saves
+        # its stop too (Estimate.brake_s)
+        c[len(self.col):] = [r.margin_s - e.brake_s for e in self.comp]
         data, ri, ci, lb = [], [], [], []
         for row, (coef, rhs) in enumerate(self.rows):
             for j, v in sorted(coef.items()):

@@ -29,6 +29,9 @@ class Estimate:
     behind: dict[int, int]
     """Per AGV of the group: the AGVs waiting on it (directly or down a chain): they win
     or lose as it does."""
+    brake_s: float = 0.0
+    """A driving waiting AGV (:meth:`~.reorder.Reorderer.approaching`) that would wait:
+    the time stopping and starting again would cost it (``speed / acceleration``)."""
 
     @property
     def cost_s(self) -> float:
@@ -36,10 +39,11 @@ class Estimate:
 
     @property
     def gain_s(self) -> float:
-        """The estimated seconds won by the fleet: the waiting AGV's wait less the costs
-        to the AGVs it passes, each times itself and the AGVs waiting on it."""
+        """The estimated seconds won by the fleet: the waiting AGV's wait (and, driving,
+        its stop) less the costs to the AGVs it passes, each times itself and the AGVs
+        waiting on it."""
         b = self.behind
-        return self.wait_s * (1 + b.get(self.group.second, 0)) - sum(
+        return (self.wait_s + self.brake_s) * (1 + b.get(self.group.second, 0)) - sum(
             c * (1 + b.get(a, 0)) for a, c in self.costs_s.items())
 
 

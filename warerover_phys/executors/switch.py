@@ -57,6 +57,7 @@ from __future__ import annotations
 
 import heapq
 from dataclasses import dataclass
+from itertools import islice
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -137,47 +138,59 @@ class SwitchableGraph:
 
     # ----------------------------------------------------------------- candidates
 
-    def candidate(self, j: int, limit: int = SEGMENT_LIMIT) -> Group | None:
+    def candidate(self, j: int, limit: int = SEGMENT_LIMIT, ahead: bool = False
+                  ) -> Group | None:
         """The group that would let standing AGV ``j`` start its next action now, or
-        None. Each cell its next action enters must be free for it but for movable
-        visits of other AGVs that have not entered it; ``j`` goes before them. Then, on
-        each cell ``j`` enters before it has left every cell of the group, it goes before
-        the visits ahead of its own there too (they may wait for those it passed: a
-        cycle); on such a cell that is held (its AGV is on it) ``j`` waits for the holder
-        and passes only the visits behind it, if they may move (else it waits for those
-        too). None if a visit it must pass on its next action's cells may not move, or
-        ``j``'s plan ends on a cell of the group."""
+        None; with ``ahead``, driving AGV ``j`` (an action runs) the first action it has
+        not claimed, as soon as the ones before are done (it drives through its claimed
+        actions; :meth:`~.adg.ActionGraph.claim`). Each cell that action enters must be
+        free for it but for movable visits of other AGVs that have not entered it; ``j``
+        goes before them. Then, on each cell ``j`` enters before it has left every cell
+        of the group, it goes before the visits ahead of its own there too (they may wait
+        for those it passed: a cycle); on such a cell that is held (its AGV is on it)
+        ``j`` waits for the holder and passes only the visits behind it, if they may move
+        (else it waits for those too). None if a visit it must pass on that action's
+        cells may not move, or ``j``'s plan ends on a cell of the group."""
         self._sync()
         adg = self.adg
         rec = adg._agents.get(j)
-        if rec is None or rec.running is not None or not rec.pending:
+        if rec is None or (rec.running is None) == ahead:
             return None
-        head = rec.pending[0]
+        start = 0
+        if ahead:
+            for step in rec.pending:
+                if not step.claimed:
+                    break
+                start += 1
+        if start >= len(rec.pending):
+            return None
+        head = rec.pending[start]
         ver = adg.cell_version
         got = self._cands.get(j)
         if got is not None and got[0] is head and got[1] == limit \
                 and got[2] == adg.load_version \
                 and all(ver[c] == n for c, n in zip(got[3], got[4], strict=True)):
             if self.check:
-                fresh = self._candidate(j, rec, limit, [])
+                fresh = self._candidate(j, rec, limit, [], start)
                 if (fresh is None) != (got[5] is None) or fresh is not None and (
                         fresh.first, fresh.pairs) != (got[5].first, got[5].pairs):
                     raise AssertionError(f"AGV {j}: a kept candidate is out of date")
             return got[5]
         cells: list[int] = []
-        g = self._candidate(j, rec, limit, cells)
+        g = self._candidate(j, rec, limit, cells, start)
         self._cands[j] = (head, limit, adg.load_version, cells, [ver[c] for c in cells], g)
         return g
 
-    def _candidate(self, j: int, rec, limit: int, cells: list[int]) -> Group | None:
+    def _candidate(self, j: int, rec, limit: int, cells: list[int], start: int = 0
+                   ) -> Group | None:
         """:meth:`candidate` (not kept); ``cells`` gets the cells whose queues it read."""
         adg = self.adg
         queues = adg._queues
         n_steps = min(len(rec.pending), limit)
-        steps = iter(rec.pending)
+        steps = islice(rec.pending, start, None)
         pairs: list[tuple[_Visit, _Visit]] = []
-        last = 0  # j's step that leaves the group's last cell
-        k = 0
+        last = start  # j's step that leaves the group's last cell
+        k = start
         while k <= last and k < n_steps:
             for w in next(steps).enter_visits:
                 cells.append(w.cell)
@@ -185,10 +198,10 @@ class SwitchableGraph:
                 idx = q.index(w)
                 ahead = [x for x in q[:idx] if x.agv != j]
                 if w.sweep or w.shelf:
-                    if k == 0 and ahead and not adg._first(w):
+                    if k == start and ahead and not adg._first(w):
                         return None  # a turn that waits for its swept cells
                     continue
-                if k > 0 and any(x.entered for x in ahead):
+                if k > start and any(x.entered for x in ahead):
                     # a held cell: j waits there for its holder, and passes the visits
                     # behind it, if it may (else it waits for those too)
                     rest = [x for x in ahead if not x.entered]
@@ -201,8 +214,8 @@ class SwitchableGraph:
                     return None
                 pairs.append((ahead[0], w))
                 last = max(last, self.pending_index(self._step_of[id(w.leave)]))
-            if k == 0 and not pairs:
-                return None  # its next action's cells are free: nothing to switch
+            if k == start and not pairs:
+                return None  # that action's cells are free: nothing to switch
             k += 1
         if not pairs or last >= n_steps:
             return None
