@@ -157,28 +157,24 @@ class Reorderer:
         keys: dict[int, tuple] = {}
         why: dict[int, str] = {}
         on: dict[int, int] = {}
-        # standing and driving AGVs (two sets: a driving AGV does not wait) in id order
+        # standing and driving AGVs in id order (a driving one does not wait: the audit
+        # leaves it out, below)
         driving = set(self.approaching(delayed)) if self.ahead_s > 0 else set()
         for j in sorted(driving.union(cands)):
-            ahead = j in driving
-            g = self.graph.candidate(j, SEGMENT_LIMIT, ahead)
+            g = self.graph.candidate(j, SEGMENT_LIMIT, j in driving)
             if g is None:
-                if not ahead:
-                    why[j], on[j] = self._why_not(j, delayed)
+                why[j], on[j] = self._why_not(j, delayed)
                 continue
             key = self._key(g)
             if key in self._declined:
-                if not ahead:
-                    why[j] = "declined"
+                why[j] = "declined"
                 continue
             if g.pairs in self._cyclic:
-                if not ahead:
-                    why[j] = "refused"
+                why[j] = "refused"
                 continue
             ids = {id(v) for pair in g.pairs for v in pair}
             if ids & used:
-                if not ahead:
-                    why[j] = "overlap"
+                why[j] = "overlap"
                 continue
             used |= ids
             keys[j] = key
@@ -199,18 +195,18 @@ class Reorderer:
                 self._record(e, t)
                 self.stop_at_claims(sorted({u.agv for u, _ in e.group.pairs}))
             else:
-                if st.waiting[e.group.second]:
-                    why[e.group.second] = "refused"
+                why[e.group.second] = "refused"
                 if sg.refused > refused:
                     if len(self._cyclic) > 100_000:
                         self._cyclic.clear()
                     self._cyclic.add(e.group.pairs)
         for e in ests:  # declined: not again until something it depends on moves
             j = e.group.second
-            if st.waiting[j]:
-                why.setdefault(j, "switched" if j in self._switched_now else "declined")
+            why.setdefault(j, "switched" if j in self._switched_now else "declined")
             if j not in self._switched_now:
                 self._declined.add(keys[j])
+        for j in driving:
+            why.pop(j, None)
         for j in waiting:
             why.setdefault(j, "delayed")
         self._account(why, on)

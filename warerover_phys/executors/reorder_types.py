@@ -30,8 +30,9 @@ class Estimate:
     """Per AGV of the group: the AGVs waiting on it (directly or down a chain): they win
     or lose as it does."""
     brake_s: float = 0.0
-    """A driving waiting AGV (:meth:`~.reorder.Reorderer.approaching`) that would wait:
-    the time stopping and starting again would cost it (``speed / acceleration``)."""
+    """A driving candidate (:meth:`~.reorder.Reorderer.approaching`) that would wait:
+    the time stopping and starting again would cost it, ``min(wait, speed /
+    acceleration)`` (0 for a standing one)."""
 
     @property
     def cost_s(self) -> float:
