@@ -124,10 +124,10 @@ class Reorderer:
         self.milp_solves = 0
         self.milp_fallbacks = 0
         self.milp_clear = 0
+        """``milp``: lone candidates decided by the greedy rule (clear-cut)."""
         self.milp_large = 0
         """``milp``: problems decided by the greedy rule, their program over
         ``reorder_milp_max_vars``."""
-        """``milp``: lone candidates decided by the greedy rule (clear-cut)."""
         self.audit: dict[str, float] = {}
         """Simulated AGV-seconds the waiting AGVs spent, sampled at the decisions, by what
         held them: ``switched``, ``declined`` (not worth it, or declined before),
