@@ -351,18 +351,21 @@ class Reorderer:
         times[j] = sj, ej = self.times(j, max(r[4] for r in rows), t, WAIT_DEPTH)
         k0 = rows[0][3]
         wait = max(times[a][1][ko] for a, _, ko, kin, _ in rows if kin == k0) - sj[k0]
-        st = self.st
-        brake = 0.0
-        if wait > 0 and st.mode[j] == DRIVE:  # it would stop, and start again
-            brake = min(wait, float(st.speed[j] / st.amax[j]))
         costs: dict[int, float] = {}
         for a, ki, _, _, kjo in rows:
             costs[a] = max(costs.get(a, 0.0), ej[kjo] - times[a][0][ki])
         for a, c in costs.items():  # a driving AGV that now waits stops, and starts again
-            if c > 0 and st.mode[a] == DRIVE:
-                costs[a] = c + min(c, float(st.speed[a] / st.amax[a]))
+            costs[a] = c + self._restart_s(a, c)
         behind = {a: self._behind.get(a, 0) for a in times}
-        return Estimate(g, wait, costs, times, behind, brake)
+        return Estimate(g, wait, costs, times, behind, self._restart_s(j, wait))
+
+    def _restart_s(self, a: int, wait: float) -> float:
+        """What a wait of ``wait`` seconds adds for AGV ``a`` if it drives now: stopping
+        and starting again, ``min(wait, speed / acceleration)``; 0 standing or no wait."""
+        st = self.st
+        if wait <= 0 or st.mode[a] != DRIVE:
+            return 0.0
+        return min(wait, float(st.speed[a] / st.amax[a]))
 
     def _chains(self, waiting: list[int]) -> dict[int, int]:
         """Per AGV: how many waiting AGVs wait on it, directly or down a chain (each
