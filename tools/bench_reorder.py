@@ -152,7 +152,8 @@ def ci95(values: list[float]) -> tuple[float, float]:
 
 def summarise(rows: list[dict]) -> list[dict]:
     """Per (map, planner, agents, delays, options, mode): means with 95% CIs, and the
-    AET change against ``none`` on the seeds both ran (paired)."""
+    AET change against ``none`` (whose runs take no options) on the seeds both ran
+    (paired)."""
     groups: dict[tuple, dict[int, dict]] = {}
     for r in rows:
         k = (r["map"], r["planner"], r["agents"], r["delays"], r["dt_s"],
@@ -170,7 +171,7 @@ def summarise(rows: list[dict]) -> list[dict]:
         row["deadlocks"] = sum(r["deadlocks"] for r in by_seed.values())
         row["problems"] = sum(len(r["execution_problems"]) for r in by_seed.values())
         row["completed"] = all(r["completed"] for r in by_seed.values())
-        base = groups.get((*k[:6], "none"), {})
+        base = groups.get((*k[:5], "{}", "none"), {})  # (none runs take no options)
         both = sorted(set(base) & set(by_seed))
         row["aet_change_pct"] = ci95([100 * (by_seed[s]["aet_s"] / base[s]["aet_s"] - 1)
                                       for s in both]) if both else (math.nan, math.nan)

@@ -531,3 +531,63 @@ def test_in_the_lifelong_loop_no_agv_drives_towards_a_cell_not_released_to_it(
     assert bad == []
     assert checks["given_back"] > 0 and m["reorder_switches"] > 0
     assert m["agv_contacts"] == 0 and m["static_contacts"] == 0
+
+
+# --------------------------------------------------------------------- clairvoyant estimates
+
+
+def test_foresight_foretells_every_delay_the_executor_draws(plan40):
+    """``reorder_estimates: clairvoyant``: the replayed draws are the executor's delays,
+    each start and end bit for bit, and the run stays safe and in plan order."""
+    from warerover_phys.execute import parse_delays
+    from warerover_phys.gap.ideal_plan import plan_from_file
+    from warerover_phys.gap.open_loop import execute_timed
+
+    plan, _ = plan_from_file(str(REPO / "tests" / "data" / "random-32-32-10.map"),
+                             str(plan40), None)
+    spec = ExecutorSpec(name="physics", delays=parse_delays("bernoulli:0.2"),
+                        trajectory_hz=1.0, reorder="greedy",
+                        reorder_estimates="clairvoyant")
+    seen: set[tuple[int, float]] = set()
+    last: dict[int, float] = {}
+    box = {}
+
+    def spy(tick, ex):
+        box["ex"], box["t"] = ex, ex.state.sim_s
+        for a, until in enumerate(ex.state.delayed_until.tolist()):
+            if until > 0 and last.get(a) != until:
+                seen.add((a, until))
+                last[a] = until
+
+    runs = [execute_timed(plan, spec, seed=3, before_tick=spy) for _ in range(2)]
+    fore = box["ex"].follow.reorder.foresight
+    told = {(a, e) for a in range(plan.num_agents) for s, e in fore.intervals(a)
+            if s < box["t"]}  # drawn before the last look
+    assert len(seen) > 100 and told == seen
+    assert runs[0].executed == runs[1].executed
+    assert runs[0].summary["reorder_switches"] >= 1 and runs[0].summary["agv_contacts"] == 0
+    assert check_executed({i: p.states for i, p in plan.paths.items()}, runs[0].executed,
+                          plan.layout.cols) == []
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.floats(0.05, 0.5), st.floats(0, 80), st.floats(0, 30))
+def test_foresight_after_is_the_first_time_with_that_much_time_not_held(seed, p, t0, d):
+    """``DelayForesight.after(a, t0, d)``: the first time by which AGV ``a`` has had ``d``
+    seconds not held by a delay since ``t0``, against the intervals it foretells."""
+    from warerover_phys.execute import parse_delays
+    from warerover_phys.executors.delays import DelayForesight
+
+    fore = DelayForesight(np.random.default_rng(seed), parse_delays(f"bernoulli:{p}"), 3,
+                          t0_s=0.0, tick_s=1.0, dt_s=0.02)
+    for a in range(3):
+        t = fore.after(a, t0, d)
+        held = fore.intervals(a)
+
+        def free(x, y, held=held):
+            return (y - x) - sum(max(0.0, min(e, y) - max(s, x)) for s, e in held)
+
+        assert t >= t0 + d - 1e-9 and fore.horizon_s >= t
+        assert math.isclose(free(t0, t), d, abs_tol=1e-6)
+        if d > 1e-6:  # the first such time: a millisecond earlier, less is free
+            assert free(t0, t - 1e-3) < d

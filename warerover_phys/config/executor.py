@@ -127,6 +127,12 @@ class ExecutorSpec(_Model):
     delay lasts. ``milp``: the order at the switchable cells of a receding window chosen
     by a mixed-integer program (scipy ``milp``, HiGHS), greedy where it finds no optimum
     within its node limit. Every switch keeps the graph acyclic (checked)."""
+    reorder_estimates: Literal["model", "clairvoyant"] = "model"
+    """How ``greedy`` and ``milp`` estimate when AGVs pass: ``model``, the motion model
+    stretched by the share of time the random delays are expected to hold an AGV.
+    ``clairvoyant``: the motion model past the delays each AGV *will* have (the
+    executor's draws replayed ahead, ``executors/delays.py``). No fleet knows its delays
+    ahead: a diagnostic, the bound on what better estimates could win."""
     reorder_every_s: PosFloat = 0.5
     """Simulated seconds between reorder decisions (rounded up to the follower's
     decisions, every 0.1 s)."""

@@ -41,6 +41,7 @@ from . import control
 from .bodies import cell_centre
 from .control import ARRIVE_EPS_M, TURN_EPS_RAD, run_references, wrap
 from .control_nb import advance_rows
+from .delays import delay_draws
 from .fleet_state import DRIVE, HOLD, TURN, FleetState
 from .follow_sync import PlanSync
 
@@ -116,16 +117,10 @@ class PlanFollower(PlanSync):
         d = self.spec.delays
         if d.model == "none" or d.prob <= 0:
             return []
-        st, rng = self.st, self.rng
-        if d.model == "bernoulli":
-            events = rng.random(st.n) < d.prob
-        else:
-            events = rng.poisson(d.prob, st.n) > 0
-        if d.duration == "uniform":
-            ticks = rng.integers(d.min_ticks, d.max_ticks + 1, st.n)
-        else:
-            ticks = np.clip(np.rint(rng.normal(d.mean_ticks, d.std_ticks, st.n)),
-                            d.min_ticks, d.max_ticks)
+        st = self.st
+        if self.reorder is not None:
+            self.reorder.see_delays(self.rng)
+        events, ticks = delay_draws(self.rng, d, st.n)
         start = events & (st.delayed_until <= st.sim_s)
         st.delayed_until[start] = st.sim_s + ticks[start] * st.tick_s
         return [("delay", {"agv": int(i), "ticks": int(ticks[i])}) for i in np.flatnonzero(start)]

@@ -53,6 +53,7 @@ import numpy as np
 from ..planning.base import footprint_nodes
 from ..planning.motion import MotionModel, quarter_turns
 from .control import wrap
+from .delays import DelayForesight
 from .fleet_state import DRIVE, TURN
 from .reorder_types import Estimate
 from .switch import SEGMENT_LIMIT, Group, SwitchableGraph
@@ -97,6 +98,11 @@ class Reorderer:
         self.slow = slowdown(spec.delays)
         """Driving times are stretched by this factor: the share of time random delays
         are expected to hold an AGV (``executor.delays``)."""
+        self.delays = spec.delays
+        self.clairvoyant = spec.reorder_estimates == "clairvoyant"
+        self.foresight: DelayForesight | None = None
+        """``reorder_estimates: clairvoyant``: the delays to come (:meth:`see_delays`),
+        instead of :attr:`slow`."""
         self._declined: set[tuple] = set()
         self._declined_version = -1
         self._cyclic: set[tuple] = set()
@@ -359,6 +365,23 @@ class Reorderer:
         behind = {a: self._behind.get(a, 0) for a in times}
         return Estimate(g, wait, costs, times, behind, self._restart_s(j, wait))
 
+    def see_delays(self, rng: np.random.Generator) -> None:
+        """Called by the follower before each tick's delay draws from ``rng``: with
+        clairvoyant estimates the first call takes a copy of it, whose replays foretell
+        every AGV's delays (:class:`~.delays.DelayForesight`)."""
+        if self.clairvoyant and self.foresight is None:
+            st = self.st
+            self.foresight = DelayForesight(rng, self.delays, st.n, t0_s=st.sim_s,
+                                            tick_s=st.tick_s, dt_s=st.dt)
+
+    def after(self, a: int, t0: float, d: float) -> float:
+        """When AGV ``a``, free to go at ``t0``, is through ``d`` seconds of the motion
+        model's driving: ``t0 + d x`` :attr:`slow` (the share of time delays are expected
+        to hold it), or, clairvoyant, after the delays it will have in between."""
+        if self.foresight is not None:
+            return self.foresight.after(a, t0, d)
+        return t0 + d * self.slow
+
     def _restart_s(self, a: int, wait: float) -> float:
         """What a wait of ``wait`` seconds adds for AGV ``a`` if it drives now: stopping
         and starting again, ``min(wait, speed / acceleration)``; 0 standing or no wait."""
@@ -463,7 +486,7 @@ class Reorderer:
         """:meth:`times` (not memoised)."""
         st = self.st
         m = self.model(a)
-        slow = self.slow
+        after = self.after
         t0, heading, rolling = self.ready_s(a, t, depth)
         steps = [s.action for s in islice(self.adg._agents[a].pending, upto + 1)]
         holds = self.holds.get(a, {})
@@ -480,16 +503,16 @@ class Reorderer:
             hold = holds.get(steps[k].seq, 0) * st.tick_s
             if k == 0 and rolling and d == heading and not hold:
                 for q in range(n):  # going on at cruise speed, braking at the end
-                    starts.append(now + q * m.pass_s(1) * slow)
-                    ends.append(now + (q + 1) * m.pass_s(1) * slow)
-                ends[-1] += m.max_speed_mps / (2 * m.max_accel_mps2) * slow
+                    starts.append(after(a, now, q * m.pass_s(1)))
+                    ends.append(after(a, now, (q + 1) * m.pass_s(1)))
+                ends[-1] = after(a, ends[-1], m.max_speed_mps / (2 * m.max_accel_mps2))
                 now = ends[-1]
             else:
-                now += hold + m.turn_s(quarter_turns(heading, d)) * slow
+                now = after(a, now + hold, m.turn_s(quarter_turns(heading, d)))
                 for q in range(n):
-                    starts.append(now + m.reach_s(q, n) * slow)
-                    ends.append(now + m.reach_s(q + 1, n) * slow)
-                now += m.run_s(n) * slow
+                    starts.append(after(a, now, m.reach_s(q, n)))
+                    ends.append(after(a, now, m.reach_s(q + 1, n)))
+                now = after(a, now, m.run_s(n))
             heading = d
             k += n
         return starts, ends
