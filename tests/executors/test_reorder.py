@@ -123,8 +123,9 @@ def test_a_delayed_driving_agv_gives_back_the_claims_beyond_its_braking():
     assert (sw["first"], sw["then"]) == (1, 0) and [0, 3] in sw["cells"]
     assert plain.last_finish[1] - greedy.last_finish[1] > 5.0
     assert greedy.summary()["agv_contacts"] == 0 == plain.summary()["agv_contacts"]
-    # AGV 0 stopped on (0, 1), short of the cells it gave back, and finished its plan
-    assert greedy.adg.done(0) and greedy.last_finish[0] >= plain.last_finish[0] - 1e-9
+    # AGV 0 stopped on (0, 1), short of the cells it gave back, and finished its plan no
+    # sooner (to within the rounding of a run started again: 1e-8 s)
+    assert greedy.adg.done(0) and greedy.last_finish[0] >= plain.last_finish[0] - 1e-6
     # Without the delay AGV 0 passes first as planned: nothing to switch
     assert switches(corridor("greedy", 0.0, paths=CROSS)) == []
     # Claims given back but nothing switched: the plain graph's motion to the last digit

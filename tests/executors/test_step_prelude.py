@@ -8,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from warerover_phys.executors.control import OFF_REFERENCE_M
+from warerover_phys.executors.delays import held
 from warerover_phys.executors.fleet_state import DRIVE, FleetState
 from warerover_phys.executors.step_kernels import step_prelude
 
@@ -32,9 +33,9 @@ def test_step_prelude_equals_numpy(n, seed):
     injected, delayed = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
     off, ref0 = np.empty(n, dtype=bool), np.empty((n, 2))
     step_prelude(pos, fs.mode, fs.s_ref, fs.origin, fs.direction, fs.hold_xy,
-                 fs.delayed_until, fs.failed, contact_until, t, OFF_REFERENCE_M,
+                 fs.delayed_until, fs.failed, contact_until, t, 0.02, OFF_REFERENCE_M,
                  injected, delayed, off, ref0)
-    want_inj = fs.delayed_until > t
+    want_inj = held(fs.delayed_until, t, 0.02)
     want_off = (fs.mode == DRIVE) & (fs.s_ref - fs.along(pos) > OFF_REFERENCE_M)
     want_delayed = want_inj | fs.failed | (contact_until > t) | want_off
     assert (injected == want_inj).all() and (off == want_off).all()

@@ -15,7 +15,7 @@ from rich.table import Table
 from ..errors import WareroverError
 from ..util.console import err_console, fail_os
 from ..util.console import fail as _fail
-from .options import ReorderOpt, _check_video_out
+from .options import ReorderOpt, _check_video_out, warn_incomplete
 
 
 def execute(floor: Annotated[Path, typer.Argument(
@@ -80,6 +80,7 @@ def execute(floor: Annotated[Path, typer.Argument(
     except OSError as err:
         fail_os(err)
     m = result.metrics
+    warn_incomplete(m["completed"], m["ticks"], "10x the plan's makespan + 100")
     if json_out:
         typer.echo(json.dumps(m, indent=2, sort_keys=True, default=float))
         return

@@ -19,6 +19,7 @@ from ..gap.core import check_agv_ids
 from ..inputs import check_seed
 from ..util.console import err_console, fail_os
 from ..util.console import fail as _fail
+from .options import warn_incomplete
 
 __all__ = ["run_gap"]
 
@@ -486,6 +487,8 @@ def _plan_gap(floor: Path, plan: Path, fmt: str | None, yx: bool, fleet: Path | 
         g = plan_gap(floor, plan, fleet=fleet, fmt=fmt, xy=not yx, delays=delays,
                      tick_s=tick_s, dt_s=dt_s, seed=seed, timing=timing, agvs=agvs or (),
                      progress=update, reorder=reorder)
+    warn_incomplete(g.report["completed"], g.report["physics"]["ticks_run"],
+                    "10x the plan's makespan + 200")
     _print_repairs(g.report)
     if video is not None:
         _video(g, video, f"plan {plan.name}", show, ghost)

@@ -107,6 +107,16 @@ class _Bar:
             self._bar.__exit__(*exc)
 
 
+def warn_incomplete(completed: bool, ticks: int, limit: str) -> None:
+    """On stderr: an open-loop run stopped at its tick limit (``limit``, in words)
+    before every AGV finished its plan; its figures for those AGVs are missing."""
+    if not completed:
+        err_console.print(f"warning: the execution stopped at its tick limit ({ticks} ticks: "
+                          f"{limit}) before every AGV finished its plan; figures that need "
+                          "an AGV's finish are missing (NaN or null) for those that did not",
+                          highlight=False, markup=False)
+
+
 def _show_progress(quiet: bool, json_out: bool = False) -> bool:
     return not quiet and not json_out and err_console.is_terminal
 

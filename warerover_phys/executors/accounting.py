@@ -33,6 +33,7 @@ import numpy as np
 
 from .bodies import AGV, OBSTACLE, SHELF, SHELF_SIDE
 from .causes import CauseRecorder
+from .delays import held
 from .fleet_state import DRIVE, HOLD, TURN, FleetState
 from .measured import ClearanceMonitor, LimitMonitor
 from .recording import (
@@ -259,7 +260,7 @@ class Accounting:
         state[st.mode == TURN] = TURNING
         state[st.mode == DRIVE] = DRIVING
         if injected is None:
-            injected = st.delayed_until > st.sim_s
+            injected = held(st.delayed_until, st.sim_s, st.dt)
         state[injected & (~hold | st.has_next)] = DELAYED
         state[st.failed] = X_FAILED
         state[(st.hold_until > mid) & (st.last_finish <= mid)] = WORKING

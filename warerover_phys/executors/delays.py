@@ -8,14 +8,13 @@ to come are known to whoever holds a copy of the generator:
 (``executor.reorder_estimates: clairvoyant``, :mod:`.reorder`), a bound on what better
 estimates could win. No real fleet knows its delays ahead.
 
-The clock (found 2026-11-29, not changed): the executor's clock is a sum of ``dt_s``
-steps and a delay of ``k`` ticks ends at its start plus ``k x tick_s``, so on the tick it
-ends the clock is often a few 1e-14 s short of that end. Then the AGV stays held one
-physics step more, and no new delay can start on that tick. On one seed's draws (400
-AGVs, 700 ticks, bernoulli 0.1, 1 to 10 ticks) the clock fell short at 13,794 of 18,774
-delay ends, and 18,523 delays started; a rule that compares to within 1e-9 s starts
-19,406 (4.8% more). Every figure measured with delays so far has this rule;
-:class:`DelayForesight` replays it as it is.
+A delay of ``k`` ticks holds an AGV for ``k x tick_s`` seconds: the physics steps that
+start before its end, by more than half a step (:func:`held`). The executor's clock is a
+sum of ``dt_s`` steps, a few 1e-14 s off a tick's multiple after a while; compared
+exactly, a delay often ended a few 1e-14 s after the clock's tick, held its AGV one step
+more and let no new delay start on that tick (until 2026-11-29: on one seed's draws,
+400 AGVs, 700 ticks, bernoulli 0.1, 1 to 10 ticks, 13,794 of 18,774 ends, and 18,523
+delays started instead of 19,406).
 """
 
 from __future__ import annotations
@@ -28,7 +27,15 @@ import numpy as np
 if TYPE_CHECKING:
     from ..config import DelaySpec
 
-__all__ = ["delay_draws", "DelayForesight"]
+__all__ = ["delay_draws", "held", "DelayForesight"]
+
+
+def held(until: np.ndarray | float, t: float, dt: float) -> np.ndarray | bool:
+    """Whether a delay that ends at ``until`` holds its AGV in the physics step that
+    starts at ``t`` (length ``dt``): it ends more than half a step later. A delay that
+    ends at a tick's time holds its AGV exactly until that tick's first step, whatever
+    the clock's rounding; a new delay may start on that tick."""
+    return until > t + 0.5 * dt
 
 
 def delay_draws(rng: np.random.Generator, d: DelaySpec, n: int
@@ -53,8 +60,7 @@ class DelayForesight:
     """The delays each AGV will have: replays :func:`delay_draws` on a copy of the
     executor's generator, taken before the tick whose simulated time is ``t0_s``, one
     draw a tick (``tick_s``) as the executor makes them, its clock advanced as the
-    executor's is (``steps_per_tick`` additions of ``dt_s``; a delay may start the tick
-    the previous one ends only if the clock says so, bit for bit). Drawn ahead in
+    executor's is (``steps_per_tick`` additions of ``dt_s``, and :func:`held` on it). Drawn ahead in
     chunks as far as it is asked about."""
 
     CHUNK = 512
@@ -85,7 +91,7 @@ class DelayForesight:
                     self._t = self._t + self._dt
             self._first = False
             events, ticks = delay_draws(self._rng, self._d, self._n)
-            start = events & (self._until <= self._t)
+            start = events & ~held(self._until, self._t, self._dt)
             self._until[start] = self._t + ticks[start] * self._tick
             for a in np.flatnonzero(start).tolist():
                 self._iv[a].append((self._t, float(self._until[a])))

@@ -41,7 +41,7 @@ from . import control
 from .bodies import cell_centre
 from .control import ARRIVE_EPS_M, TURN_EPS_RAD, run_references, wrap
 from .control_nb import advance_rows
-from .delays import delay_draws
+from .delays import delay_draws, held
 from .fleet_state import DRIVE, HOLD, TURN, FleetState
 from .follow_sync import PlanSync
 
@@ -121,7 +121,7 @@ class PlanFollower(PlanSync):
         if self.reorder is not None:
             self.reorder.see_delays(self.rng)
         events, ticks = delay_draws(self.rng, d, st.n)
-        start = events & (st.delayed_until <= st.sim_s)
+        start = events & ~held(st.delayed_until, st.sim_s, st.dt)
         st.delayed_until[start] = st.sim_s + ticks[start] * st.tick_s
         return [("delay", {"agv": int(i), "ticks": int(ticks[i])}) for i in np.flatnonzero(start)]
 

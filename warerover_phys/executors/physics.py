@@ -250,7 +250,7 @@ class PhysicsExecutor:
         injected, delayed, ref0 = self._step_bufs  # (used within the step only)
         off = np.empty(n, dtype=bool)  # (kept as _off until the next step)
         step_prelude(raw, st.mode, st.s_ref, st.origin, st.direction, st.hold_xy,
-                     st.delayed_until, st.failed, self.contact_until, t, OFF_REFERENCE_M,
+                     st.delayed_until, st.failed, self.contact_until, t, st.dt, OFF_REFERENCE_M,
                      injected, delayed, off, ref0)
         self._off_reference_events(off, raw)
         self.follow.advance(raw, raw_ang, delayed, decide)

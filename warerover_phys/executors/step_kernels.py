@@ -290,14 +290,15 @@ def obstacle_reach(pos, ang, half, shelf_half, margin, skip, sat, cell_m, rows, 
 
 @njit(cache=True)
 def step_prelude(pos, mode, s_ref, origin, direction, hold_xy, delayed_until, failed,
-                 contact_until, t, off_m, injected, delayed, off, ref0):
+                 contact_until, t, dt, off_m, injected, delayed, off, ref0):
     """The start of a physics step, per AGV, as :meth:`.physics.PhysicsExecutor.
-    _physics_step` computed it with numpy: ``injected`` (an injected delay holds it),
+    _physics_step` computed it with numpy: ``injected`` (an injected delay holds it in
+    the step from ``t`` to ``t + dt``, :func:`.delays.held`),
     ``off`` (driving, more than ``off_m`` behind its reference along the run:
     ``s_ref - along``), ``delayed`` (injected, failed, braking after a contact, or off)
     and ``ref0`` (:meth:`.fleet_state.FleetState.ref_xy`)."""
     for i in range(len(mode)):
-        inj = delayed_until[i] > t
+        inj = delayed_until[i] > t + 0.5 * dt
         injected[i] = inj
         along = (pos[i, 0] - origin[i, 0]) * direction[i, 0] \
             + (pos[i, 1] - origin[i, 1]) * direction[i, 1]
