@@ -30,6 +30,7 @@ from .execute import (  # noqa: F401
 from .options import (  # noqa: F401
     ExecOpt,
     FpsOpt,
+    MaxTicksOpt,
     OrdersOpt,
     PlanOpt,
     ReorderOpt,
@@ -117,6 +118,7 @@ def gap(scenario: Annotated[Path, typer.Argument(
             "--ghost/--no-ghost", help="--video: also draw each AGV's planned pose (the "
                                        "plan's timing) as a ghost.")] = False,
         reorder: ReorderOpt = None,
+        max_ticks: MaxTicksOpt = None,
         set_: SetOpt = None, scheduler: SchedOpt = None, planner: PlanOpt = None,
         orders: OrdersOpt = None) -> None:
     """The sim-to-real gap. Open loop (default): the plan of the ideal grid run (or --plan
@@ -128,7 +130,7 @@ def gap(scenario: Annotated[Path, typer.Argument(
     run_gap(scenario=scenario, mode=mode, seed=seed, seeds=seeds, workers=workers, out=out,
             json_out=json_out, plan=plan, fmt=fmt, yx=yx, fleet=fleet, delays=delays,
             tick_s=tick_s, dt_s=dt_s, agvs=agvs, pictures=pictures, quiet=quiet, video=video,
-            ghost=ghost, timing=timing, reorder=reorder,
+            ghost=ghost, timing=timing, reorder=reorder, max_ticks=max_ticks,
             overrides=lambda: _scenario(scenario, [*(set_ or []), *(
                 [f"executor.reorder={reorder}"] if reorder else [])], seed, scheduler,
                 planner, None, orders))

@@ -15,7 +15,7 @@ from rich.table import Table
 from ..errors import WareroverError
 from ..util.console import err_console, fail_os
 from ..util.console import fail as _fail
-from .options import ReorderOpt, _check_video_out, warn_incomplete
+from .options import MaxTicksOpt, ReorderOpt, _check_video_out, check_max_ticks, warn_incomplete
 
 
 def execute(floor: Annotated[Path, typer.Argument(
@@ -63,16 +63,19 @@ def execute(floor: Annotated[Path, typer.Argument(
                               "robot=diffdrive: no_slip and wheel limits, as a "
                               "scenario's robot: diffdrive")] = None,
             reorder: ReorderOpt = None,
+            max_ticks: MaxTicksOpt = None,
             ) -> None:
     """Execute a plan made elsewhere exactly as written (no scheduler, no replanning) on
     the physics or grid executor; write metrics, events, paths and trajectories."""
     try:
+        check_max_ticks(max_ticks)
         job = _prepare(floor, plan, fmt=fmt, yx=yx, fleet=fleet, executor=executor, seed=seed,
                        delays=delays, strict=strict, tick_s=tick_s, dt_s=dt_s, out=out,
                        video=video, export=export, export_format=export_format, sets=sets,
                        reorder=reorder)
         result = _execute(job, executor=executor, seed=seed, tick_s=tick_s, dt_s=dt_s,
-                          show=not quiet and not json_out and err_console.is_terminal)
+                          show=not quiet and not json_out and err_console.is_terminal,
+                          max_ticks=max_ticks)
         files = _write(job, result, plan=plan, executor=executor, tick_s=tick_s, video=video,
                        export=export, export_format=export_format)
     except WareroverError as err:
@@ -80,7 +83,8 @@ def execute(floor: Annotated[Path, typer.Argument(
     except OSError as err:
         fail_os(err)
     m = result.metrics
-    warn_incomplete(m["completed"], m["ticks"], "10x the plan's makespan + 100")
+    warn_incomplete(m["completed"], m["ticks"], "--max-ticks" if max_ticks else
+                    "10x the plan's makespan + 100")
     if json_out:
         typer.echo(json.dumps(m, indent=2, sort_keys=True, default=float))
         return
@@ -166,7 +170,8 @@ def _prepare(floor: Path, plan: Path, *, fmt, yx, fleet, executor, seed, delays,
     return _Job(out_dir, delay_spec, options, layout, types, the_plan, given, repairs)
 
 
-def _execute(job: _Job, *, executor: str, seed: int, tick_s: float, dt_s: float, show: bool):
+def _execute(job: _Job, *, executor: str, seed: int, tick_s: float, dt_s: float, show: bool,
+             max_ticks: int | None = None):
     """The plan on the executor, with a progress bar on a terminal (``show``)."""
     from ..execute import execute_plan
 
@@ -180,10 +185,11 @@ def _execute(job: _Job, *, executor: str, seed: int, tick_s: float, dt_s: float,
             return execute_plan(job.the_plan, job.layout, job.types, executor=executor,
                                 seed=seed, delays=job.delay_spec, tick_s=tick_s, dt_s=dt_s,
                                 repairs=job.repairs, given=job.given, options=job.options,
+                                max_ticks=max_ticks,
                                 progress=lambda t, h: bar.update(task, completed=t))
     return execute_plan(job.the_plan, job.layout, job.types, executor=executor, seed=seed,
                         delays=job.delay_spec, tick_s=tick_s, dt_s=dt_s, repairs=job.repairs,
-                        given=job.given, options=job.options)
+                        given=job.given, options=job.options, max_ticks=max_ticks)
 
 
 def _write(job: _Job, result, *, plan: Path, executor: str, tick_s: float,

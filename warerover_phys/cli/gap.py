@@ -19,7 +19,7 @@ from ..gap.core import check_agv_ids
 from ..inputs import check_seed
 from ..util.console import err_console, fail_os
 from ..util.console import fail as _fail
-from .options import warn_incomplete
+from .options import check_max_ticks, warn_incomplete
 
 __all__ = ["run_gap"]
 
@@ -51,9 +51,13 @@ def run_gap(*, scenario: Path, mode: str, seed: int | None, seeds: str | None,
             tick_s: float, dt_s: float, agvs: str | None, pictures: bool, quiet: bool,
             overrides: Callable[[], Any], timing: str | None = None,
             video: Path | None = None, ghost: bool = False,
-            reorder: str | None = None) -> None:
+            reorder: str | None = None, max_ticks: int | None = None) -> None:
     """See ``warerover gap --help``."""
     try:
+        check_max_ticks(max_ticks)
+        if max_ticks is not None and plan is None:
+            raise WareroverError("--max-ticks limits the execution of a --plan only "
+                                 f"(got --max-ticks {max_ticks} without --plan)")
         if reorder is not None:
             from ..execute import check_reorder
 
@@ -78,7 +82,7 @@ def run_gap(*, scenario: Path, mode: str, seed: int | None, seeds: str | None,
                                      "--mode closed nor --seeds")
             return _plan_gap(scenario, plan, fmt, yx, fleet, delays, tick_s, dt_s, seed or 0,
                              out, json_out, picked, pictures, quiet, timing or "unit", video,
-                             ghost, reorder or "none")
+                             ghost, reorder or "none", max_ticks)
         sc = _with_timing(overrides(), timing, mode)
         if seeds is not None:
             from ..gap.stats import parse_seeds
@@ -473,7 +477,7 @@ def _plan_gap(floor: Path, plan: Path, fmt: str | None, yx: bool, fleet: Path | 
               delays: str | None, tick_s: float, dt_s: float, seed: int, out: Path | None,
               json_out: bool, agvs: list[int] | None, pictures: bool, quiet: bool,
               timing: str = "unit", video: Path | None = None, ghost: bool = False,
-              reorder: str = "none") -> None:
+              reorder: str = "none", max_ticks: int | None = None) -> None:
     from ..gap.core import plan_gap
 
     if not (math.isfinite(tick_s) and tick_s > 0):
@@ -486,9 +490,9 @@ def _plan_gap(floor: Path, plan: Path, fmt: str | None, yx: bool, fleet: Path | 
     with bar:
         g = plan_gap(floor, plan, fleet=fleet, fmt=fmt, xy=not yx, delays=delays,
                      tick_s=tick_s, dt_s=dt_s, seed=seed, timing=timing, agvs=agvs or (),
-                     progress=update, reorder=reorder)
+                     progress=update, reorder=reorder, max_ticks=max_ticks)
     warn_incomplete(g.report["completed"], g.report["physics"]["ticks_run"],
-                    "10x the plan's makespan + 200")
+                    "--max-ticks" if max_ticks else "10x the plan's makespan + 200")
     _print_repairs(g.report)
     if video is not None:
         _video(g, video, f"plan {plan.name}", show, ghost)

@@ -18,6 +18,9 @@ SeedOpt = Annotated[int | None, typer.Option(help="Episode seed (overrides the f
 ReorderOpt = Annotated[str | None, typer.Option(
     help="Physics: reorder the dependency graph under delays: none | greedy | milp "
          "(executor.reorder).")]
+MaxTicksOpt = Annotated[int | None, typer.Option(
+    "--max-ticks", help="Stop the execution after this many ticks (default: 10x the plan's "
+                        "makespan + 100 for execute, + 200 for gap --plan).")]
 SchedOpt = Annotated[str | None, typer.Option(help="Scheduler: ta | rd.")]
 PlanOpt = Annotated[str | None, typer.Option(help="Planner: astar | cbs | pibt | lacam | learned | plug-in.")]
 ExecOpt = Annotated[str | None, typer.Option(help="Executor: grid | physics | plug-in.")]
@@ -107,14 +110,22 @@ class _Bar:
             self._bar.__exit__(*exc)
 
 
+def check_max_ticks(max_ticks: int | None) -> None:
+    """``--max-ticks``: a whole number of ticks from 1 to ``MAX_TICKS``, or not given."""
+    from ..config.types import MAX_TICKS
+
+    if max_ticks is not None and not 1 <= max_ticks <= MAX_TICKS:
+        raise WareroverError(f"--max-ticks must be from 1 to {MAX_TICKS:,} (got {max_ticks})")
+
+
 def warn_incomplete(completed: bool, ticks: int, limit: str) -> None:
     """On stderr: an open-loop run stopped at its tick limit (``limit``, in words)
     before every AGV finished its plan; its figures for those AGVs are missing."""
     if not completed:
         err_console.print(f"warning: the execution stopped at its tick limit ({ticks} ticks: "
                           f"{limit}) before every AGV finished its plan; figures that need "
-                          "an AGV's finish are missing (NaN or null) for those that did not",
-                          highlight=False, markup=False)
+                          "an AGV's finish are missing (NaN or null) for those that did not "
+                          "(--max-ticks sets the limit)", highlight=False, markup=False)
 
 
 def _show_progress(quiet: bool, json_out: bool = False) -> bool:

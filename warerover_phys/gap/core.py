@@ -155,13 +155,14 @@ def plan_gap(floor, plan_file, *, fleet=None, fmt: str | None = None, xy: bool =
              seed: int = 0, strict: bool = False, trajectory_hz: float = 10.0,
              timing: str = "unit", agvs: Sequence[int] = (),
              progress: Callable[[str, int, int], None] | None = None,
-             reorder: str = "none") -> OpenLoopGap:
+             reorder: str = "none", max_ticks: int | None = None) -> OpenLoopGap:
     """The open-loop gap of an imported MAPF plan (any format ``warerover execute`` reads,
     validated and cycle-repaired alike) on ``floor``: the plan's timesteps are the planned
     side (``timing`` ``motion``: its motion-timed schedule), its execution on physics the
     executed side (no dwells). ``agvs``: ids the caller will draw, each checked to be one of
     the plan's agents before anything runs. ``reorder``: ``executor.reorder`` of the
-    execution."""
+    execution. ``max_ticks``: where the execution stops (None: 10x the plan's makespan +
+    200 ticks)."""
     from ..config import ExecutorSpec
     from ..execute import parse_delays
     from .ideal_plan import plan_from_file
@@ -173,7 +174,8 @@ def plan_gap(floor, plan_file, *, fleet=None, fmt: str | None = None, xy: bool =
     check_agv_ids(agvs, plan.num_agents, str(plan_file))
     spec = ExecutorSpec(name="physics", dt_s=dt_s, delays=parse_delays(delays),
                         trajectory_hz=trajectory_hz, reorder=reorder)
-    run = execute_timed(plan, spec, seed=seed, progress=None if progress is None else
+    run = execute_timed(plan, spec, seed=seed, max_ticks=max_ticks,
+                        progress=None if progress is None else
                         lambda t, h: progress("physics", t, h))
     report, agents, actions = open_loop_report(run)
     report, agents, actions, sched = _timed(report, agents, actions, plan, timing, spec)
