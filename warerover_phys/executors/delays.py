@@ -60,8 +60,8 @@ class DelayForesight:
     """The delays each AGV will have: replays :func:`delay_draws` on a copy of the
     executor's generator, taken before the tick whose simulated time is ``t0_s``, one
     draw a tick (``tick_s``) as the executor makes them, its clock advanced as the
-    executor's is (``steps_per_tick`` additions of ``dt_s``, and :func:`held` on it). Drawn ahead in
-    chunks as far as it is asked about."""
+    executor's is (``steps_per_tick`` additions of ``dt_s``, and :func:`held` on it).
+    Drawn ahead in chunks as far as it is asked about."""
 
     CHUNK = 512
     """Ticks drawn at a time."""
