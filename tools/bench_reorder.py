@@ -5,8 +5,10 @@ reordering; AET, executed makespan and dependency waits with 95% confidence inte
 Plans (made once, kept in ``--plans``): the project's LaCAM (``warerover solve``), LaCAM
 with ``--refine`` (large-neighbourhood search until the time limit) and the reference C++
 lacam3 (``--lacam3 BIN``, run ``-t SECONDS --no-star``), for the first N agents of
-``<map>-random-1.scen`` (``../shared/data/movingai``). Each run executes a plan as
-``warerover gap --plan`` does (:func:`warerover_phys.gap.open_loop.execute_timed`, physics,
+``<map>-random-1.scen`` (``../shared/data/movingai``; ``--scens 2 3``: of
+``-random-2.scen`` and ``-random-3.scen`` too, labelled ``warehouse-r2``, ...; a plan the
+loader cannot repair for execution is skipped, with the reason). Each run executes a plan
+as ``warerover gap --plan`` does (:func:`warerover_phys.gap.open_loop.execute_timed`, physics,
 dt 0.02 s) with delays ``MODEL:PROB`` (1-10 ticks, uniform) and seed ``s``; the same seed
 draws the same delays in every mode until the modes' executions part. A run stops at
 ``MAX_TICKS_PER_PLAN_TICK`` (40) times the plan's makespan + 200 ticks, not at ``gap``'s
@@ -55,9 +57,17 @@ FIGURES = ("aet_s", "makespan_s", "dependency_wait_s_per_agv", "reorder_gain_s_p
            "real_time_factor", "wall_s", "cpu_s")
 
 
-def map_files(name: str, data: Path) -> tuple[Path, Path]:
+def instance(name: str, scen: int) -> str:
+    """The label of a map and scenario file: ``warehouse`` for ``-random-1.scen``,
+    ``warehouse-r2`` for ``-random-2.scen``."""
+    return name if scen == 1 else f"{name}-r{scen}"
+
+
+def map_files(label: str, data: Path) -> tuple[Path, Path]:
+    name, _, scen = label.partition("-r")
     base = MAPS[name]
-    return data / "maps" / f"{base}.map", data / "scen-random" / f"{base}-random-1.scen"
+    return (data / "maps" / f"{base}.map",
+            data / "scen-random" / f"{base}-random-{scen or 1}.scen")
 
 
 def make_plan(name: str, planner: str, agents: int, folder: Path, data: Path,
@@ -85,6 +95,20 @@ def make_plan(name: str, planner: str, agents: int, folder: Path, data: Path,
         out.unlink(missing_ok=True)
         return None
     return out
+
+
+def executable(plan_file: Path, map_file: Path) -> bool:
+    """Whether the plan loads for execution (a rotation of AGVs that the loader's repair
+    cannot detour does not); if not, say why on stderr."""
+    from warerover_phys.errors import WareroverError
+    from warerover_phys.gap.ideal_plan import plan_from_file
+
+    try:
+        plan_from_file(map_file, plan_file, None)
+    except WareroverError as e:
+        print(f"skipped, not executable: {e}", file=sys.stderr)
+        return False
+    return True
 
 
 MAX_TICKS_PER_PLAN_TICK = 40
@@ -258,6 +282,34 @@ def print_audit(rows: list[dict]) -> None:
             *(_pm(ci95([b[n] for b in by])) for n in names))))
 
 
+def print_pooled(rows: list[dict]) -> None:
+    """ΔAET against ``none`` per (map, planner, agents, delays, options, mode) pooled over
+    the scenario files (``warehouse``, ``warehouse-r2``, ...): the mean and 95% CI over
+    every (scenario, seed) pair, the instances' own means, and the pairs at -10% or
+    better."""
+    base = {(r["map"], r["planner"], r["agents"], r["delays"], r["dt_s"], r["seed"]): r
+            for r in rows if r["mode"] == "none"}
+    groups: dict[tuple, dict[str, list[float]]] = {}
+    for r in rows:
+        b = base.get((r["map"], r["planner"], r["agents"], r["delays"], r["dt_s"], r["seed"]))
+        if r["mode"] == "none" or b is None:
+            continue
+        k = (r["map"].partition("-r")[0], r["planner"], r["agents"], r["delays"],
+             json.dumps(r["options"], sort_keys=True), r["mode"])
+        groups.setdefault(k, {}).setdefault(r["map"], []).append(
+            100 * (r["aet_s"] / b["aet_s"] - 1))
+    head = ("map", "planner", "N", "delays", "options", "mode", "scenarios", "pairs",
+            "dAET vs none (%)", "per scenario (%)", "pairs at -10%")
+    print(" | ".join(head))
+    print(" | ".join("---" for _ in head))
+    for k, by in sorted(groups.items()):
+        every = [d for ds in by.values() for d in ds]
+        per = ", ".join(f"{m}: {np.mean(ds):.1f}" for m, ds in sorted(by.items()))
+        print(" | ".join(str(x) for x in (
+            *k, len(by), len(every), _pm(ci95(every)), per,
+            sum(round(d, 9) <= -10 for d in every))))
+
+
 def load_rows(path: Path) -> list[dict]:
     if not path.exists():
         return []
@@ -285,6 +337,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--agents", nargs="+", type=int, default=[100, 400, 1000],
                     help="agent counts (room-32-32-4 takes those <= --room-max)")
     ap.add_argument("--room-max", type=int, default=200)
+    ap.add_argument("--scens", nargs="+", type=int, default=[1],
+                    help="the MovingAI random scenario files, by number (default 1)")
     ap.add_argument("--planners", nargs="+", default=list(PLANNERS), choices=PLANNERS)
     ap.add_argument("--delays", nargs="+", default=[
         "bernoulli:0.05", "bernoulli:0.1", "bernoulli:0.2", "poisson:0.1"])
@@ -303,6 +357,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--table", action="store_true", help="only print the table of --out")
     ap.add_argument("--audit", action="store_true",
                     help="also print where the dependency wait goes (runs with an audit)")
+    ap.add_argument("--pool", action="store_true",
+                    help="also print the AET change pooled over the scenario files")
     ap.add_argument("--json", type=Path, help="also write the summary here")
     ap.add_argument("--more", type=Path, nargs="*", default=[],
                     help="more run files for the table (batches run side by side)")
@@ -310,14 +366,14 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if not args.table:
         plans = {}
-        for name in args.maps:
+        for name in [instance(m, s) for m in args.maps for s in args.scens]:
             for n in args.agents:
-                if name == "room" and n > args.room_max:
+                if name.startswith("room") and n > args.room_max:
                     continue
                 for planner in args.planners:
                     f = make_plan(name, planner, n, args.plans, args.data, args.lacam3,
                                   args.plan_time)
-                    if f is not None:
+                    if f is not None and executable(f, map_files(name, args.data)[0]):
                         plans[(name, planner, n)] = f
         done = {key_of(r) for r in load_rows(args.out)}
         todo = [j for j in jobs_for(args, plans) if key_of(j) not in done]
@@ -341,6 +397,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.audit:
         print()
         print_audit(rows)
+    if args.pool:
+        print()
+        print_pooled(rows)
     if args.json:
         args.json.write_text(json.dumps(summary, indent=1, sort_keys=True, default=float))
     return 0
