@@ -2,18 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from tool_helpers import load_tool
 
 
 def test_bench_deadline_runs_and_writes_its_figures(tmp_path, capsys):
-    spec = importlib.util.spec_from_file_location("bench_deadline",
-                                                  ROOT / "tools" / "bench_deadline.py")
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_tool("bench_deadline")
     out = tmp_path / "d.json"
     assert bench.main(["--agents", "20", "--limit", "0.5", "--runs", "2", "--json",
                        str(out)]) == 0

@@ -4,25 +4,19 @@ one, built from ../shared/reference/lacam3, under -m slow)."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import shutil
 import stat
-from pathlib import Path
 
 import numpy as np
 import pytest
+from tool_helpers import load_tool
 
 from warerover_phys.planning.oneshot.core import OneShotResult, write_plan
 
-ROOT = Path(__file__).resolve().parents[1]
-
 
 def load_bench():
-    spec = importlib.util.spec_from_file_location("bench_mapf", ROOT / "tools" / "bench_mapf.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_tool("bench_mapf")
 
 
 bench = load_bench()

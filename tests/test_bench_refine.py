@@ -3,19 +3,13 @@ same plan for the same seed and iteration count."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from tool_helpers import load_tool
 
 
 def load_bench():
-    spec = importlib.util.spec_from_file_location("bench_refine",
-                                                  ROOT / "tools" / "bench_refine.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_tool("bench_refine")
 
 
 def test_bench_refine_validates_and_repeats(tmp_path):

@@ -3,21 +3,13 @@ the reason, and the AET change pooled over scenario files."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import pytest
-
-ROOT = Path(__file__).resolve().parents[1]
+from tool_helpers import load_tool
 
 
 @pytest.fixture(scope="module")
 def bench():
-    spec = importlib.util.spec_from_file_location("bench_reorder",
-                                                  ROOT / "tools" / "bench_reorder.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_tool("bench_reorder")
 
 
 def test_scenario_labels_name_the_scenario_files(bench, tmp_path):

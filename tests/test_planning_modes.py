@@ -3,25 +3,18 @@
 
 from __future__ import annotations
 
-import importlib.util
 import math
-from pathlib import Path
 
 import pytest
+from tool_helpers import load_tool
 
 from warerover_phys import load_scenario
 from warerover_phys.gap.open_loop import MOTION_UNIT_KEYS
 from warerover_phys.gap.stats import seed_gap
 
-ROOT = Path(__file__).resolve().parent.parent
-
 
 def _tool():
-    spec = importlib.util.spec_from_file_location("planning_modes",
-                                                  ROOT / "tools" / "planning_modes.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_tool("planning_modes")
 
 
 pm = _tool()
